@@ -1,0 +1,604 @@
+//! The case-file expression language: data f1, f2, g and exact solutions as functions of (x, y).
+//!
+//! Grammar (documented for users in `data/cases/README.md`; `reference/expr.py` mirrors it):
+//!
+//! ```text
+//! expr  := or
+//! or    := and ("||" and)*          -- boolean
+//! and   := cmp ("&&" cmp)*          -- boolean
+//! cmp   := sum [("<"|"<="|">"|">=") sum]
+//! sum   := prod (("+"|"-") prod)*
+//! prod  := unary (("*"|"/") unary)*
+//! unary := ("-"|"+") unary | power
+//! power := atom ["^" unary]         -- right-associative, -x^2 = -(x^2)
+//! atom  := number | x | y | pi | name "(" args ")" | "(" expr ")"
+//! ```
+//!
+//! Functions: sqrt, exp, log (natural), sin, cos, abs (one argument), min, max (two),
+//! and the piecewise form `if(condition, a, b)`. All arithmetic is in f64: `1/2` is 0.5.
+//!
+//! The language is this small on purpose: the Python reference must evaluate it identically (as UFL
+//! at quadrature points and as NumPy at vertices), which rules out general-purpose evaluators whose
+//! semantics differ (integer division, base-10 `log`, implicit variable ordering).
+
+use std::fmt;
+
+/// A parse or type error, with the byte offset where it was found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExprError {
+    pub position: usize,
+    pub message: String,
+}
+
+impl fmt::Display for ExprError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} (at character {})", self.message, self.position + 1)
+    }
+}
+
+impl std::error::Error for ExprError {}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Unary {
+    Neg,
+    Sqrt,
+    Exp,
+    Log,
+    Sin,
+    Cos,
+    Abs,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Binary {
+    Add,
+    Sub,
+    Mul,
+    Div,
+    Pow,
+    Min,
+    Max,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Compare {
+    Lt,
+    Le,
+    Gt,
+    Ge,
+}
+
+/// A numeric expression tree.
+#[derive(Debug, Clone, PartialEq)]
+enum Num {
+    Const(f64),
+    X,
+    Y,
+    Unary(Unary, Box<Num>),
+    Binary(Binary, Box<Num>, Box<Num>),
+    If(Box<Cond>, Box<Num>, Box<Num>),
+}
+
+/// A boolean expression tree (only inside `if`).
+#[derive(Debug, Clone, PartialEq)]
+enum Cond {
+    Compare(Compare, Num, Num),
+    And(Box<Cond>, Box<Cond>),
+    Or(Box<Cond>, Box<Cond>),
+}
+
+/// A parsed expression of (x, y), ready to evaluate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Expr {
+    source: String,
+    root: Num,
+}
+
+impl Expr {
+    /// Parses `source`; the error names the offending token and its position.
+    pub fn parse(source: &str) -> Result<Self, ExprError> {
+        let tokens = lex(source)?;
+        let mut p = Parser {
+            tokens,
+            pos: 0,
+            end: source.len(),
+        };
+        let root = match p.or()? {
+            Node::Num(n) => n,
+            Node::Cond(_) => {
+                return Err(p.error_at(
+                    0,
+                    "a condition is allowed only as the first argument of if(…)",
+                ))
+            }
+        };
+        if p.pos < p.tokens.len() {
+            let (at, ref t) = p.tokens[p.pos];
+            return Err(p.error_at(at, &format!("unexpected {t}")));
+        }
+        Ok(Expr {
+            source: source.to_string(),
+            root,
+        })
+    }
+
+    /// The text the expression was parsed from.
+    pub fn source(&self) -> &str {
+        &self.source
+    }
+
+    /// The value at the point (x, y).
+    #[inline]
+    pub fn eval(&self, x: f64, y: f64) -> f64 {
+        eval_num(&self.root, x, y)
+    }
+
+    /// Whether the expression is a constant (does not read x or y).
+    pub fn constant(&self) -> Option<f64> {
+        fn reads_xy(n: &Num) -> bool {
+            match n {
+                Num::Const(_) => false,
+                Num::X | Num::Y => true,
+                Num::Unary(_, a) => reads_xy(a),
+                Num::Binary(_, a, b) => reads_xy(a) || reads_xy(b),
+                Num::If(..) => true,
+            }
+        }
+        (!reads_xy(&self.root)).then(|| self.eval(0.0, 0.0))
+    }
+}
+
+fn eval_num(n: &Num, x: f64, y: f64) -> f64 {
+    match n {
+        Num::Const(c) => *c,
+        Num::X => x,
+        Num::Y => y,
+        Num::Unary(op, a) => {
+            let a = eval_num(a, x, y);
+            match op {
+                Unary::Neg => -a,
+                Unary::Sqrt => a.sqrt(),
+                Unary::Exp => a.exp(),
+                Unary::Log => a.ln(),
+                Unary::Sin => a.sin(),
+                Unary::Cos => a.cos(),
+                Unary::Abs => a.abs(),
+            }
+        }
+        Num::Binary(op, a, b) => {
+            let (a, b) = (eval_num(a, x, y), eval_num(b, x, y));
+            match op {
+                Binary::Add => a + b,
+                Binary::Sub => a - b,
+                Binary::Mul => a * b,
+                Binary::Div => a / b,
+                Binary::Pow => a.powf(b),
+                Binary::Min => a.min(b),
+                Binary::Max => a.max(b),
+            }
+        }
+        Num::If(c, a, b) => {
+            if eval_cond(c, x, y) {
+                eval_num(a, x, y)
+            } else {
+                eval_num(b, x, y)
+            }
+        }
+    }
+}
+
+fn eval_cond(c: &Cond, x: f64, y: f64) -> bool {
+    match c {
+        Cond::Compare(op, a, b) => {
+            let (a, b) = (eval_num(a, x, y), eval_num(b, x, y));
+            match op {
+                Compare::Lt => a < b,
+                Compare::Le => a <= b,
+                Compare::Gt => a > b,
+                Compare::Ge => a >= b,
+            }
+        }
+        Cond::And(a, b) => eval_cond(a, x, y) && eval_cond(b, x, y),
+        Cond::Or(a, b) => eval_cond(a, x, y) || eval_cond(b, x, y),
+    }
+}
+
+#[derive(Debug, Clone, PartialEq)]
+enum Token {
+    Number(f64),
+    Name(String),
+    Op(&'static str),
+}
+
+impl fmt::Display for Token {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Token::Number(v) => write!(f, "number {v}"),
+            Token::Name(s) => write!(f, "name '{s}'"),
+            Token::Op(s) => write!(f, "'{s}'"),
+        }
+    }
+}
+
+const OPERATORS: [&str; 15] = [
+    "<=", ">=", "&&", "||", "<", ">", "+", "-", "*", "/", "^", "(", ")", ",", "!",
+];
+
+fn lex(s: &str) -> Result<Vec<(usize, Token)>, ExprError> {
+    let bytes = s.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < bytes.len() {
+        let c = bytes[i];
+        if c.is_ascii_whitespace() {
+            i += 1;
+        } else if c.is_ascii_digit() || c == b'.' {
+            let start = i;
+            while i < bytes.len() && (bytes[i].is_ascii_digit() || bytes[i] == b'.') {
+                i += 1;
+            }
+            if i < bytes.len() && (bytes[i] == b'e' || bytes[i] == b'E') {
+                let mut j = i + 1;
+                if j < bytes.len() && (bytes[j] == b'+' || bytes[j] == b'-') {
+                    j += 1;
+                }
+                if j < bytes.len() && bytes[j].is_ascii_digit() {
+                    i = j;
+                    while i < bytes.len() && bytes[i].is_ascii_digit() {
+                        i += 1;
+                    }
+                }
+            }
+            let text = &s[start..i];
+            let v: f64 = text.parse().map_err(|_| ExprError {
+                position: start,
+                message: format!("malformed number '{text}'"),
+            })?;
+            out.push((start, Token::Number(v)));
+        } else if c.is_ascii_alphabetic() || c == b'_' {
+            let start = i;
+            while i < bytes.len() && (bytes[i].is_ascii_alphanumeric() || bytes[i] == b'_') {
+                i += 1;
+            }
+            out.push((start, Token::Name(s[start..i].to_string())));
+        } else if let Some(op) = OPERATORS.iter().find(|op| s[i..].starts_with(**op)) {
+            if *op == "!" {
+                return Err(ExprError {
+                    position: i,
+                    message: "'!' is not part of the language".into(),
+                });
+            }
+            out.push((i, Token::Op(op)));
+            i += op.len();
+        } else {
+            let ch = s[i..].chars().next().unwrap_or('?');
+            return Err(ExprError {
+                position: i,
+                message: format!("unexpected character '{ch}'"),
+            });
+        }
+    }
+    Ok(out)
+}
+
+enum Node {
+    Num(Num),
+    Cond(Cond),
+}
+
+struct Parser {
+    tokens: Vec<(usize, Token)>,
+    pos: usize,
+    end: usize,
+}
+
+impl Parser {
+    fn error_at(&self, position: usize, message: &str) -> ExprError {
+        ExprError {
+            position,
+            message: message.to_string(),
+        }
+    }
+
+    fn here(&self) -> usize {
+        self.tokens.get(self.pos).map_or(self.end, |t| t.0)
+    }
+
+    fn peek_op(&self, op: &str) -> bool {
+        matches!(self.tokens.get(self.pos), Some((_, Token::Op(o))) if *o == op)
+    }
+
+    fn expect_op(&mut self, op: &str) -> Result<(), ExprError> {
+        if self.peek_op(op) {
+            self.pos += 1;
+            Ok(())
+        } else {
+            let found = match self.tokens.get(self.pos) {
+                Some((_, t)) => t.to_string(),
+                None => "end of expression".to_string(),
+            };
+            Err(self.error_at(self.here(), &format!("expected '{op}', found {found}")))
+        }
+    }
+
+    fn num(&mut self, node: Node, at: usize) -> Result<Num, ExprError> {
+        match node {
+            Node::Num(n) => Ok(n),
+            Node::Cond(_) => {
+                Err(self.error_at(at, "a condition is used where a number is expected"))
+            }
+        }
+    }
+
+    fn cond(&mut self, node: Node, at: usize) -> Result<Cond, ExprError> {
+        match node {
+            Node::Cond(c) => Ok(c),
+            Node::Num(_) => {
+                Err(self.error_at(at, "a number is used where a condition (a < b) is expected"))
+            }
+        }
+    }
+
+    fn or(&mut self) -> Result<Node, ExprError> {
+        let at = self.here();
+        let mut left = self.and()?;
+        while self.peek_op("||") {
+            self.pos += 1;
+            let at_r = self.here();
+            let right = self.and()?;
+            let l = self.cond(left, at)?;
+            let r = self.cond(right, at_r)?;
+            left = Node::Cond(Cond::Or(Box::new(l), Box::new(r)));
+        }
+        Ok(left)
+    }
+
+    fn and(&mut self) -> Result<Node, ExprError> {
+        let at = self.here();
+        let mut left = self.compare()?;
+        while self.peek_op("&&") {
+            self.pos += 1;
+            let at_r = self.here();
+            let right = self.compare()?;
+            let l = self.cond(left, at)?;
+            let r = self.cond(right, at_r)?;
+            left = Node::Cond(Cond::And(Box::new(l), Box::new(r)));
+        }
+        Ok(left)
+    }
+
+    fn compare(&mut self) -> Result<Node, ExprError> {
+        let left = self.sum()?;
+        let op = match self.tokens.get(self.pos) {
+            Some((_, Token::Op("<"))) => Compare::Lt,
+            Some((_, Token::Op("<="))) => Compare::Le,
+            Some((_, Token::Op(">"))) => Compare::Gt,
+            Some((_, Token::Op(">="))) => Compare::Ge,
+            _ => return Ok(Node::Num(left)),
+        };
+        self.pos += 1;
+        let right = self.sum()?;
+        Ok(Node::Cond(Cond::Compare(op, left, right)))
+    }
+
+    fn sum(&mut self) -> Result<Num, ExprError> {
+        let mut left = self.product()?;
+        loop {
+            let op = if self.peek_op("+") {
+                Binary::Add
+            } else if self.peek_op("-") {
+                Binary::Sub
+            } else {
+                return Ok(left);
+            };
+            self.pos += 1;
+            let right = self.product()?;
+            left = Num::Binary(op, Box::new(left), Box::new(right));
+        }
+    }
+
+    fn product(&mut self) -> Result<Num, ExprError> {
+        let mut left = self.unary()?;
+        loop {
+            let op = if self.peek_op("*") {
+                Binary::Mul
+            } else if self.peek_op("/") {
+                Binary::Div
+            } else {
+                return Ok(left);
+            };
+            self.pos += 1;
+            let right = self.unary()?;
+            left = Num::Binary(op, Box::new(left), Box::new(right));
+        }
+    }
+
+    fn unary(&mut self) -> Result<Num, ExprError> {
+        if self.peek_op("-") {
+            self.pos += 1;
+            return Ok(Num::Unary(Unary::Neg, Box::new(self.unary()?)));
+        }
+        if self.peek_op("+") {
+            self.pos += 1;
+            return self.unary();
+        }
+        self.power()
+    }
+
+    fn power(&mut self) -> Result<Num, ExprError> {
+        let base = self.atom()?;
+        if self.peek_op("^") {
+            self.pos += 1;
+            let exponent = self.unary()?;
+            return Ok(Num::Binary(Binary::Pow, Box::new(base), Box::new(exponent)));
+        }
+        Ok(base)
+    }
+
+    fn atom(&mut self) -> Result<Num, ExprError> {
+        let at = self.here();
+        let Some((_, token)) = self.tokens.get(self.pos).cloned() else {
+            return Err(self.error_at(at, "unexpected end of expression"));
+        };
+        self.pos += 1;
+        match token {
+            Token::Number(v) => Ok(Num::Const(v)),
+            Token::Op("(") => {
+                let inner = self.or()?;
+                self.expect_op(")")?;
+                self.num(inner, at)
+            }
+            Token::Name(name) => {
+                if !self.peek_op("(") {
+                    return match name.as_str() {
+                        "x" => Ok(Num::X),
+                        "y" => Ok(Num::Y),
+                        "pi" => Ok(Num::Const(std::f64::consts::PI)),
+                        _ => {
+                            Err(self
+                                .error_at(at, &format!("unknown name '{name}' (known: x, y, pi)")))
+                        }
+                    };
+                }
+                self.pos += 1;
+                let mut args = vec![(self.here(), self.or()?)];
+                while self.peek_op(",") {
+                    self.pos += 1;
+                    args.push((self.here(), self.or()?));
+                }
+                self.expect_op(")")?;
+                self.call(&name, at, args)
+            }
+            t => Err(self.error_at(at, &format!("unexpected {t}"))),
+        }
+    }
+
+    fn call(&mut self, name: &str, at: usize, args: Vec<(usize, Node)>) -> Result<Num, ExprError> {
+        let arity = match name {
+            "sqrt" | "exp" | "log" | "sin" | "cos" | "abs" => 1,
+            "min" | "max" => 2,
+            "if" => 3,
+            _ => {
+                return Err(self.error_at(
+                    at,
+                    &format!("unknown function '{name}' (known: sqrt, exp, log, sin, cos, abs, min, max, if)"),
+                ))
+            }
+        };
+        if args.len() != arity {
+            return Err(self.error_at(
+                at,
+                &format!("{name}(…) takes {arity} argument(s), found {}", args.len()),
+            ));
+        }
+        let mut args = args.into_iter();
+        if name == "if" {
+            let (ac, c) = args.next().unwrap();
+            let c = self.cond(c, ac)?;
+            let (aa, a) = args.next().unwrap();
+            let a = self.num(a, aa)?;
+            let (ab, b) = args.next().unwrap();
+            let b = self.num(b, ab)?;
+            return Ok(Num::If(Box::new(c), Box::new(a), Box::new(b)));
+        }
+        let mut nums = Vec::with_capacity(arity);
+        for (a, n) in args {
+            nums.push(self.num(n, a)?);
+        }
+        let mut nums = nums.into_iter();
+        let first = Box::new(nums.next().unwrap());
+        Ok(match name {
+            "min" => Num::Binary(Binary::Min, first, Box::new(nums.next().unwrap())),
+            "max" => Num::Binary(Binary::Max, first, Box::new(nums.next().unwrap())),
+            "sqrt" => Num::Unary(Unary::Sqrt, first),
+            "exp" => Num::Unary(Unary::Exp, first),
+            "log" => Num::Unary(Unary::Log, first),
+            "sin" => Num::Unary(Unary::Sin, first),
+            "cos" => Num::Unary(Unary::Cos, first),
+            _ => Num::Unary(Unary::Abs, first),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ev(s: &str, x: f64, y: f64) -> f64 {
+        Expr::parse(s).unwrap().eval(x, y)
+    }
+
+    #[test]
+    fn arithmetic_and_precedence() {
+        assert_eq!(ev("1/2", 0.0, 0.0), 0.5);
+        assert_eq!(ev("-x^2", 3.0, 0.0), -9.0);
+        assert_eq!(ev("2^3^2", 0.0, 0.0), 512.0);
+        assert_eq!(ev("2^-1", 0.0, 0.0), 0.5);
+        assert_eq!(ev("1 + 2*3 - 4/2", 0.0, 0.0), 5.0);
+        assert_eq!(ev("(1+2)*3", 0.0, 0.0), 9.0);
+        assert_eq!(ev("1.5e2 + 2E-1", 0.0, 0.0), 150.2);
+        assert!((ev("sin(pi/2) + cos(0) + exp(0) + log(exp(2))", 0.0, 0.0) - 5.0).abs() < 1e-15);
+        assert_eq!(
+            ev("min(x, y) + max(x, y) + abs(-3) + sqrt(16)", 1.0, 2.0),
+            10.0
+        );
+    }
+
+    #[test]
+    fn piecewise() {
+        let e = Expr::parse("if(x < 0.5 && y >= 0 || x > 2, 1, -1)").unwrap();
+        assert_eq!(e.eval(0.2, 0.0), 1.0);
+        assert_eq!(e.eval(0.2, -1.0), -1.0);
+        assert_eq!(e.eval(3.0, -1.0), 1.0);
+        assert_eq!(e.eval(1.0, 1.0), -1.0);
+    }
+
+    #[test]
+    fn errors_name_the_problem() {
+        let e = Expr::parse("x + foo").unwrap_err();
+        assert!(e.message.contains("unknown name 'foo'"), "{e}");
+        assert_eq!(e.position, 4);
+        assert!(Expr::parse("bar(x)")
+            .unwrap_err()
+            .message
+            .contains("unknown function 'bar'"));
+        assert!(Expr::parse("(x + 1")
+            .unwrap_err()
+            .message
+            .contains("expected ')'"));
+        assert!(Expr::parse("x +")
+            .unwrap_err()
+            .message
+            .contains("end of expression"));
+        assert!(Expr::parse("x < 1")
+            .unwrap_err()
+            .message
+            .contains("condition"));
+        assert!(Expr::parse("if(x, 1, 2)")
+            .unwrap_err()
+            .message
+            .contains("condition"));
+        assert!(Expr::parse("min(x)")
+            .unwrap_err()
+            .message
+            .contains("2 argument"));
+        assert!(Expr::parse("x $ 2")
+            .unwrap_err()
+            .message
+            .contains("unexpected character '$'"));
+        assert!(Expr::parse("").is_err());
+        assert!(Expr::parse("1..2")
+            .unwrap_err()
+            .message
+            .contains("malformed number"));
+    }
+
+    #[test]
+    fn constants_are_recognised() {
+        assert_eq!(
+            Expr::parse("2*pi").unwrap().constant(),
+            Some(2.0 * std::f64::consts::PI)
+        );
+        assert_eq!(Expr::parse("x").unwrap().constant(), None);
+    }
+}

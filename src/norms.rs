@@ -1,0 +1,118 @@
+//! Error norms against an exact solution: ‖u_i − u_ih‖_L², |u_i − u_ih|_H¹ (Theorem 9), the
+//! energy norm, and ‖λ − λ_h‖_L² with λ_h piecewise constant on the dual cells (Remark 22).
+
+use crate::action::{Action, DualMesh};
+use crate::assembly::{gradients, Quadrature};
+use crate::case::Exact;
+use crate::contact::{DiscreteProblem, Solution};
+use crate::mesh::{orient, Mesh};
+
+/// Degree of the rule used for error integrals (well above the P1 error's).
+const ERROR_QUADRATURE: Quadrature = Quadrature { degree: 10 };
+
+/// Errors of one discrete solution.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Errors {
+    pub l2_u1: f64,
+    pub l2_u2: f64,
+    /// |u1 − u1h|_H¹ and |u2 − u2h|_H¹ (NaN without exact gradients).
+    pub h1_u1: f64,
+    pub h1_u2: f64,
+    /// (Σ μ_i |u_i − u_ih|²_H¹)^½.
+    pub energy: f64,
+    /// max over vertices of |u_i(a) − u_ih(a)|.
+    pub max_nodal_u: f64,
+    /// ‖λ − λ_h‖_L²(ω), λ_h = Σ_a λ_a χ_{D_a} (zero near ∂ω).
+    pub l2_lambda: f64,
+}
+
+impl Errors {
+    pub fn compute(
+        problem: &DiscreteProblem,
+        solution: &Solution,
+        action: &Action,
+        exact: &Exact,
+    ) -> Errors {
+        let mesh = &problem.mesh;
+        let (l2_u1, h1_u1) = p1_errors(mesh, &solution.u1, &exact.u1, exact.grad_u1.as_ref());
+        let (l2_u2, h1_u2) = p1_errors(mesh, &solution.u2, &exact.u2, exact.grad_u2.as_ref());
+        let max_nodal_u = mesh
+            .points
+            .iter()
+            .enumerate()
+            .map(|(a, p)| {
+                let e1 = (exact.u1.eval(p[0], p[1]) - solution.u1[a]).abs();
+                let e2 = (exact.u2.eval(p[0], p[1]) - solution.u2[a]).abs();
+                e1.max(e2)
+            })
+            .fold(0.0, f64::max);
+        let dual = DualMesh::new(mesh);
+        let mut l2_lambda = 0.0;
+        for (t, &a) in dual.triangles.iter().zip(&dual.owner) {
+            let lambda_h = if mesh.on_boundary[a] {
+                0.0
+            } else {
+                action.lambda[a]
+            };
+            let corners = t.map(|v| dual.points[v]);
+            l2_lambda += integrate(corners, |x| {
+                (exact.lambda.eval(x[0], x[1]) - lambda_h).powi(2)
+            });
+        }
+        Errors {
+            l2_u1,
+            l2_u2,
+            h1_u1,
+            h1_u2,
+            energy: (problem.mu1 * h1_u1 * h1_u1 + problem.mu2 * h1_u2 * h1_u2).sqrt(),
+            max_nodal_u,
+            l2_lambda: l2_lambda.sqrt(),
+        }
+    }
+}
+
+/// ∫_T f by the error rule on a counter-clockwise triangle.
+fn integrate([p, q, r]: [[f64; 2]; 3], f: impl Fn([f64; 2]) -> f64) -> f64 {
+    let jac = orient(p, q, r);
+    ERROR_QUADRATURE
+        .rule()
+        .iter()
+        .map(|&[xi, eta, w]| {
+            let l = [1.0 - xi - eta, xi, eta];
+            let x = [
+                l[0] * p[0] + l[1] * q[0] + l[2] * r[0],
+                l[0] * p[1] + l[1] * q[1] + l[2] * r[1],
+            ];
+            w * jac * f(x)
+        })
+        .sum()
+}
+
+/// (‖u − u_h‖_L², |u − u_h|_H¹) for a P1 field u_h.
+fn p1_errors(
+    mesh: &Mesh,
+    uh: &[f64],
+    u: &crate::expr::Expr,
+    grad: Option<&[crate::expr::Expr; 2]>,
+) -> (f64, f64) {
+    let (mut l2, mut h1) = (0.0, 0.0);
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        let corners = mesh.corners(t);
+        let g = gradients(corners);
+        let grad_h = [0, 1].map(|k| (0..3).map(|i| g[i][k] * uh[tri[i]]).sum::<f64>());
+        let [p, q, r] = corners;
+        l2 += integrate(corners, |x| {
+            let l1 = orient(x, q, r) / orient(p, q, r);
+            let l2 = orient(p, x, r) / orient(p, q, r);
+            let value = l1 * uh[tri[0]] + l2 * uh[tri[1]] + (1.0 - l1 - l2) * uh[tri[2]];
+            (u.eval(x[0], x[1]) - value).powi(2)
+        });
+        if let Some([gx, gy]) = grad {
+            h1 += integrate(corners, |x| {
+                (gx.eval(x[0], x[1]) - grad_h[0]).powi(2)
+                    + (gy.eval(x[0], x[1]) - grad_h[1]).powi(2)
+            });
+        }
+    }
+    (l2.sqrt(), if grad.is_some() { h1.sqrt() } else { f64::NAN })
+}

@@ -1,0 +1,347 @@
+//! One run: case → mesh → discrete problem → solution → action → errors → result file.
+
+use crate::action::{Action, DualMesh};
+use crate::case::{Case, CaseError};
+use crate::contact::{self, DiscreteProblem, Guess, Solution, SolveError};
+use crate::io::{self, Attr, Field, Grid, IoError};
+use crate::norms::Errors;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Anything that stops a run, with a message naming the cause.
+#[derive(Debug)]
+pub enum RunError {
+    Case(CaseError),
+    Solve(SolveError),
+    Io(IoError),
+}
+
+impl fmt::Display for RunError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RunError::Case(e) => write!(f, "{e}"),
+            RunError::Solve(e) => write!(f, "{e}"),
+            RunError::Io(e) => write!(f, "{e}"),
+        }
+    }
+}
+
+impl std::error::Error for RunError {}
+
+impl From<CaseError> for RunError {
+    fn from(e: CaseError) -> Self {
+        RunError::Case(e)
+    }
+}
+impl From<SolveError> for RunError {
+    fn from(e: SolveError) -> Self {
+        RunError::Solve(e)
+    }
+}
+impl From<IoError> for RunError {
+    fn from(e: IoError) -> Self {
+        RunError::Io(e)
+    }
+}
+
+/// Wall-clock seconds of each phase.
+#[derive(Debug, Clone, Default)]
+pub struct Timings {
+    pub mesh: f64,
+    pub assembly: f64,
+    /// Coarser levels of the nested iteration (all their phases).
+    pub coarse: f64,
+    pub symbolic: f64,
+    pub numeric: f64,
+    pub solve: f64,
+    pub postprocess: f64,
+    pub write: f64,
+}
+
+impl Timings {
+    /// The contact solve proper: coarse levels, symbolic, numeric and triangular solves.
+    pub fn contact_solve(&self) -> f64 {
+        self.coarse + self.symbolic + self.numeric + self.solve
+    }
+}
+
+/// The result of one run.
+pub struct Run {
+    pub problem: DiscreteProblem,
+    pub solution: Solution,
+    pub action: Action,
+    pub errors: Option<Errors>,
+    pub timings: Timings,
+    /// Active-set iterations on each coarser level of the nested iteration.
+    pub coarse_iterations: Vec<usize>,
+}
+
+/// How a run starts its active-set method.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Start {
+    /// From no contact.
+    Cold,
+    /// Nested iteration: solve on built-in meshes with ⌈n/2⌉, ⌈n/4⌉, … cells (down to `COARSEST`)
+    /// first, each warm-starting the next (grid sequencing).
+    Nested,
+}
+
+/// Coarsest level of the nested iteration, in cells per side.
+pub const COARSEST: usize = 8;
+
+/// Solves a case.
+pub fn solve(
+    case: &Case,
+    start: Start,
+    warm: Option<(&crate::mesh::Mesh, &Solution)>,
+) -> Result<Run, RunError> {
+    let mut timings = Timings::default();
+    let mut coarse_iterations = Vec::new();
+    let t = Instant::now();
+    let mut guess = None;
+    if let (Start::Nested, Some(n), None) = (start, case.cells(), warm) {
+        let mut levels = Vec::new();
+        let mut m = n.div_ceil(2);
+        while m >= COARSEST {
+            levels.push(m);
+            m = m.div_ceil(2);
+        }
+        let mut previous: Option<(crate::mesh::Mesh, Solution)> = None;
+        for &cells in levels.iter().rev() {
+            let mut coarse_case = case.clone();
+            coarse_case.set_cells(cells);
+            let mesh = coarse_case.mesh()?;
+            let problem = DiscreteProblem::new(mesh, &case.data)?;
+            let g = previous
+                .as_ref()
+                .map(|(m, s)| Guess::interpolate(&problem.mesh, m, s));
+            let solution = contact::solve(&problem, g.as_ref(), case.options)?;
+            coarse_iterations.push(solution.stats.iterations);
+            previous = Some((problem.mesh, solution));
+        }
+        guess = previous;
+    }
+    timings.coarse = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let mesh = case.mesh()?;
+    timings.mesh = t.elapsed().as_secs_f64();
+    let problem = DiscreteProblem::new(mesh, &case.data)?;
+    timings.assembly = problem.setup_seconds;
+    let g = match (warm, &guess) {
+        (Some((m, s)), _) => Some(Guess::interpolate(&problem.mesh, m, s)),
+        (None, Some((m, s))) => Some(Guess::interpolate(&problem.mesh, m, s)),
+        _ => None,
+    };
+    let solution = contact::solve(&problem, g.as_ref(), case.options)?;
+    timings.symbolic = solution.stats.symbolic_seconds;
+    timings.numeric = solution.stats.numeric_seconds;
+    timings.solve = solution.stats.solve_seconds;
+
+    let t = Instant::now();
+    let action = Action::compute(&problem, &solution);
+    let errors = case
+        .exact
+        .as_ref()
+        .map(|e| Errors::compute(&problem, &solution, &action, e));
+    timings.postprocess = t.elapsed().as_secs_f64();
+    Ok(Run {
+        problem,
+        solution,
+        action,
+        errors,
+        timings,
+        coarse_iterations,
+    })
+}
+
+impl Run {
+    /// Writes the result file and its XDMF sidecar; returns the XDMF path.
+    pub fn write(&mut self, case: &Case, h5_path: &Path) -> Result<PathBuf, RunError> {
+        let t = Instant::now();
+        let mesh = &self.problem.mesh;
+        let s = &self.solution;
+        let contact: Vec<f64> = s.contact.iter().map(|&c| f64::from(u8::from(c))).collect();
+        let dual = DualMesh::new(mesh);
+        let dual_lambda = dual.cell_field(mesh, &self.action.lambda);
+        let owner: Vec<f64> = dual.owner.iter().map(|&a| a as f64).collect();
+        let mut point_fields = vec![
+            Field {
+                name: "u1",
+                values: &s.u1,
+            },
+            Field {
+                name: "u2",
+                values: &s.u2,
+            },
+            Field {
+                name: "gap",
+                values: &s.gap,
+            },
+            Field {
+                name: "lambda",
+                values: &self.action.lambda,
+            },
+            Field {
+                name: "lambda2",
+                values: &self.action.lambda2,
+            },
+            Field {
+                name: "contact",
+                values: &contact,
+            },
+        ];
+        let exact_fields: Vec<(String, Vec<f64>)> = match &case.exact {
+            Some(e) => [
+                ("u1_exact", &e.u1),
+                ("u2_exact", &e.u2),
+                ("lambda_exact", &e.lambda),
+            ]
+            .iter()
+            .map(|(n, ex)| {
+                (
+                    n.to_string(),
+                    mesh.points.iter().map(|p| ex.eval(p[0], p[1])).collect(),
+                )
+            })
+            .collect(),
+            None => Vec::new(),
+        };
+        point_fields.extend(
+            exact_fields
+                .iter()
+                .map(|(n, v)| Field { name: n, values: v }),
+        );
+        let grids = [
+            Grid {
+                name: "mesh",
+                points: &mesh.points,
+                triangles: &mesh.triangles,
+                point_fields,
+                cell_fields: vec![],
+            },
+            Grid {
+                name: "dual",
+                points: &dual.points,
+                triangles: &dual.triangles,
+                point_fields: vec![],
+                cell_fields: vec![
+                    Field {
+                        name: "lambda",
+                        values: &dual_lambda,
+                    },
+                    Field {
+                        name: "vertex",
+                        values: &owner,
+                    },
+                ],
+            },
+        ];
+        let st = &s.stats;
+        let a = &self.action;
+        let tm = &self.timings;
+        let mut attrs: Vec<(&str, Attr)> = vec![
+            (
+                "program",
+                Attr::Text(format!("membrane-contact {}", env!("CARGO_PKG_VERSION"))),
+            ),
+            ("case_origin", Attr::Text(case.origin.clone())),
+            ("case_text", Attr::Text(case.text.clone())),
+            ("title", Attr::Text(case.file.title.clone())),
+            ("mu1", Attr::Float(case.data.mu1)),
+            ("mu2", Attr::Float(case.data.mu2)),
+            (
+                "quadrature_degree",
+                Attr::Int(case.data.quadrature.degree as i64),
+            ),
+            ("vertices", Attr::Int(mesh.n_vertices() as i64)),
+            ("triangles", Attr::Int(mesh.triangles.len() as i64)),
+            ("h", Attr::Float(mesh.h())),
+            ("iterations", Attr::Int(st.iterations as i64)),
+            (
+                "coarse_iterations",
+                Attr::Floats(self.coarse_iterations.iter().map(|&i| i as f64).collect()),
+            ),
+            (
+                "active_set_sizes",
+                Attr::Floats(st.active_sizes.iter().map(|&i| i as f64).collect()),
+            ),
+            ("factorizations", Attr::Int(st.factorizations as i64)),
+            ("factor_nnz", Attr::Int(st.factor_nnz as i64)),
+            (
+                "max_lambda1_minus_lambda2",
+                Attr::Float(a.membrane_difference),
+            ),
+            ("min_lambda", Attr::Float(a.min_lambda)),
+            ("max_lambda_times_gap", Attr::Float(a.complementarity)),
+            (
+                "min_gap",
+                Attr::Float(s.gap.iter().copied().fold(f64::INFINITY, f64::min)),
+            ),
+            ("total_force", Attr::Float(a.total)),
+            ("contact_area", Attr::Float(a.contact_area)),
+            ("seconds_mesh", Attr::Float(tm.mesh)),
+            ("seconds_assembly", Attr::Float(tm.assembly)),
+            ("seconds_coarse_levels", Attr::Float(tm.coarse)),
+            ("seconds_symbolic", Attr::Float(tm.symbolic)),
+            ("seconds_numeric", Attr::Float(tm.numeric)),
+            ("seconds_solve", Attr::Float(tm.solve)),
+            ("seconds_postprocess", Attr::Float(tm.postprocess)),
+        ];
+        if let Some(e) = &self.errors {
+            attrs.extend([
+                ("error_l2_u1", Attr::Float(e.l2_u1)),
+                ("error_l2_u2", Attr::Float(e.l2_u2)),
+                ("error_h1_u1", Attr::Float(e.h1_u1)),
+                ("error_h1_u2", Attr::Float(e.h1_u2)),
+                ("error_energy", Attr::Float(e.energy)),
+                ("error_l2_lambda", Attr::Float(e.l2_lambda)),
+            ]);
+        }
+        let xdmf = io::write_result(h5_path, &grids, &attrs)?;
+        self.timings.write = t.elapsed().as_secs_f64();
+        Ok(xdmf)
+    }
+
+    /// A short human-readable summary.
+    pub fn summary(&self) -> String {
+        let m = &self.problem.mesh;
+        let s = &self.solution.stats;
+        let a = &self.action;
+        let t = &self.timings;
+        let lmax = a.lambda.iter().copied().fold(0.0, f64::max);
+        let mut out = format!(
+            "mesh        {} vertices, {} triangles, h = {:.4e}, {} unknowns per membrane\n\
+             solver      {} active-set iterations (coarse levels: {:?}), {} factorizations, contact at {} vertices\n\
+             action      ∫λ_h = {:.6e}, contact area = {:.6e}, max λ = {:.6e}\n\
+             checks      max|λ1−λ2| = {:.2e} (Prop. 12), min λ = {:.2e}, max|λ·(u1−u2)| = {:.2e} (4.8), min(u1−u2) = {:.2e}\n",
+            m.n_vertices(),
+            m.triangles.len(),
+            m.h(),
+            s.unknowns,
+            s.iterations,
+            self.coarse_iterations,
+            s.factorizations,
+            s.active_sizes.last().copied().unwrap_or(0),
+            a.total,
+            a.contact_area,
+            lmax,
+            a.membrane_difference,
+            a.min_lambda,
+            a.complementarity,
+            self.solution.gap.iter().copied().fold(f64::INFINITY, f64::min),
+        );
+        if let Some(e) = &self.errors {
+            out += &format!(
+                "errors      |u1−u1h|_H1 = {:.4e}, |u2−u2h|_H1 = {:.4e}, ‖u1−u1h‖_L2 = {:.4e}, ‖u2−u2h‖_L2 = {:.4e}, ‖λ−λh‖_L2 = {:.4e}\n",
+                e.h1_u1, e.h1_u2, e.l2_u1, e.l2_u2, e.l2_lambda
+            );
+        }
+        out += &format!(
+            "seconds     mesh {:.3}, assembly {:.3}, coarse levels {:.3}, symbolic {:.3}, numeric {:.3}, solve {:.3}, postprocess {:.3}, write {:.3}\n",
+            t.mesh, t.assembly, t.coarse, t.symbolic, t.numeric, t.solve, t.postprocess, t.write
+        );
+        out
+    }
+}
