@@ -111,13 +111,7 @@ impl DualMesh {
     pub fn cell_field(&self, mesh: &Mesh, values: &[f64]) -> Vec<f64> {
         self.owner
             .iter()
-            .map(|&a| {
-                if mesh.on_boundary[a] {
-                    f64::NAN
-                } else {
-                    values[a]
-                }
-            })
+            .map(|&a| if mesh.on_boundary[a] { f64::NAN } else { values[a] })
             .collect()
     }
 }

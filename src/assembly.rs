@@ -166,12 +166,7 @@ impl Quadrature {
 
     /// Calls `visit(x, y, weight, barycentric)` at each physical quadrature point of triangle t.
     #[inline]
-    pub fn for_each_point(
-        &self,
-        mesh: &Mesh,
-        t: usize,
-        mut visit: impl FnMut([f64; 2], f64, [f64; 3]),
-    ) {
+    pub fn for_each_point(&self, mesh: &Mesh, t: usize, mut visit: impl FnMut([f64; 2], f64, [f64; 3])) {
         let [p, q, r] = mesh.corners(t);
         let jac = crate::mesh::orient(p, q, r);
         for &[xi, eta, w] in self.rule() {
@@ -271,11 +266,7 @@ mod tests {
         assert!((moment - (0.25 + 1.0 / 6.0)).abs() < 1e-14);
         let c = load(&m, &Expr::parse("2").unwrap(), Quadrature { degree: 3 }).unwrap();
         assert!((c.iter().sum::<f64>() - 2.0).abs() < 1e-14);
-        let bad = load(
-            &m,
-            &Expr::parse("1/(x - 0.5)").unwrap(),
-            Quadrature { degree: 0 },
-        );
+        let bad = load(&m, &Expr::parse("1/(x - 0.5)").unwrap(), Quadrature { degree: 0 });
         assert!(
             bad.is_ok(),
             "no quadrature point sits on x = 0.5 with the centroid rule on 4x3"

@@ -171,26 +171,21 @@ pub struct Case {
 impl Case {
     /// Reads and checks a case file.
     pub fn read(path: &Path) -> Result<Case, CaseError> {
-        let text = std::fs::read_to_string(path).map_err(|e| {
-            CaseError(format!(
-                "{}: cannot read the case file: {e}",
-                path.display()
-            ))
-        })?;
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| CaseError(format!("{}: cannot read the case file: {e}", path.display())))?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         Case::parse(&text, &path.display().to_string(), base)
     }
 
     /// The built-in default case.
     pub fn default_case() -> Case {
-        Case::parse(DEFAULT_CASE, "built-in default case", PathBuf::new())
-            .expect("the default case is valid")
+        Case::parse(DEFAULT_CASE, "built-in default case", PathBuf::new()).expect("the default case is valid")
     }
 
     /// Parses and checks case text; `origin` names it in errors.
     pub fn parse(text: &str, origin: &str, base_dir: PathBuf) -> Result<Case, CaseError> {
-        let file: CaseFile = toml::from_str(text)
-            .map_err(|e| CaseError(format!("{origin}: {}", e.to_string().trim_end())))?;
+        let file: CaseFile =
+            toml::from_str(text).map_err(|e| CaseError(format!("{origin}: {}", e.to_string().trim_end())))?;
         let expr = |key: &str, e: &Expression| {
             let source = e.text();
             Expr::parse(&source)
@@ -223,9 +218,7 @@ impl Case {
                     )));
                 }
                 let [c0, c1] = corners;
-                if !(c1[0] > c0[0] && c1[1] > c0[1])
-                    || corners.iter().flatten().any(|v| !v.is_finite())
-                {
+                if !(c1[0] > c0[0] && c1[1] > c0[1]) || corners.iter().flatten().any(|v| !v.is_finite()) {
                     return Err(CaseError(format!(
                         "{origin}: key 'mesh.corners' = {corners:?}: need [[x0, y0], [x1, y1]] with x0 < x1, y0 < y1"
                     )));
@@ -256,9 +249,7 @@ impl Case {
         let exact = match &file.exact {
             None => None,
             Some(e) => {
-                let grad = |key: &str,
-                            g: &Option<[Expression; 2]>|
-                 -> Result<Option<[Expr; 2]>, CaseError> {
+                let grad = |key: &str, g: &Option<[Expression; 2]>| -> Result<Option<[Expr; 2]>, CaseError> {
                     g.as_ref()
                         .map(|[gx, gy]| Ok([expr(key, gx)?, expr(key, gy)?]))
                         .transpose()
@@ -308,20 +299,15 @@ impl Case {
     pub fn mesh(&self) -> Result<Mesh, CaseError> {
         let named = |e: crate::mesh::MeshError| CaseError(format!("{}: mesh: {e}", self.origin));
         match &self.file.mesh {
-            MeshSpec::Rectangle {
-                corners,
-                n,
-                diagonal,
-            } => Mesh::rectangle(corners[0], corners[1], n[0], n[1], *diagonal).map_err(named),
-            MeshSpec::Lshape {
-                n,
-                diagonal,
-                grading,
-            } => Mesh::l_shape(*n, *diagonal, *grading).map_err(named),
+            MeshSpec::Rectangle { corners, n, diagonal } => {
+                Mesh::rectangle(corners[0], corners[1], n[0], n[1], *diagonal).map_err(named)
+            }
+            MeshSpec::Lshape { n, diagonal, grading } => {
+                Mesh::l_shape(*n, *diagonal, *grading).map_err(named)
+            }
             MeshSpec::File { path } => {
                 let path = self.base_dir.join(path);
-                crate::io::read_mesh(&path)
-                    .map_err(|e| CaseError(format!("{}: {e}", path.display())))
+                crate::io::read_mesh(&path).map_err(|e| CaseError(format!("{}: {e}", path.display())))
             }
         }
     }
@@ -340,13 +326,10 @@ mod tests {
 
     #[test]
     fn errors_name_the_key() {
-        let base = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"1\"\nf2 = 0\ng = 0\n[mesh]\nkind = \"rectangle\"\nn = [4, 4]\n";
+        let base =
+            "mu1 = 1.0\nmu2 = 1.0\nf1 = \"1\"\nf2 = 0\ng = 0\n[mesh]\nkind = \"rectangle\"\nn = [4, 4]\n";
         assert!(Case::parse(base, "t", PathBuf::new()).is_ok());
-        let err = |text: &str| {
-            Case::parse(text, "case.toml", PathBuf::new())
-                .unwrap_err()
-                .0
-        };
+        let err = |text: &str| Case::parse(text, "case.toml", PathBuf::new()).unwrap_err().0;
         assert!(err(&format!("{base}bogus = 1\n")).contains("unknown field `bogus`"));
         assert!(err(&base.replace("mu1 = 1.0", "mu1 = -1.0")).contains("'mu1'"));
         assert!(err(&base.replace("mu2 = 1.0", "mu2 = \"two\"")).contains("mu2"));

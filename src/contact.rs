@@ -70,10 +70,7 @@ impl fmt::Display for SolveError {
                 "g = {value} < 0 at the boundary vertex ({}, {}): the paper requires g ≥ 0 on ∂ω",
                 point[0], point[1]
             ),
-            SolveError::IterationCap {
-                iterations,
-                changed,
-            } => write!(
+            SolveError::IterationCap { iterations, changed } => write!(
                 f,
                 "the active-set method did not converge in {iterations} iterations \
                  ({changed} vertices changed in the last one); raise solver.max_iterations"
@@ -161,9 +158,7 @@ pub struct SolverOptions {
 
 impl Default for SolverOptions {
     fn default() -> Self {
-        SolverOptions {
-            max_iterations: 200,
-        }
+        SolverOptions { max_iterations: 200 }
     }
 }
 
@@ -309,11 +304,7 @@ pub fn solve(
     })
 }
 
-fn factorize(
-    system: &mut InteriorSolver,
-    held: &[bool],
-    stats: &mut SolverStats,
-) -> Result<(), SolveError> {
+fn factorize(system: &mut InteriorSolver, held: &[bool], stats: &mut SolverStats) -> Result<(), SolveError> {
     let t = Instant::now();
     if system
         .factorize(held)
@@ -326,12 +317,7 @@ fn factorize(
 }
 
 /// Solves with the held unknowns fixed at 0.
-fn solve_with(
-    system: &mut InteriorSolver,
-    b: &[f64],
-    held: &[bool],
-    stats: &mut SolverStats,
-) -> Vec<f64> {
+fn solve_with(system: &mut InteriorSolver, b: &[f64], held: &[bool], stats: &mut SolverStats) -> Vec<f64> {
     let t = Instant::now();
     let mut x: Vec<f64> = b
         .iter()

@@ -106,10 +106,7 @@ impl Expr {
         let root = match p.or()? {
             Node::Num(n) => n,
             Node::Cond(_) => {
-                return Err(p.error_at(
-                    0,
-                    "a condition is allowed only as the first argument of if(…)",
-                ))
+                return Err(p.error_at(0, "a condition is allowed only as the first argument of if(…)"))
             }
         };
         if p.pos < p.tokens.len() {
@@ -324,18 +321,14 @@ impl Parser {
     fn num(&mut self, node: Node, at: usize) -> Result<Num, ExprError> {
         match node {
             Node::Num(n) => Ok(n),
-            Node::Cond(_) => {
-                Err(self.error_at(at, "a condition is used where a number is expected"))
-            }
+            Node::Cond(_) => Err(self.error_at(at, "a condition is used where a number is expected")),
         }
     }
 
     fn cond(&mut self, node: Node, at: usize) -> Result<Cond, ExprError> {
         match node {
             Node::Cond(c) => Ok(c),
-            Node::Num(_) => {
-                Err(self.error_at(at, "a number is used where a condition (a < b) is expected"))
-            }
+            Node::Num(_) => Err(self.error_at(at, "a number is used where a condition (a < b) is expected")),
         }
     }
 
@@ -454,10 +447,7 @@ impl Parser {
                         "x" => Ok(Num::X),
                         "y" => Ok(Num::Y),
                         "pi" => Ok(Num::Const(std::f64::consts::PI)),
-                        _ => {
-                            Err(self
-                                .error_at(at, &format!("unknown name '{name}' (known: x, y, pi)")))
-                        }
+                        _ => Err(self.error_at(at, &format!("unknown name '{name}' (known: x, y, pi)"))),
                     };
                 }
                 self.pos += 1;
@@ -481,7 +471,9 @@ impl Parser {
             _ => {
                 return Err(self.error_at(
                     at,
-                    &format!("unknown function '{name}' (known: sqrt, exp, log, sin, cos, abs, min, max, if)"),
+                    &format!(
+                        "unknown function '{name}' (known: sqrt, exp, log, sin, cos, abs, min, max, if)"
+                    ),
                 ))
             }
         };
@@ -538,10 +530,7 @@ mod tests {
         assert_eq!(ev("(1+2)*3", 0.0, 0.0), 9.0);
         assert_eq!(ev("1.5e2 + 2E-1", 0.0, 0.0), 150.2);
         assert!((ev("sin(pi/2) + cos(0) + exp(0) + log(exp(2))", 0.0, 0.0) - 5.0).abs() < 1e-15);
-        assert_eq!(
-            ev("min(x, y) + max(x, y) + abs(-3) + sqrt(16)", 1.0, 2.0),
-            10.0
-        );
+        assert_eq!(ev("min(x, y) + max(x, y) + abs(-3) + sqrt(16)", 1.0, 2.0), 10.0);
     }
 
     #[test]
@@ -570,18 +559,12 @@ mod tests {
             .unwrap_err()
             .message
             .contains("end of expression"));
-        assert!(Expr::parse("x < 1")
-            .unwrap_err()
-            .message
-            .contains("condition"));
+        assert!(Expr::parse("x < 1").unwrap_err().message.contains("condition"));
         assert!(Expr::parse("if(x, 1, 2)")
             .unwrap_err()
             .message
             .contains("condition"));
-        assert!(Expr::parse("min(x)")
-            .unwrap_err()
-            .message
-            .contains("2 argument"));
+        assert!(Expr::parse("min(x)").unwrap_err().message.contains("2 argument"));
         assert!(Expr::parse("x $ 2")
             .unwrap_err()
             .message

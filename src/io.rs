@@ -48,11 +48,7 @@ impl std::fmt::Display for IoError {
 impl std::error::Error for IoError {}
 
 /// Writes `h5_path` and its XDMF sidecar atomically.
-pub fn write_result(
-    h5_path: &Path,
-    grids: &[Grid],
-    attrs: &[(&str, Attr)],
-) -> Result<PathBuf, IoError> {
+pub fn write_result(h5_path: &Path, grids: &[Grid], attrs: &[(&str, Attr)]) -> Result<PathBuf, IoError> {
     let xdmf_path = h5_path.with_extension("xdmf");
     let dir = match h5_path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
@@ -81,8 +77,7 @@ pub fn write_result(
                 .map_err(|e| IoError(format!("{}: {e}", xdmf_path.display())))
         })
         .and_then(|_| {
-            std::fs::rename(&h5_tmp, h5_path)
-                .map_err(|e| IoError(format!("{}: {e}", h5_path.display())))?;
+            std::fs::rename(&h5_tmp, h5_path).map_err(|e| IoError(format!("{}: {e}", h5_path.display())))?;
             std::fs::rename(&xdmf_tmp, &xdmf_path)
                 .map_err(|e| IoError(format!("{}: {e}", xdmf_path.display())))
         });
@@ -100,9 +95,7 @@ fn write_hdf5(path: &Path, grids: &[Grid], attrs: &[(&str, Attr)]) -> Result<(),
     for grid in grids {
         let group = file.create_group(grid.name).map_err(named)?;
         let points = Array2::from_shape_fn((grid.points.len(), 2), |(i, k)| grid.points[i][k]);
-        let cells = Array2::from_shape_fn((grid.triangles.len(), 3), |(i, k)| {
-            grid.triangles[i][k] as i64
-        });
+        let cells = Array2::from_shape_fn((grid.triangles.len(), 3), |(i, k)| grid.triangles[i][k] as i64);
         group
             .new_dataset_builder()
             .with_data(&points)
@@ -198,16 +191,12 @@ type RawMesh = (Vec<[f64; 2]>, Vec<[usize; 3]>);
 fn read_xdmf(path: &Path) -> Result<RawMesh, IoError> {
     let err = |m: String| IoError(format!("{}: {m}", path.display()));
     let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
-    let doc =
-        roxmltree::Document::parse(&text).map_err(|e| err(format!("not valid XDMF (XML): {e}")))?;
+    let doc = roxmltree::Document::parse(&text).map_err(|e| err(format!("not valid XDMF (XML): {e}")))?;
     let grid = doc
         .descendants()
         .find(|n| n.has_tag_name("Grid") && n.children().any(|c| c.has_tag_name("Topology")))
         .ok_or_else(|| err("no <Grid> with a <Topology> in the XDMF file".into()))?;
-    let topology = grid
-        .children()
-        .find(|c| c.has_tag_name("Topology"))
-        .unwrap();
+    let topology = grid.children().find(|c| c.has_tag_name("Topology")).unwrap();
     let kind = topology
         .attribute("TopologyType")
         .or(topology.attribute("Type"))
@@ -228,7 +217,7 @@ fn read_xdmf(path: &Path) -> Result<RawMesh, IoError> {
             .ok_or_else(|| err(format!("<{}> has no <DataItem>", node.tag_name().name())))?;
         if item.attribute("Format") != Some("HDF") {
             return Err(err(
-                "only HDF heavy data is supported (DataItem Format=\"HDF\")".into(),
+                "only HDF heavy data is supported (DataItem Format=\"HDF\")".into()
             ));
         }
         let location = item.text().unwrap_or("").trim();
@@ -260,8 +249,7 @@ fn open_h5(path: &Path) -> Result<hdf5::File, IoError> {
     if !path.exists() {
         return Err(IoError(format!("{}: no such file", path.display())));
     }
-    hdf5::File::open(path)
-        .map_err(|e| IoError(format!("{}: not a readable HDF5 file: {e}", path.display())))
+    hdf5::File::open(path).map_err(|e| IoError(format!("{}: not a readable HDF5 file: {e}", path.display())))
 }
 
 fn read_points(path: &Path, dataset: &str) -> Result<Vec<[f64; 2]>, IoError> {

@@ -88,10 +88,7 @@ impl Mesh {
         if triangles.is_empty() {
             return Err(MeshError::Empty);
         }
-        if let Some(vertex) = points
-            .iter()
-            .position(|p| !p[0].is_finite() || !p[1].is_finite())
-        {
+        if let Some(vertex) = points.iter().position(|p| !p[0].is_finite() || !p[1].is_finite()) {
             return Err(MeshError::NotFinite { vertex });
         }
         let n = points.len();
@@ -119,9 +116,6 @@ impl Mesh {
                 tri.swap(1, 2);
             }
         }
-        if let Some(vertex) = used.iter().position(|u| !u) {
-            return Err(MeshError::UnusedVertex { vertex });
-        }
         let mut sorted: Vec<usize> = (0..n).collect();
         sorted.sort_by(|&a, &b| points[a].partial_cmp(&points[b]).unwrap());
         for w in sorted.windows(2) {
@@ -131,6 +125,10 @@ impl Mesh {
                     second: w[0].max(w[1]),
                 });
             }
+        }
+
+        if let Some(vertex) = used.iter().position(|u| !u) {
+            return Err(MeshError::UnusedVertex { vertex });
         }
 
         // Edges: each is shared by one (boundary) or two (interior) triangles.
@@ -267,9 +265,7 @@ impl Mesh {
 
     /// The interior vertices V_h, in increasing order.
     pub fn interior(&self) -> Vec<usize> {
-        (0..self.n_vertices())
-            .filter(|&a| !self.on_boundary[a])
-            .collect()
+        (0..self.n_vertices()).filter(|&a| !self.on_boundary[a]).collect()
     }
 
     /// The edges of the mesh as sorted vertex pairs, each once, with their triangles.
@@ -304,9 +300,9 @@ fn dist(p: [f64; 2], q: [f64; 2]) -> f64 {
 }
 
 fn centroid(points: &[[f64; 2]], t: &[usize; 3]) -> [f64; 2] {
-    let s = t.iter().fold([0.0, 0.0], |s, &v| {
-        [s[0] + points[v][0], s[1] + points[v][1]]
-    });
+    let s = t
+        .iter()
+        .fold([0.0, 0.0], |s, &v| [s[0] + points[v][0], s[1] + points[v][1]]);
     [s[0] / 3.0, s[1] / 3.0]
 }
 
@@ -342,11 +338,7 @@ fn union(parent: &mut [usize], a: usize, b: usize) {
 }
 
 /// A boundary vertex strictly inside another boundary edge (checked with a bucket grid).
-fn hanging_node(
-    points: &[[f64; 2]],
-    boundary_edges: &[(usize, usize)],
-    diameter: f64,
-) -> Option<usize> {
+fn hanging_node(points: &[[f64; 2]], boundary_edges: &[(usize, usize)], diameter: f64) -> Option<usize> {
     let mut vertices: Vec<usize> = boundary_edges.iter().flat_map(|&(a, b)| [a, b]).collect();
     vertices.sort_unstable();
     vertices.dedup();
@@ -360,12 +352,8 @@ fn hanging_node(
                 continue;
             }
             let r = points[v];
-            let along =
-                ((r[0] - p[0]) * (q[0] - p[0]) + (r[1] - p[1]) * (q[1] - p[1])) / (len * len);
-            if along > 0.0
-                && along < 1.0
-                && orient(p, q, r).abs() <= 1e-10 * len * diameter.max(len)
-            {
+            let along = ((r[0] - p[0]) * (q[0] - p[0]) + (r[1] - p[1]) * (q[1] - p[1])) / (len * len);
+            if along > 0.0 && along < 1.0 && orient(p, q, r).abs() <= 1e-10 * len * diameter.max(len) {
                 return Some(v);
             }
         }
@@ -518,10 +506,7 @@ fn compact(points: Vec<[f64; 2]>, triangles: Vec<[usize; 3]>) -> (Vec<[f64; 2]>,
             kept.push(p);
         }
     }
-    let triangles = triangles
-        .into_iter()
-        .map(|t| t.map(|v| new_index[v]))
-        .collect();
+    let triangles = triangles.into_iter().map(|t| t.map(|v| new_index[v])).collect();
     (kept, triangles)
 }
 
@@ -549,10 +534,7 @@ fn rectangle_raw(
                 Diagonal::Left => triangles.extend([[v0, v1, v2], [v1, v2, v3]]),
                 Diagonal::Crossed => {
                     let vm = points.len();
-                    points.push([
-                        c0[0] + dx * (ix as f64 + 0.5),
-                        c0[1] + dy * (iy as f64 + 0.5),
-                    ]);
+                    points.push([c0[0] + dx * (ix as f64 + 0.5), c0[1] + dy * (iy as f64 + 0.5)]);
                     triangles.extend([[v0, v1, vm], [v0, v2, vm], [v1, v3, vm], [v2, v3, vm]]);
                 }
             }
@@ -610,10 +592,7 @@ mod tests {
         dup.push([0.5, 0.5]);
         assert!(matches!(
             Mesh::new(dup, fan.clone()),
-            Err(MeshError::DuplicateVertex {
-                first: 4,
-                second: 5
-            })
+            Err(MeshError::DuplicateVertex { first: 4, second: 5 })
         ));
         let mut flat = fan.clone();
         flat[0] = [0, 1, 0];

@@ -27,12 +27,7 @@ pub struct Errors {
 }
 
 impl Errors {
-    pub fn compute(
-        problem: &DiscreteProblem,
-        solution: &Solution,
-        action: &Action,
-        exact: &Exact,
-    ) -> Errors {
+    pub fn compute(problem: &DiscreteProblem, solution: &Solution, action: &Action, exact: &Exact) -> Errors {
         let mesh = &problem.mesh;
         let (l2_u1, h1_u1) = p1_errors(mesh, &solution.u1, &exact.u1, exact.grad_u1.as_ref());
         let (l2_u2, h1_u2) = p1_errors(mesh, &solution.u2, &exact.u2, exact.grad_u2.as_ref());
@@ -55,9 +50,7 @@ impl Errors {
                 action.lambda[a]
             };
             let corners = t.map(|v| dual.points[v]);
-            l2_lambda += integrate(corners, |x| {
-                (exact.lambda.eval(x[0], x[1]) - lambda_h).powi(2)
-            });
+            l2_lambda += integrate(corners, |x| (exact.lambda.eval(x[0], x[1]) - lambda_h).powi(2));
         }
         Errors {
             l2_u1,
@@ -109,8 +102,7 @@ fn p1_errors(
         });
         if let Some([gx, gy]) = grad {
             h1 += integrate(corners, |x| {
-                (gx.eval(x[0], x[1]) - grad_h[0]).powi(2)
-                    + (gy.eval(x[0], x[1]) - grad_h[1]).powi(2)
+                (gx.eval(x[0], x[1]) - grad_h[0]).powi(2) + (gy.eval(x[0], x[1]) - grad_h[1]).powi(2)
             });
         }
     }

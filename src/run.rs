@@ -208,11 +208,7 @@ impl Run {
             .collect(),
             None => Vec::new(),
         };
-        point_fields.extend(
-            exact_fields
-                .iter()
-                .map(|(n, v)| Field { name: n, values: v }),
-        );
+        point_fields.extend(exact_fields.iter().map(|(n, v)| Field { name: n, values: v }));
         let grids = [
             Grid {
                 name: "mesh",
@@ -251,10 +247,7 @@ impl Run {
             ("title", Attr::Text(case.file.title.clone())),
             ("mu1", Attr::Float(case.data.mu1)),
             ("mu2", Attr::Float(case.data.mu2)),
-            (
-                "quadrature_degree",
-                Attr::Int(case.data.quadrature.degree as i64),
-            ),
+            ("quadrature_degree", Attr::Int(case.data.quadrature.degree as i64)),
             ("vertices", Attr::Int(mesh.n_vertices() as i64)),
             ("triangles", Attr::Int(mesh.triangles.len() as i64)),
             ("h", Attr::Float(mesh.h())),
@@ -269,10 +262,7 @@ impl Run {
             ),
             ("factorizations", Attr::Int(st.factorizations as i64)),
             ("factor_nnz", Attr::Int(st.factor_nnz as i64)),
-            (
-                "max_lambda1_minus_lambda2",
-                Attr::Float(a.membrane_difference),
-            ),
+            ("max_lambda1_minus_lambda2", Attr::Float(a.membrane_difference)),
             ("min_lambda", Attr::Float(a.min_lambda)),
             ("max_lambda_times_gap", Attr::Float(a.complementarity)),
             (

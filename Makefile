@@ -1,0 +1,56 @@
+# membrane-contact: `make run` solves the built-in default case, `make test` runs every test
+# (cargo test + make validate). Missing Debian packages are installed on first use.
+
+SHELL := /bin/bash
+PY := /usr/bin/python3
+BIN := target/release/membrane-contact
+# Link Debian's serial libhdf5 (its default pkg-config entry is the OpenMPI build).
+export HDF5_DIR := /usr/lib/x86_64-linux-gnu/hdf5/serial
+DEBIAN_PACKAGES := libhdf5-dev pkg-config python3-dolfinx python3-petsc4py python3-meshio \
+	python3-h5py python3-paraview python3-matplotlib python3-sympy
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+BENCH_SIZES ?= 256 512 1024
+
+.PHONY: all deps build run test cargo-test validate bench bench-reference lint clean
+
+all: build
+
+deps:
+	@missing=$$(for p in $(DEBIAN_PACKAGES); do \
+		dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q '^install ok installed' || echo $$p; done); \
+	if [ -n "$$missing" ]; then \
+		echo "installing Debian packages:" $$missing; \
+		$(SUDO) apt-get update && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y $$missing; \
+	fi
+
+build: deps
+	cargo build --release
+
+run: build
+	$(BIN) solve
+
+test: cargo-test validate
+
+cargo-test: deps
+	cargo test --release
+
+validate: build
+	$(PY) reference/validate.py --bin $(BIN) --out validation
+
+bench: deps
+	cargo build --release --benches
+	@for n in $(BENCH_SIZES); do \
+		cargo bench -q --bench phases -- poisson $$n | grep '^poisson' ; \
+		cargo bench -q --bench phases -- contact $$n | grep '^contact' ; \
+	done | $(PY) reference/bench_table.py
+
+bench-reference: build
+	$(PY) reference/bench_reference.py --bin $(BIN)
+
+lint:
+	cargo fmt --all -- --check
+	cargo clippy --all-targets -- -D warnings
+
+clean:
+	cargo clean
+	rm -rf results validation

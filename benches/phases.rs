@@ -1,0 +1,82 @@
+//! `make bench`: time of each phase and peak memory of the contact solve on the unit square with
+//! N × N cells, beside one scalar Poisson factorization + solve on the same mesh.
+//!
+//! Usage: `cargo bench --bench phases -- contact N` or `-- poisson N` (one process per figure, so
+//! that the peak resident memory is that of one run).
+
+use membrane_contact::assembly::Stiffness;
+use membrane_contact::case::Case;
+use membrane_contact::linear::InteriorSolver;
+use membrane_contact::mesh::{Diagonal, Mesh};
+use membrane_contact::run::{self, Start};
+use std::time::Instant;
+
+/// Peak resident set size of this process, in MB.
+fn peak_mb() -> f64 {
+    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))
+        .and_then(|l| l.split_whitespace().nth(1))
+        .and_then(|kb| kb.parse::<f64>().ok())
+        .map_or(f64::NAN, |kb| kb / 1024.0)
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
+    let (what, n) = match args.as_slice() {
+        [w, n] => (w.as_str(), n.parse::<usize>().expect("N")),
+        _ => {
+            eprintln!("usage: phases contact|poisson N");
+            std::process::exit(2);
+        }
+    };
+    match what {
+        "contact" => {
+            let mut case = Case::default_case();
+            case.set_cells(n);
+            case.exact = None;
+            let t = Instant::now();
+            let r = run::solve(&case, Start::Nested, None).expect("solve");
+            let total = t.elapsed().as_secs_f64();
+            let tm = &r.timings;
+            println!(
+                "contact {n} vertices={} mesh={:.3} assembly={:.3} coarse={:.3} symbolic={:.3} numeric={:.3} solve={:.3} postprocess={:.3} contact_solve={:.3} total={:.3} iterations={} coarse_iterations={:?} factorizations={} peak_mb={:.0}",
+                r.problem.mesh.n_vertices(),
+                tm.mesh,
+                tm.assembly,
+                tm.coarse,
+                tm.symbolic,
+                tm.numeric,
+                tm.solve,
+                tm.postprocess,
+                tm.contact_solve(),
+                total,
+                r.solution.stats.iterations,
+                r.coarse_iterations,
+                r.solution.stats.factorizations,
+                peak_mb()
+            );
+        }
+        "poisson" => {
+            let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], n, n, Diagonal::Right).unwrap();
+            let k = Stiffness::assemble(&mesh);
+            let t = Instant::now();
+            let mut sys = InteriorSolver::new(&k, &mesh.on_boundary);
+            let symbolic = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            sys.factorize(&vec![false; sys.n()]).unwrap();
+            let numeric = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let mut x = vec![1.0; sys.n()];
+            sys.solve(&mut x);
+            let solve = t.elapsed().as_secs_f64();
+            println!(
+                "poisson {n} symbolic={symbolic:.3} numeric={numeric:.3} solve={solve:.3} total={:.3} peak_mb={:.0}",
+                symbolic + numeric + solve,
+                peak_mb()
+            );
+        }
+        _ => panic!("unknown benchmark {what}"),
+    }
+}

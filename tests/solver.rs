@@ -1,0 +1,162 @@
+//! The discrete problem (3.4) and the action (4.5) on cases whose answer is known.
+
+use membrane_contact::assembly::Stiffness;
+use membrane_contact::case::Case;
+use membrane_contact::contact::{self, DiscreteProblem, SolveError, SolverOptions};
+use membrane_contact::linear::InteriorSolver;
+use membrane_contact::run::{self, Start};
+use std::path::PathBuf;
+
+fn case(body: &str, n: usize) -> Case {
+    let text = format!("{body}\n[mesh]\nkind = \"rectangle\"\nn = [{n}, {n}]\ndiagonal = \"crossed\"\n");
+    Case::parse(&text, "test case", PathBuf::new()).unwrap()
+}
+
+fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (x - y).abs()).fold(0.0, f64::max)
+}
+
+/// u with K u = F/μ in the interior and u = bc on ∂ω, by a plain Poisson solve.
+fn poisson(problem: &DiscreteProblem, load: &[f64], mu: f64, bc: &[f64]) -> Vec<f64> {
+    let k: &Stiffness = &problem.stiffness;
+    let mut sys = InteriorSolver::new(k, &problem.mesh.on_boundary);
+    sys.factorize(&vec![false; sys.n()]).unwrap();
+    let mut x: Vec<f64> = sys
+        .vertices
+        .iter()
+        .map(|&a| {
+            load[a] / mu
+                - k.row(a)
+                    .filter(|(b, _)| problem.mesh.on_boundary[*b])
+                    .map(|(b, v)| v * bc[b])
+                    .sum::<f64>()
+        })
+        .collect();
+    sys.solve(&mut x);
+    let mut u = bc.to_vec();
+    for (i, &a) in sys.vertices.iter().enumerate() {
+        u[a] = x[i];
+    }
+    u
+}
+
+#[test]
+fn linear_solution_without_contact_is_reproduced() {
+    let c = case("mu1 = 2.0\nmu2 = 0.5\nf1 = 0\nf2 = 0\ng = \"1 + x + 2*y\"", 6);
+    let r = run::solve(&c, Start::Cold, None).unwrap();
+    for (a, p) in r.problem.mesh.points.iter().enumerate() {
+        assert!((r.solution.u1[a] - (1.0 + p[0] + 2.0 * p[1])).abs() < 1e-13);
+        assert!(r.solution.u2[a].abs() < 1e-13);
+    }
+    assert!(r.solution.contact.iter().all(|&c| !c));
+    assert!(r.action.lambda.iter().all(|l| l.abs() < 1e-11));
+}
+
+#[test]
+fn no_contact_equals_two_poisson_solves() {
+    let c = case(
+        "mu1 = 1.5\nmu2 = 3.0\nf1 = \"1 + x\"\nf2 = \"-2\"\ng = \"0.1 + x*y\"",
+        12,
+    );
+    let r = run::solve(&c, Start::Cold, None).unwrap();
+    let p = &r.problem;
+    let zero = vec![0.0; p.mesh.n_vertices()];
+    let u1 = poisson(p, &p.load1, 1.5, &p.g_h);
+    let u2 = poisson(p, &p.load2, 3.0, &zero);
+    assert!(r.solution.contact.iter().all(|&c| !c));
+    assert!(max_abs_diff(&u1, &r.solution.u1) < 1e-13);
+    assert!(max_abs_diff(&u2, &r.solution.u2) < 1e-13);
+    assert!(r.action.lambda.iter().all(|l| l.abs() < 1e-10));
+    assert!(r.solution.gap.iter().all(|&w| w > 0.0));
+}
+
+#[test]
+fn full_contact_moves_the_membranes_together() {
+    // Pressed together everywhere with g = 0: u1 = u2 = v, (μ1 + μ2) K v = F1 + F2, and
+    // λ_a m_a = μ1 (K v)_a − F1_a = (μ2 F1_a − μ1 F2_a)/(μ1 + μ2) · (−1)… > 0.
+    let c = case("mu1 = 1.0\nmu2 = 3.0\nf1 = -10\nf2 = \"10 + x\"\ng = 0", 10);
+    let r = run::solve(&c, Start::Cold, None).unwrap();
+    let p = &r.problem;
+    let interior = p.mesh.interior();
+    assert!(interior.iter().all(|&a| r.solution.contact[a]));
+    assert!(max_abs_diff(&r.solution.u1, &r.solution.u2) == 0.0);
+    let sum: Vec<f64> = p.load1.iter().zip(&p.load2).map(|(a, b)| a + b).collect();
+    let v = poisson(p, &sum, 4.0, &vec![0.0; p.mesh.n_vertices()]);
+    assert!(max_abs_diff(&v, &r.solution.u1) < 1e-13);
+    for &a in &interior {
+        let expected = -(3.0 * p.load1[a] - p.load2[a]) / 4.0 / p.mass[a];
+        assert!((r.action.lambda[a] - expected).abs() < 1e-10 * expected.abs().max(1.0));
+        assert!(r.action.lambda[a] > 9.0);
+    }
+}
+
+#[test]
+fn action_satisfies_proposition_12_and_complementarity() {
+    let c = Case::default_case();
+    let r = run::solve(&c, Start::Nested, None).unwrap();
+    let a = &r.action;
+    let lmax = a.lambda.iter().copied().fold(0.0, f64::max);
+    let wmax = r.solution.gap.iter().copied().fold(0.0, f64::max);
+    assert!(lmax > 1.0, "the default case has contact");
+    assert!(
+        a.membrane_difference / lmax < 1e-10,
+        "Prop. 12: {}",
+        a.membrane_difference
+    );
+    assert!(
+        a.complementarity / (lmax * wmax) < 1e-12,
+        "(4.8): {}",
+        a.complementarity
+    );
+    assert!(a.min_lambda > -1e-10 * lmax);
+    assert!(r.solution.gap.iter().all(|&w| w >= 0.0));
+    // At contact vertices the gap is exactly 0; elsewhere λ vanishes up to round-off.
+    for (v, &touch) in r.solution.contact.iter().enumerate() {
+        if touch {
+            assert_eq!(r.solution.gap[v], 0.0);
+        } else {
+            assert!(a.lambda[v].abs() < 1e-10 * lmax);
+        }
+    }
+}
+
+#[test]
+fn exact_solution_errors_on_a_fixed_mesh() {
+    // The default case (disk contact, discontinuous f) on 32 × 32 right-diagonal cells.
+    let mut c = Case::default_case();
+    c.set_cells(32);
+    let r = run::solve(&c, Start::Nested, None).unwrap();
+    let e = r.errors.unwrap();
+    assert!(e.h1_u1 < 0.07 && e.h1_u2 < 0.06, "{e:?}");
+    assert!(e.l2_u1 < 8e-4 && e.l2_u2 < 8e-4, "{e:?}");
+    assert!(e.l2_lambda < 0.08, "{e:?}");
+    // And the H¹ error halves with h (Theorem 9).
+    c.set_cells(64);
+    let fine = run::solve(&c, Start::Nested, None).unwrap().errors.unwrap();
+    let rate = (e.h1_u1 / fine.h1_u1).log2();
+    assert!((0.9..1.1).contains(&rate), "H1 rate {rate}");
+}
+
+#[test]
+fn nested_iteration_and_cold_start_agree() {
+    let c = Case::default_case();
+    let warm = run::solve(&c, Start::Nested, None).unwrap();
+    let cold = run::solve(&c, Start::Cold, None).unwrap();
+    assert_eq!(warm.solution.contact, cold.solution.contact);
+    assert!(max_abs_diff(&warm.solution.u1, &cold.solution.u1) < 1e-13);
+    assert!(max_abs_diff(&warm.action.lambda, &cold.action.lambda) < 1e-9);
+    assert!(warm.solution.stats.iterations <= 4, "{:?}", warm.solution.stats);
+    assert!(cold.solution.stats.iterations > warm.solution.stats.iterations);
+}
+
+#[test]
+fn iteration_cap_is_an_error() {
+    let c = Case::default_case();
+    let p = DiscreteProblem::new(c.mesh().unwrap(), &c.data).unwrap();
+    let err = contact::solve(&p, None, SolverOptions { max_iterations: 2 }).unwrap_err();
+    assert!(
+        matches!(err, SolveError::IterationCap { iterations: 2, .. }),
+        "{err}"
+    );
+    assert!(err.to_string().contains("did not converge in 2 iterations"));
+}
