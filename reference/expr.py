@@ -217,3 +217,26 @@ def to_ufl(tree, mesh):
         "if": ufl.conditional,
     }
     return _build(tree, X[0], X[1], lib)
+
+
+def to_sympy(tree):
+    """The expression as SymPy of the symbols x, y (returned with them)."""
+    import sympy as sp
+
+    x, y = sp.symbols("x y", real=True)
+    lib = {
+        "const": lambda v: sp.pi if v == math.pi else sp.nsimplify(v, rational=True),
+        "cmp": lambda op, a, c: {"<": sp.Lt, "<=": sp.Le, ">": sp.Gt, ">=": sp.Ge}[op](a, c),
+        "and": sp.And,
+        "or": sp.Or,
+        "sqrt": sp.sqrt,
+        "exp": sp.exp,
+        "log": sp.log,
+        "sin": sp.sin,
+        "cos": sp.cos,
+        "abs": sp.Abs,
+        "min": sp.Min,
+        "max": sp.Max,
+        "if": lambda c, a, b: sp.Piecewise((a, c), (b, True)),
+    }
+    return _build(tree, x, y, lib), x, y

@@ -2,8 +2,8 @@
 //!
 //! A result `NAME.h5` holds `/mesh/{geometry,topology}`, the vertex fields under `/fields`, the
 //! dual submesh S_h under `/dual` with λ_h as cell data, and the case, parameters and solver
-//! statistics as attributes of `/`. `NAME.xdmf` describes both grids (float data with
-//! `Precision="8"`). Both are written to temporary files and renamed, so a failure leaves no partial
+//! statistics as attributes of `/`. `NAME.xdmf` describes the mesh and its fields, `NAME-dual.xdmf`
+//! the dual submesh (float data with `Precision="8"`). Both are written to temporary files and renamed, so a failure leaves no partial
 //! file and never replaces an earlier result.
 
 use crate::mesh::Mesh;
@@ -47,9 +47,10 @@ impl std::fmt::Display for IoError {
 
 impl std::error::Error for IoError {}
 
-/// Writes `h5_path` and its XDMF sidecar atomically.
-pub fn write_result(h5_path: &Path, grids: &[Grid], attrs: &[(&str, Attr)]) -> Result<PathBuf, IoError> {
-    let xdmf_path = h5_path.with_extension("xdmf");
+/// Writes `h5_path` and one XDMF sidecar per grid (`NAME.xdmf` for the first, `NAME-GRID.xdmf`
+/// for the others, so that ParaView shows them as separate datasets), atomically: everything is
+/// written to temporary files first and renamed at the end. Returns the XDMF paths.
+pub fn write_result(h5_path: &Path, grids: &[Grid], attrs: &[(&str, Attr)]) -> Result<Vec<PathBuf>, IoError> {
     let dir = match h5_path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -61,32 +62,49 @@ pub fn write_result(h5_path: &Path, grids: &[Grid], attrs: &[(&str, Attr)]) -> R
             dir.display()
         )));
     }
-    let file_name = h5_path
-        .file_name()
-        .ok_or_else(|| IoError(format!("{}: not a file name", h5_path.display())))?
-        .to_string_lossy()
-        .to_string();
-    let tmp = |p: &Path| {
-        let name = p.file_name().unwrap().to_string_lossy();
-        dir.join(format!(".{name}.tmp-{}", std::process::id()))
+    let (Some(file_name), Some(stem)) = (h5_path.file_name(), h5_path.file_stem()) else {
+        return Err(IoError(format!("{}: not a file name", h5_path.display())));
     };
-    let (h5_tmp, xdmf_tmp) = (tmp(h5_path), tmp(&xdmf_path));
-    let result = write_hdf5(&h5_tmp, grids, attrs)
+    let (file_name, stem) = (file_name.to_string_lossy(), stem.to_string_lossy());
+    let tmp = |p: &Path| {
+        dir.join(format!(
+            ".{}.tmp-{}",
+            p.file_name().unwrap().to_string_lossy(),
+            std::process::id()
+        ))
+    };
+    // (temporary, final) pairs, the HDF5 file first.
+    let mut files = vec![(tmp(h5_path), h5_path.to_path_buf())];
+    for (i, g) in grids.iter().enumerate() {
+        let name = if i == 0 {
+            format!("{stem}.xdmf")
+        } else {
+            format!("{stem}-{}.xdmf", g.name)
+        };
+        let path = dir.join(name);
+        files.push((tmp(&path), path));
+    }
+    let result = write_hdf5(&files[0].0, grids, attrs)
         .and_then(|_| {
-            std::fs::write(&xdmf_tmp, xdmf(&file_name, grids))
-                .map_err(|e| IoError(format!("{}: {e}", xdmf_path.display())))
+            for (g, (tmp, path)) in grids.iter().zip(&files[1..]) {
+                std::fs::write(tmp, xdmf(&file_name, g))
+                    .map_err(|e| IoError(format!("{}: {e}", path.display())))?;
+            }
+            Ok(())
         })
         .and_then(|_| {
-            std::fs::rename(&h5_tmp, h5_path).map_err(|e| IoError(format!("{}: {e}", h5_path.display())))?;
-            std::fs::rename(&xdmf_tmp, &xdmf_path)
-                .map_err(|e| IoError(format!("{}: {e}", xdmf_path.display())))
+            for (tmp, path) in &files {
+                std::fs::rename(tmp, path).map_err(|e| IoError(format!("{}: {e}", path.display())))?;
+            }
+            Ok(())
         });
     if let Err(e) = result {
-        let _ = std::fs::remove_file(&h5_tmp);
-        let _ = std::fs::remove_file(&xdmf_tmp);
+        for (tmp, _) in &files {
+            let _ = std::fs::remove_file(tmp);
+        }
         return Err(e);
     }
-    Ok(xdmf_path)
+    Ok(files.into_iter().skip(1).map(|(_, p)| p).collect())
 }
 
 fn write_hdf5(path: &Path, grids: &[Grid], attrs: &[(&str, Attr)]) -> Result<(), IoError> {
@@ -141,12 +159,12 @@ fn write_hdf5(path: &Path, grids: &[Grid], attrs: &[(&str, Attr)]) -> Result<(),
     file.close().map_err(named)
 }
 
-fn xdmf(h5_name: &str, grids: &[Grid]) -> String {
+fn xdmf(h5_name: &str, g: &Grid) -> String {
     let item = |dims: String, number: &str, path: String| {
         format!("<DataItem Dimensions=\"{dims}\" NumberType=\"{number}\" Precision=\"8\" Format=\"HDF\">{h5_name}:{path}</DataItem>")
     };
     let mut s = String::from("<?xml version=\"1.0\"?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n");
-    for g in grids {
+    {
         let (np, nc) = (g.points.len(), g.triangles.len());
         let _ = writeln!(s, "    <Grid Name=\"{}\" GridType=\"Uniform\">", g.name);
         let _ = writeln!(

@@ -94,10 +94,11 @@ fn solve(
     let mut result = run::solve(&case, start, None)?;
     let xdmf = result.write(&case, &output)?;
     print!("{}", result.summary());
+    let sidecars: Vec<String> = xdmf.iter().map(|p| p.display().to_string()).collect();
     println!(
-        "result      {} (+ {}): open the .xdmf in ParaView",
+        "result      {} — open {} in ParaView (Xdmf3 reader)",
         output.display(),
-        xdmf.display()
+        sidecars.join(" and ")
     );
     Ok(())
 }

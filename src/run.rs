@@ -157,8 +157,8 @@ pub fn solve(
 }
 
 impl Run {
-    /// Writes the result file and its XDMF sidecar; returns the XDMF path.
-    pub fn write(&mut self, case: &Case, h5_path: &Path) -> Result<PathBuf, RunError> {
+    /// Writes the result file and its XDMF sidecars; returns the XDMF paths.
+    pub fn write(&mut self, case: &Case, h5_path: &Path) -> Result<Vec<PathBuf>, RunError> {
         let t = Instant::now();
         let mesh = &self.problem.mesh;
         let s = &self.solution;

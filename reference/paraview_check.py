@@ -1,0 +1,55 @@
+"""Opens result files with ParaView's own XDMF reader (headless) and checks that every field is
+there, with the right size and in double precision.
+
+Usage: /usr/bin/python3 reference/paraview_check.py RESULT.xdmf [...]   (RESULT-dual.xdmf is read too)
+"""
+import os
+import sys
+
+from paraview import servermanager
+from paraview.simple import Xdmf3ReaderS
+
+POINT_FIELDS = ("u1", "u2", "gap", "lambda", "lambda2", "contact")
+VTK_DOUBLE = 11
+
+
+def read(path):
+    """The one unstructured grid of an XDMF file, as ParaView reads it."""
+    reader = Xdmf3ReaderS(FileName=[os.path.abspath(path)])
+    reader.UpdatePipeline()
+    data = servermanager.Fetch(reader)
+    while not data.IsA("vtkUnstructuredGrid"):
+        data = data.GetBlock(0) if data.IsA("vtkMultiBlockDataSet") else data.GetPiece(0)
+    return data
+
+
+def check(path):
+    """Checks NAME.xdmf (the mesh) and NAME-dual.xdmf (the dual submesh)."""
+    mesh = read(path)
+    dual = read(path[: -len(".xdmf")] + "-dual.xdmf")
+    problems = []
+    for name in POINT_FIELDS:
+        arr = mesh.GetPointData().GetArray(name)
+        if arr is None:
+            problems.append("point field %s missing" % name)
+        elif arr.GetDataType() != VTK_DOUBLE or arr.GetNumberOfTuples() != mesh.GetNumberOfPoints():
+            problems.append("point field %s: type %s, %d values" % (name, arr.GetDataTypeAsString(), arr.GetNumberOfTuples()))
+    arr = dual.GetCellData().GetArray("lambda")
+    if arr is None or arr.GetDataType() != VTK_DOUBLE or arr.GetNumberOfTuples() != dual.GetNumberOfCells():
+        problems.append("dual cell field lambda missing or not double")
+    if dual.GetNumberOfCells() != 6 * mesh.GetNumberOfCells():
+        problems.append("dual mesh has %d cells for %d triangles" % (dual.GetNumberOfCells(), mesh.GetNumberOfCells()))
+    return problems
+
+
+def main(paths):
+    ok = True
+    for p in paths:
+        problems = check(p)
+        ok &= not problems
+        print("paraview %-50s %s" % (p, "ok: all fields double" if not problems else "; ".join(problems)))
+    return ok
+
+
+if __name__ == "__main__":
+    sys.exit(0 if main(sys.argv[1:]) else 1)
