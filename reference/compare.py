@@ -1,5 +1,7 @@
 """Field-by-field comparison of two result files (Rust solver and reference), matched by vertex
-coordinates: max-norm and L2 differences of u1, u2, gap and lambda relative to the field's size.
+coordinates: max-norm and L2 differences of u1, u2, gap and lambda, relative to the size of the
+displacements (for u1, u2, gap) or of the action (for lambda: max |lambda|, or max |f1|, |f2| at the
+vertices when there is no contact), so that a field that vanishes is compared at its natural scale.
 
 Usage: /usr/bin/python3 reference/compare.py A.h5 B.h5 [--tol 1e-8]
 """
@@ -7,10 +9,13 @@ import argparse
 import os
 import sys
 
+import tomllib
+
 import h5py
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import expr  # noqa: E402
 from solve_reference import match_points  # noqa: E402
 
 FIELDS = ("u1", "u2", "gap", "lambda")
@@ -32,12 +37,16 @@ def compare(path_a, path_b):
         pa, pb = a["mesh/geometry"][...], b["mesh/geometry"][...]
         perm = match_points(pa, pb)
         m = lumped_mass(pa, a["mesh/topology"][...])
+        fields = {k: (a["mesh/" + k][...], b["mesh/" + k][...][perm]) for k in FIELDS}
+        case = tomllib.loads(a.attrs["case_text"])
+        loads = [np.abs(expr.to_numpy(expr.parse(case[f]), pa[:, 0], pa[:, 1])).max() for f in ("f1", "f2")]
+        u_scale = max(np.abs(v).max() for k in ("u1", "u2") for v in fields[k])
+        lam_scale = max(np.abs(fields["lambda"][0]).max(), np.abs(fields["lambda"][1]).max(), *loads)
         out = {}
         for k in FIELDS:
-            x, y = a["mesh/" + k][...], b["mesh/" + k][...][perm]
-            size = max(np.abs(x).max(), np.abs(y).max(), 1e-300)
-            l2 = np.sqrt(np.sum(m * x * x))
-            out[k] = (np.abs(x - y).max() / size, np.sqrt(np.sum(m * (x - y) ** 2)) / max(l2, 1e-300))
+            x, y = fields[k]
+            size = max(lam_scale if k == "lambda" else u_scale, 1e-300)
+            out[k] = (np.abs(x - y).max() / size, np.sqrt(np.sum(m * (x - y) ** 2) / np.sum(m)) / size)
         mismatch = int(np.sum(a["mesh/contact"][...] != b["mesh/contact"][...][perm]))
     return out, mismatch
 
