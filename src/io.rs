@@ -84,7 +84,7 @@ pub fn write_result(h5_path: &Path, grids: &[Grid], attrs: &[(&str, Attr)]) -> R
         let path = dir.join(name);
         files.push((tmp(&path), path));
     }
-    let result = write_hdf5(&files[0].0, grids, attrs)
+    let result = write_hdf5(&files[0].0, h5_path, grids, attrs)
         .and_then(|_| {
             for (g, (tmp, path)) in grids.iter().zip(&files[1..]) {
                 std::fs::write(tmp, xdmf(&file_name, g))
@@ -107,8 +107,9 @@ pub fn write_result(h5_path: &Path, grids: &[Grid], attrs: &[(&str, Attr)]) -> R
     Ok(files.into_iter().skip(1).map(|(_, p)| p).collect())
 }
 
-fn write_hdf5(path: &Path, grids: &[Grid], attrs: &[(&str, Attr)]) -> Result<(), IoError> {
-    let named = |e: hdf5::Error| IoError(format!("{}: cannot write HDF5: {e}", path.display()));
+/// Writes the HDF5 file at `path`; errors name `shown`, the file the user asked for.
+fn write_hdf5(path: &Path, shown: &Path, grids: &[Grid], attrs: &[(&str, Attr)]) -> Result<(), IoError> {
+    let named = |e: hdf5::Error| IoError(format!("{}: cannot write HDF5: {e}", shown.display()));
     let file = hdf5::File::create(path).map_err(named)?;
     for grid in grids {
         let group = file.create_group(grid.name).map_err(named)?;

@@ -1,0 +1,412 @@
+//! Bad input, as a user would give it on the command line: every case must fail with a message
+//! naming the problem and a non-zero exit, leave no file behind, and leave an earlier result alone.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::Mutex;
+
+/// Held while a test writes an HDF5 file or starts a process: a child forked while another test
+/// has an HDF5 file open would inherit its descriptor and HDF5's lock on it.
+static FILES: Mutex<()> = Mutex::new(());
+
+fn run(cmd: &mut Command) -> Output {
+    let child = {
+        let _guard = FILES.lock().unwrap_or_else(|e| e.into_inner());
+        cmd.stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap()
+    };
+    child.wait_with_output().unwrap()
+}
+
+const GOOD: &str = "mu1 = 1.0\nmu2 = 2.0\nf1 = -5\nf2 = 5\ng = \"0.1*x\"\n";
+const SQUARE: &str = "[mesh]\nkind = \"rectangle\"\nn = [6, 6]\n";
+const EARLIER: &[u8] = b"an earlier result";
+
+/// Runs `solve` on `case_text` (with mesh files written by `setup`) into a directory holding an
+/// earlier `out.h5`; checks the failure and returns stderr.
+fn fails(case_text: &str, setup: impl Fn(&Path), extra: &[&str], output: Option<PathBuf>) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    setup(dir.path());
+    let case = dir.path().join("case.toml");
+    std::fs::write(&case, case_text).unwrap();
+    let out = output.unwrap_or_else(|| dir.path().join("out.h5"));
+    let ours = out.parent() == Some(dir.path());
+    if ours {
+        std::fs::write(&out, EARLIER).unwrap();
+    }
+    let before = listing(dir.path());
+    let run = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .arg("solve")
+        .arg(&case)
+        .arg("-o")
+        .arg(&out)
+        .args(extra));
+    let stderr = String::from_utf8_lossy(&run.stderr).to_string();
+    assert_eq!(run.status.code(), Some(1), "exit status; stderr: {stderr}");
+    assert!(stderr.starts_with("error: "), "{stderr}");
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(listing(dir.path()), before, "files were left behind or removed");
+    if ours {
+        assert_eq!(
+            std::fs::read(&out).unwrap(),
+            EARLIER,
+            "the earlier result was touched"
+        );
+    }
+    stderr
+}
+
+fn listing(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .collect();
+    v.sort();
+    v
+}
+
+fn case_fails(case_text: &str) -> String {
+    fails(case_text, |_| {}, &[], None)
+}
+
+/// A case reading `mesh.h5`, written with the given points and triangles.
+fn mesh_fails(points: &[[f64; 2]], cells: &[[i64; 3]]) -> String {
+    let (points, cells) = (points.to_vec(), cells.to_vec());
+    fails(
+        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"mesh.h5\"\n"),
+        move |dir| write_mesh(&dir.join("mesh.h5"), &points, &cells),
+        &[],
+        None,
+    )
+}
+
+fn write_mesh(path: &Path, points: &[[f64; 2]], cells: &[[i64; 3]]) {
+    let _guard = FILES.lock().unwrap_or_else(|e| e.into_inner());
+    let f = hdf5::File::create(path).unwrap();
+    let p = ndarray::Array2::from_shape_fn((points.len(), 2), |(i, k)| points[i][k]);
+    let c = ndarray::Array2::from_shape_fn((cells.len(), 3), |(i, k)| cells[i][k]);
+    f.new_dataset_builder()
+        .with_data(&p)
+        .create("/mesh/geometry")
+        .unwrap();
+    f.new_dataset_builder()
+        .with_data(&c)
+        .create("/mesh/topology")
+        .unwrap();
+}
+
+/// The unit square cut into four triangles around its centre (vertex 4).
+fn fan() -> (Vec<[f64; 2]>, Vec<[i64; 3]>) {
+    (
+        vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5]],
+        vec![[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]],
+    )
+}
+
+fn contains(stderr: &str, needle: &str) {
+    assert!(stderr.contains(needle), "expected «{needle}» in: {stderr}");
+}
+
+#[test]
+fn the_good_case_runs_and_file_meshes_work() {
+    // The baseline the table perturbs: it must succeed, also with a mesh read from a file.
+    let dir = tempfile::tempdir().unwrap();
+    let (p, c) = fan();
+    write_mesh(&dir.path().join("mesh.h5"), &p, &c);
+    for mesh in [SQUARE, "[mesh]\nkind = \"file\"\npath = \"mesh.h5\"\n"] {
+        std::fs::write(dir.path().join("case.toml"), format!("{GOOD}{mesh}")).unwrap();
+        let out = dir.path().join("good.h5");
+        let run = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact")).args([
+            "solve",
+            dir.path().join("case.toml").to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]));
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        assert!(
+            out.exists()
+                && dir.path().join("good.xdmf").exists()
+                && dir.path().join("good-dual.xdmf").exists()
+        );
+    }
+}
+
+#[test]
+fn unknown_key() {
+    contains(
+        &case_fails(&format!("{GOOD}bogus = 1\n{SQUARE}")),
+        "unknown field `bogus`",
+    );
+}
+
+#[test]
+fn missing_key() {
+    contains(
+        &case_fails(&format!("mu1 = 1.0\nmu2 = 1.0\nf1 = 0\nf2 = 0\n{SQUARE}")),
+        "missing field `g`",
+    );
+}
+
+#[test]
+fn wrong_type() {
+    let e = case_fails(&format!("{}{SQUARE}", GOOD.replace("mu1 = 1.0", "mu1 = \"one\"")));
+    contains(&e, "mu1");
+    contains(&e, "invalid type");
+}
+
+#[test]
+fn invalid_toml() {
+    contains(&case_fails("mu1 = = 1\n"), "TOML parse error");
+}
+
+#[test]
+fn missing_case_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .args(["solve", dir.path().join("nope.toml").to_str().unwrap()]));
+    assert_eq!(run.status.code(), Some(1));
+    contains(&String::from_utf8_lossy(&run.stderr), "cannot read the case file");
+}
+
+#[test]
+fn zero_tension() {
+    contains(
+        &case_fails(&format!("{}{SQUARE}", GOOD.replace("mu1 = 1.0", "mu1 = 0.0"))),
+        "key 'mu1' = 0",
+    );
+}
+
+#[test]
+fn negative_tension() {
+    contains(
+        &case_fails(&format!("{}{SQUARE}", GOOD.replace("mu2 = 2.0", "mu2 = -2.0"))),
+        "key 'mu2' = -2",
+    );
+}
+
+#[test]
+fn negative_boundary_height() {
+    let e = case_fails(&format!("{}{SQUARE}", GOOD.replace("0.1*x", "0.1*x - 0.05")));
+    contains(&e, "g = -0.05 < 0 at the boundary vertex (0, 0)");
+}
+
+#[test]
+fn malformed_expression() {
+    contains(
+        &case_fails(&format!("{}{SQUARE}", GOOD.replace("f1 = -5", "f1 = \"1 +\""))),
+        "key 'f1' = \"1 +\"",
+    );
+}
+
+#[test]
+fn unknown_name_in_expression() {
+    contains(
+        &case_fails(&format!("{}{SQUARE}", GOOD.replace("f1 = -5", "f1 = \"z + 1\""))),
+        "unknown name 'z'",
+    );
+}
+
+#[test]
+fn nan_in_the_domain() {
+    let e = case_fails(&format!(
+        "{}{SQUARE}",
+        GOOD.replace("f1 = -5", "f1 = \"log(x - 0.5)\"")
+    ));
+    contains(&e, "f1 is NaN at (");
+}
+
+#[test]
+fn infinity_in_the_domain() {
+    let e = case_fails(&format!(
+        "{}{SQUARE}",
+        GOOD.replace("f2 = 5", "f2 = \"1/(x - x)\"")
+    ));
+    contains(&e, "f2 is inf at (");
+}
+
+#[test]
+fn quadrature_degree_out_of_range() {
+    contains(
+        &case_fails(&format!("{GOOD}{SQUARE}[quadrature]\ndegree = 99\n")),
+        "quadrature.degree",
+    );
+}
+
+#[test]
+fn iteration_cap() {
+    let text =
+        format!("mu1 = 1.0\nmu2 = 1.0\nf1 = -20\nf2 = 20\ng = 0.01\n{SQUARE}[solver]\nmax_iterations = 1\n");
+    contains(
+        &fails(&text, |_| {}, &["--cold"], None),
+        "did not converge in 1 iterations",
+    );
+}
+
+#[test]
+fn missing_mesh_file() {
+    let e = fails(
+        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"absent.h5\"\n"),
+        |_| {},
+        &[],
+        None,
+    );
+    contains(&e, "absent.h5: no such file");
+}
+
+#[test]
+fn mesh_file_not_hdf5() {
+    let e = fails(
+        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"mesh.h5\"\n"),
+        |d| std::fs::write(d.join("mesh.h5"), "not hdf5").unwrap(),
+        &[],
+        None,
+    );
+    contains(&e, "not a readable HDF5 file");
+}
+
+#[test]
+fn truncated_mesh_file() {
+    let e = fails(
+        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"mesh.h5\"\n"),
+        |d| {
+            let (p, c) = fan();
+            write_mesh(&d.join("full.h5"), &p, &c);
+            let bytes = std::fs::read(d.join("full.h5")).unwrap();
+            std::fs::write(d.join("mesh.h5"), &bytes[..bytes.len() / 2]).unwrap();
+            std::fs::remove_file(d.join("full.h5")).unwrap();
+        },
+        &[],
+        None,
+    );
+    assert!(
+        e.contains("not a readable HDF5 file") || e.contains("cannot read"),
+        "{e}"
+    );
+}
+
+#[test]
+fn non_triangle_cells() {
+    let e = fails(
+        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"mesh.xdmf\"\n"),
+        |d| {
+            let (p, c) = fan();
+            write_mesh(&d.join("mesh.h5"), &p, &c);
+            let xdmf = "<Xdmf><Domain><Grid><Topology TopologyType=\"Quadrilateral\"><DataItem Format=\"HDF\">mesh.h5:/mesh/topology</DataItem></Topology><Geometry GeometryType=\"XY\"><DataItem Format=\"HDF\">mesh.h5:/mesh/geometry</DataItem></Geometry></Grid></Domain></Xdmf>";
+            std::fs::write(d.join("mesh.xdmf"), xdmf).unwrap();
+        },
+        &[],
+        None,
+    );
+    contains(&e, "cell type 'Quadrilateral' is not supported");
+}
+
+#[test]
+fn zero_area_triangle() {
+    let (p, mut c) = fan();
+    c[0] = [0, 1, 0];
+    contains(&mesh_fails(&p, &c), "triangle 0 has zero area");
+}
+
+#[test]
+fn inverted_triangle() {
+    let (mut p, c) = fan();
+    p[4] = [1.3, 0.5];
+    contains(&mesh_fails(&p, &c), "inverted");
+}
+
+#[test]
+fn duplicate_vertices() {
+    let (mut p, mut c) = fan();
+    p.push([0.5, 0.5]);
+    c[3] = [3, 0, 5];
+    contains(&mesh_fails(&p, &c), "vertices 4 and 5 have the same coordinates");
+}
+
+#[test]
+fn hanging_node() {
+    let p = [
+        [0.0, 0.0],
+        [1.0, 0.0],
+        [1.0, 1.0],
+        [0.0, 1.0],
+        [2.0, 0.5],
+        [1.0, 0.5],
+        [0.5, 0.5],
+    ];
+    let c = [[0, 1, 6], [1, 2, 6], [2, 3, 6], [3, 0, 6], [1, 4, 5], [5, 4, 2]];
+    contains(&mesh_fails(&p, &c), "hanging node");
+}
+
+#[test]
+fn several_components() {
+    let (mut p, mut c) = fan();
+    p.extend([[3.0, 0.0], [4.0, 0.0], [4.0, 1.0], [3.0, 1.0], [3.5, 0.5]]);
+    c.extend([[5, 6, 9], [6, 7, 9], [7, 8, 9], [8, 5, 9]]);
+    contains(&mesh_fails(&p, &c), "2 separate components");
+}
+
+#[test]
+fn no_interior_vertex() {
+    let p = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    contains(&mesh_fails(&p, &[[0, 1, 2], [0, 2, 3]]), "no interior vertex");
+}
+
+#[test]
+fn vertex_index_out_of_range() {
+    let (p, mut c) = fan();
+    c[1] = [1, 2, 7];
+    contains(&mesh_fails(&p, &c), "refers to vertex 7, which does not exist");
+}
+
+#[test]
+fn output_directory_missing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("absent").join("out.h5");
+    let e = fails(&format!("{GOOD}{SQUARE}"), |_| {}, &[], Some(out));
+    contains(&e, "does not exist");
+}
+
+#[test]
+fn output_not_writable() {
+    // /proc refuses new files even to root.
+    let e = fails(
+        &format!("{GOOD}{SQUARE}"),
+        |_| {},
+        &[],
+        Some(PathBuf::from("/proc/membrane-contact.h5")),
+    );
+    contains(&e, "/proc/membrane-contact.h5");
+}
+
+#[test]
+fn two_runs_write_identical_datasets() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut files = Vec::new();
+    for name in ["a.h5", "b.h5"] {
+        let out = dir.path().join(name);
+        let run = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact")).args([
+            "solve",
+            "--n",
+            "24",
+            "-o",
+            out.to_str().unwrap(),
+        ]));
+        assert!(run.status.success());
+        files.push(hdf5::File::open(&out).unwrap());
+    }
+    let mut compared = 0;
+    for group in ["mesh", "dual"] {
+        let (ga, gb) = (files[0].group(group).unwrap(), files[1].group(group).unwrap());
+        let names = ga.member_names().unwrap();
+        assert!(names.len() >= 3);
+        for name in names {
+            let a = ga.dataset(&name).unwrap().read_raw::<f64>().unwrap();
+            let b = gb.dataset(&name).unwrap().read_raw::<f64>().unwrap();
+            assert!(
+                a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{group}/{name} differs"
+            );
+            compared += 1;
+        }
+    }
+    assert!(compared >= 12);
+}
