@@ -187,9 +187,10 @@ pub struct NotFinite {
     pub value: f64,
 }
 
-/// The load vector F_a = (f, φ_a) over all vertices, by the quadrature rule.
+/// The load vector F_a = (f, φ_a) over all vertices, by the quadrature rule. The triangles are
+/// split into two halves assembled on two threads (always two, so results do not depend on the
+/// machine).
 pub fn load(mesh: &Mesh, f: &Expr, quad: Quadrature) -> Result<Vec<f64>, NotFinite> {
-    let mut out = vec![0.0; mesh.n_vertices()];
     if let Some(c) = f.constant() {
         if !c.is_finite() {
             return Err(NotFinite {
@@ -200,8 +201,29 @@ pub fn load(mesh: &Mesh, f: &Expr, quad: Quadrature) -> Result<Vec<f64>, NotFini
         // Exact for constants: (c, φ_a) = c m_a.
         return Ok(lumped_mass(mesh).into_iter().map(|m| c * m).collect());
     }
+    let half = mesh.triangles.len() / 2;
+    let (first, second) = std::thread::scope(|s| {
+        let first = s.spawn(|| load_part(mesh, f, quad, 0..half));
+        let second = load_part(mesh, f, quad, half..mesh.triangles.len());
+        (first.join().expect("load assembly does not panic"), second)
+    });
+    let mut out = first?;
+    for (o, s) in out.iter_mut().zip(second?) {
+        *o += s;
+    }
+    Ok(out)
+}
+
+fn load_part(
+    mesh: &Mesh,
+    f: &Expr,
+    quad: Quadrature,
+    triangles: std::ops::Range<usize>,
+) -> Result<Vec<f64>, NotFinite> {
+    let mut out = vec![0.0; mesh.n_vertices()];
     let mut bad = None;
-    for (t, tri) in mesh.triangles.iter().enumerate() {
+    for t in triangles {
+        let tri = mesh.triangles[t];
         quad.for_each_point(mesh, t, |x, w, l| {
             let v = f.eval(x[0], x[1]);
             if !v.is_finite() && bad.is_none() {

@@ -15,7 +15,7 @@
 
 use crate::assembly::{self, Quadrature, Stiffness};
 use crate::expr::Expr;
-use crate::linear::InteriorSolver;
+use crate::linear::{Factorization, InteriorSystem};
 use crate::mesh::Mesh;
 use std::fmt;
 use std::time::Instant;
@@ -165,17 +165,33 @@ impl Default for SolverOptions {
 /// What the solver did.
 #[derive(Debug, Clone, Default)]
 pub struct SolverStats {
+    /// Active-set iterations (linear solves of the obstacle problem).
     pub iterations: usize,
     /// Size of the active set after each iteration.
     pub active_sizes: Vec<usize>,
     /// Number of vertices entering or leaving the active set in each iteration.
     pub changes: Vec<usize>,
     pub symbolic_seconds: f64,
+    /// Seconds in numeric factorizations and in triangular solves, summed over threads.
     pub numeric_seconds: f64,
     pub solve_seconds: f64,
+    /// Wall-clock seconds of the whole solve (symbolic analysis included).
+    pub wall_seconds: f64,
     pub factorizations: usize,
     pub unknowns: usize,
     pub factor_nnz: usize,
+}
+
+/// The solution w of the obstacle problem, with its multiplier and contact set.
+#[derive(Debug, Clone)]
+pub struct Obstacle {
+    /// w = u1h − u2h at every vertex.
+    pub gap: Vec<f64>,
+    /// λ_a = r_a / m_a at interior vertices (0 on ∂ω).
+    pub multiplier: Vec<f64>,
+    /// Interior vertices where the membranes touch (the final active set).
+    pub contact: Vec<bool>,
+    pub stats: SolverStats,
 }
 
 /// The solution (u1h, u2h) of (3.4), with the separated variables and the contact set.
@@ -201,59 +217,115 @@ pub struct Guess {
 }
 
 impl Guess {
-    /// The solution on `coarse`, interpolated onto `fine`.
-    pub fn interpolate(fine: &Mesh, coarse: &Mesh, solution: &Solution) -> Guess {
+    /// The gap and multiplier on `coarse`, interpolated onto `fine`.
+    pub fn interpolate(fine: &Mesh, coarse: &Mesh, gap: &[f64], multiplier: &[f64]) -> Guess {
         Guess {
-            gap: fine.interpolate_from(coarse, &solution.gap),
-            multiplier: fine.interpolate_from(coarse, &solution.multiplier),
+            gap: fine.interpolate_from(coarse, gap),
+            multiplier: fine.interpolate_from(coarse, multiplier),
         }
     }
 }
 
-/// Solves (3.4). With a `warm` guess the first active set is {λ_a − c_a w_a > 0} of the guess;
-/// without, the method starts from no contact.
+/// Solves (3.4): the Poisson problem for v on one thread while the obstacle problem for w runs on
+/// another (they share the symbolic analysis), then u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w.
 pub fn solve(
     problem: &DiscreteProblem,
     warm: Option<&Guess>,
     options: SolverOptions,
 ) -> Result<Solution, SolveError> {
+    let start = Instant::now();
+    let (mu1, mu2) = (problem.mu1, problem.mu2);
+    let system = InteriorSystem::new(&problem.stiffness, &problem.mesh.on_boundary);
+    let symbolic_seconds = start.elapsed().as_secs_f64();
+    let (v, obstacle) = std::thread::scope(|scope| {
+        let v = scope.spawn(|| {
+            // v: (μ1+μ2) K v = F1 + F2 inside, v = μ1 g_h/(μ1+μ2) on ∂ω.
+            let bc: Vec<f64> = problem.g_h.iter().map(|g| mu1 * g / (mu1 + mu2)).collect();
+            let rhs = system_rhs(
+                &system,
+                problem,
+                &|a| problem.load1[a] + problem.load2[a],
+                mu1 + mu2,
+                &bc,
+            );
+            let mut stats = SolverStats::default();
+            let mut factor = system.factorization();
+            factorize(&mut factor, &vec![false; system.n()], &mut stats)?;
+            let x = solve_with(&mut factor, &rhs, &vec![false; system.n()], &mut stats);
+            Ok::<_, SolveError>((scatter(&system, &x, &bc), stats))
+        });
+        let w = obstacle(problem, &system, warm, options);
+        (v.join().expect("the v thread does not panic"), w)
+    });
+    let (v, v_stats) = v?;
+    let Obstacle {
+        gap: w,
+        multiplier,
+        contact,
+        mut stats,
+    } = obstacle?;
+    stats.symbolic_seconds = symbolic_seconds;
+    stats.numeric_seconds += v_stats.numeric_seconds;
+    stats.solve_seconds += v_stats.solve_seconds;
+    stats.factorizations += v_stats.factorizations;
+    let (c1, c2) = (mu2 / (mu1 + mu2), mu1 / (mu1 + mu2));
+    let u1 = v.iter().zip(&w).map(|(v, w)| v + c1 * w).collect();
+    let u2 = v.iter().zip(&w).map(|(v, w)| v - c2 * w).collect();
+    stats.wall_seconds = start.elapsed().as_secs_f64();
+    Ok(Solution {
+        u1,
+        u2,
+        gap: w,
+        multiplier,
+        contact,
+        stats,
+    })
+}
+
+/// Solves the obstacle problem alone: μ* K w ≥ f_w, w ≥ 0 at interior vertices, w = g_h on ∂ω,
+/// with complementarity, by primal–dual active sets. With a `warm` guess the first active set is
+/// {λ_a − c_a w_a > 0} of the guess; without, the method starts from no contact. This is all a
+/// coarse level of nested iteration needs.
+pub fn solve_obstacle(
+    problem: &DiscreteProblem,
+    warm: Option<&Guess>,
+    options: SolverOptions,
+) -> Result<Obstacle, SolveError> {
+    let start = Instant::now();
+    let system = InteriorSystem::new(&problem.stiffness, &problem.mesh.on_boundary);
+    let symbolic_seconds = start.elapsed().as_secs_f64();
+    let mut obstacle = obstacle(problem, &system, warm, options)?;
+    obstacle.stats.symbolic_seconds = symbolic_seconds;
+    obstacle.stats.wall_seconds = start.elapsed().as_secs_f64();
+    Ok(obstacle)
+}
+
+fn obstacle(
+    problem: &DiscreteProblem,
+    system: &InteriorSystem,
+    warm: Option<&Guess>,
+    options: SolverOptions,
+) -> Result<Obstacle, SolveError> {
     let (mu1, mu2) = (problem.mu1, problem.mu2);
     let mu_star = mu1 * mu2 / (mu1 + mu2);
     let k = &problem.stiffness;
-    let mut stats = SolverStats::default();
-
-    let t = Instant::now();
-    let mut system = InteriorSolver::new(k, &problem.mesh.on_boundary);
-    stats.symbolic_seconds = t.elapsed().as_secs_f64();
-    stats.unknowns = system.n();
-    stats.factor_nnz = system.factor_nnz();
     let n = system.n();
-
-    // Boundary values of v and w, and the right-hand sides K_II x_I = b_I − K_IB x_B.
-    let v_bc: Vec<f64> = problem.g_h.iter().map(|g| mu1 * g / (mu1 + mu2)).collect();
-    let w_bc = &problem.g_h;
-    let rhs = |load: &dyn Fn(usize) -> f64, scale: f64, bc: &[f64]| -> Vec<f64> {
-        system_rhs(&system, k, &problem.mesh.on_boundary, load, scale, bc)
+    let mut stats = SolverStats {
+        unknowns: n,
+        factor_nnz: system.factor_nnz(),
+        ..Default::default()
     };
-    let rhs_v = rhs(&|a| problem.load1[a] + problem.load2[a], mu1 + mu2, &v_bc);
     let f_w = |a: usize| (mu2 * problem.load1[a] - mu1 * problem.load2[a]) / (mu1 + mu2);
-    let rhs_w = rhs(&f_w, mu_star, w_bc);
-
-    // v: one Poisson solve.
-    let none = vec![false; n];
-    factorize(&mut system, &none, &mut stats)?;
-    let v_int = solve_with(&mut system, &rhs_v, &none, &mut stats);
-    let v = scatter(&system, &v_int, &v_bc);
-
-    // w: the obstacle problem by primal–dual active sets.
+    let rhs = system_rhs(system, problem, &f_w, mu_star, &problem.g_h);
     let diag: Vec<f64> = system.vertices.iter().map(|&a| k.diagonal(a)).collect();
     let mut active: Vec<bool> = match warm {
         Some(guess) => (system.vertices.iter().zip(&diag))
             .map(|(&a, d)| guess.multiplier[a] * problem.mass[a] - mu_star * d * guess.gap[a] > 0.0)
             .collect(),
-        None => none.clone(),
+        None => vec![false; n],
     };
-    let (w, multiplier) = loop {
+    let mut factor = system.factorization();
+    loop {
         if stats.iterations == options.max_iterations {
             return Err(SolveError::IterationCap {
                 iterations: stats.iterations,
@@ -261,9 +333,9 @@ pub fn solve(
             });
         }
         stats.iterations += 1;
-        factorize(&mut system, &active, &mut stats)?;
-        let w_int = solve_with(&mut system, &rhs_w, &active, &mut stats);
-        let w = scatter(&system, &w_int, w_bc);
+        factorize(&mut factor, &active, &mut stats)?;
+        let w_int = solve_with(&mut factor, &rhs, &active, &mut stats);
+        let w = scatter(system, &w_int, &problem.g_h);
         // λ_a m_a = μ*(K w)_a − (f_w, φ_a); the active-set update compares λ_a with c_a w_a,
         // c_a = μ* K_aa / m_a, i.e. r_a with μ* K_aa w_a.
         let mut residual = vec![0.0; n];
@@ -277,36 +349,26 @@ pub fn solve(
         stats.changes.push(changed);
         stats.active_sizes.push(next.iter().filter(|&&x| x).count());
         if changed == 0 {
-            let mut multiplier = vec![0.0; problem.mesh.n_vertices()];
+            let nv = problem.mesh.n_vertices();
+            let (mut multiplier, mut contact) = (vec![0.0; nv], vec![false; nv]);
             for (i, &a) in system.vertices.iter().enumerate() {
                 multiplier[a] = residual[i] / problem.mass[a];
+                contact[a] = active[i];
             }
-            break (w, multiplier);
+            return Ok(Obstacle {
+                gap: w,
+                multiplier,
+                contact,
+                stats,
+            });
         }
         active = next;
-    };
-
-    let mut contact = vec![false; problem.mesh.n_vertices()];
-    for (i, &a) in system.vertices.iter().enumerate() {
-        contact[a] = active[i];
     }
-    let c1 = mu2 / (mu1 + mu2);
-    let c2 = mu1 / (mu1 + mu2);
-    let u1 = v.iter().zip(&w).map(|(v, w)| v + c1 * w).collect();
-    let u2 = v.iter().zip(&w).map(|(v, w)| v - c2 * w).collect();
-    Ok(Solution {
-        u1,
-        u2,
-        gap: w,
-        multiplier,
-        contact,
-        stats,
-    })
 }
 
-fn factorize(system: &mut InteriorSolver, held: &[bool], stats: &mut SolverStats) -> Result<(), SolveError> {
+fn factorize(factor: &mut Factorization, held: &[bool], stats: &mut SolverStats) -> Result<(), SolveError> {
     let t = Instant::now();
-    if system
+    if factor
         .factorize(held)
         .map_err(|_| SolveError::NotPositiveDefinite)?
     {
@@ -317,32 +379,33 @@ fn factorize(system: &mut InteriorSolver, held: &[bool], stats: &mut SolverStats
 }
 
 /// Solves with the held unknowns fixed at 0.
-fn solve_with(system: &mut InteriorSolver, b: &[f64], held: &[bool], stats: &mut SolverStats) -> Vec<f64> {
+fn solve_with(factor: &mut Factorization, b: &[f64], held: &[bool], stats: &mut SolverStats) -> Vec<f64> {
     let t = Instant::now();
     let mut x: Vec<f64> = b
         .iter()
         .zip(held)
         .map(|(b, h)| if *h { 0.0 } else { *b })
         .collect();
-    system.solve(&mut x);
+    factor.solve(&mut x);
     stats.solve_seconds += t.elapsed().as_secs_f64();
     x
 }
 
 /// b_I/scale − K_IB x_B in interior numbering.
 fn system_rhs(
-    system: &InteriorSolver,
-    k: &Stiffness,
-    on_boundary: &[bool],
+    system: &InteriorSystem,
+    problem: &DiscreteProblem,
     load: &dyn Fn(usize) -> f64,
     scale: f64,
     bc: &[f64],
 ) -> Vec<f64> {
+    let on_boundary = &problem.mesh.on_boundary;
     system
         .vertices
         .iter()
         .map(|&a| {
-            let lift: f64 = k
+            let lift: f64 = problem
+                .stiffness
                 .row(a)
                 .filter(|(b, _)| on_boundary[*b])
                 .map(|(b, v)| v * bc[b])
@@ -353,7 +416,7 @@ fn system_rhs(
 }
 
 /// The vertex field with interior values `x` and boundary values `bc`.
-fn scatter(system: &InteriorSolver, x: &[f64], bc: &[f64]) -> Vec<f64> {
+fn scatter(system: &InteriorSystem, x: &[f64], bc: &[f64]) -> Vec<f64> {
     let mut u = bc.to_vec();
     for (i, &a) in system.vertices.iter().enumerate() {
         u[a] = x[i];

@@ -87,21 +87,52 @@ enum Cond {
     Or(Box<Cond>, Box<Cond>),
 }
 
-/// A parsed expression of (x, y), ready to evaluate.
+/// A parsed expression of (x, y), compiled to a stack program for fast evaluation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Expr {
     source: String,
-    root: Num,
+    code: Vec<Op>,
 }
+
+/// One instruction of the stack program (conditions are 1.0 / 0.0 on the stack).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Op {
+    Const(f64),
+    X,
+    Y,
+    Unary(Unary),
+    Binary(Binary),
+    /// a^k for a constant integer exponent k.
+    PowI(i32),
+    Compare(Compare),
+    And,
+    Or,
+    JumpIfFalse(usize),
+    Jump(usize),
+}
+
+/// Longest accepted expression, in tokens, and the deepest nesting of the stack program.
+const MAX_TOKENS: usize = 10_000;
+const STACK: usize = 64;
 
 impl Expr {
     /// Parses `source`; the error names the offending token and its position.
     pub fn parse(source: &str) -> Result<Self, ExprError> {
         let tokens = lex(source)?;
+        if tokens.len() > MAX_TOKENS {
+            return Err(ExprError {
+                position: 0,
+                message: format!(
+                    "expression too long ({} tokens, at most {MAX_TOKENS})",
+                    tokens.len()
+                ),
+            });
+        }
         let mut p = Parser {
             tokens,
             pos: 0,
             end: source.len(),
+            depth: 0,
         };
         let root = match p.or()? {
             Node::Num(n) => n,
@@ -113,9 +144,14 @@ impl Expr {
             let (at, ref t) = p.tokens[p.pos];
             return Err(p.error_at(at, &format!("unexpected {t}")));
         }
+        let mut c = Compiler::default();
+        c.num(&root);
+        if c.max_depth > STACK {
+            return Err(p.error_at(0, "expression nested too deeply"));
+        }
         Ok(Expr {
             source: source.to_string(),
-            root,
+            code: c.code,
         })
     }
 
@@ -127,76 +163,174 @@ impl Expr {
     /// The value at the point (x, y).
     #[inline]
     pub fn eval(&self, x: f64, y: f64) -> f64 {
-        eval_num(&self.root, x, y)
+        let mut stack = [0.0f64; STACK];
+        let mut sp = 0;
+        let mut pc = 0;
+        while pc < self.code.len() {
+            match self.code[pc] {
+                Op::Const(c) => {
+                    stack[sp] = c;
+                    sp += 1;
+                }
+                Op::X => {
+                    stack[sp] = x;
+                    sp += 1;
+                }
+                Op::Y => {
+                    stack[sp] = y;
+                    sp += 1;
+                }
+                Op::Unary(op) => stack[sp - 1] = unary(op, stack[sp - 1]),
+                Op::Binary(op) => {
+                    sp -= 1;
+                    stack[sp - 1] = binary(op, stack[sp - 1], stack[sp]);
+                }
+                Op::PowI(k) => stack[sp - 1] = stack[sp - 1].powi(k),
+                Op::Compare(op) => {
+                    sp -= 1;
+                    stack[sp - 1] = f64::from(u8::from(compare(op, stack[sp - 1], stack[sp])));
+                }
+                Op::And => {
+                    sp -= 1;
+                    stack[sp - 1] = f64::from(u8::from(stack[sp - 1] != 0.0 && stack[sp] != 0.0));
+                }
+                Op::Or => {
+                    sp -= 1;
+                    stack[sp - 1] = f64::from(u8::from(stack[sp - 1] != 0.0 || stack[sp] != 0.0));
+                }
+                Op::JumpIfFalse(target) => {
+                    sp -= 1;
+                    if stack[sp] == 0.0 {
+                        pc = target;
+                        continue;
+                    }
+                }
+                Op::Jump(target) => {
+                    pc = target;
+                    continue;
+                }
+            }
+            pc += 1;
+        }
+        stack[0]
     }
 
-    /// Whether the expression is a constant (does not read x or y).
+    /// The value, if the expression does not read x or y.
     pub fn constant(&self) -> Option<f64> {
-        fn reads_xy(n: &Num) -> bool {
-            match n {
-                Num::Const(_) => false,
-                Num::X | Num::Y => true,
-                Num::Unary(_, a) => reads_xy(a),
-                Num::Binary(_, a, b) => reads_xy(a) || reads_xy(b),
-                Num::If(..) => true,
-            }
-        }
-        (!reads_xy(&self.root)).then(|| self.eval(0.0, 0.0))
+        let reads_xy = self
+            .code
+            .iter()
+            .any(|op| matches!(op, Op::X | Op::Y | Op::JumpIfFalse(_)));
+        (!reads_xy).then(|| self.eval(0.0, 0.0))
     }
 }
 
-fn eval_num(n: &Num, x: f64, y: f64) -> f64 {
-    match n {
-        Num::Const(c) => *c,
-        Num::X => x,
-        Num::Y => y,
-        Num::Unary(op, a) => {
-            let a = eval_num(a, x, y);
-            match op {
-                Unary::Neg => -a,
-                Unary::Sqrt => a.sqrt(),
-                Unary::Exp => a.exp(),
-                Unary::Log => a.ln(),
-                Unary::Sin => a.sin(),
-                Unary::Cos => a.cos(),
-                Unary::Abs => a.abs(),
+/// Compiles the tree to postfix code, tracking the stack depth.
+#[derive(Default)]
+struct Compiler {
+    code: Vec<Op>,
+    depth: usize,
+    max_depth: usize,
+}
+
+impl Compiler {
+    fn push(&mut self, op: Op, change: isize) {
+        self.code.push(op);
+        self.depth = self.depth.saturating_add_signed(change);
+        self.max_depth = self.max_depth.max(self.depth);
+    }
+
+    fn num(&mut self, n: &Num) {
+        match n {
+            Num::Const(c) => self.push(Op::Const(*c), 1),
+            Num::X => self.push(Op::X, 1),
+            Num::Y => self.push(Op::Y, 1),
+            Num::Unary(op, a) => {
+                self.num(a);
+                self.push(Op::Unary(*op), 0);
+            }
+            Num::Binary(Binary::Pow, a, b) if matches!(**b, Num::Const(k) if k.fract() == 0.0 && k.abs() <= 64.0) =>
+            {
+                let Num::Const(k) = **b else { unreachable!() };
+                self.num(a);
+                self.push(Op::PowI(k as i32), 0);
+            }
+            Num::Binary(op, a, b) => {
+                self.num(a);
+                self.num(b);
+                self.push(Op::Binary(*op), -1);
+            }
+            Num::If(c, a, b) => {
+                self.cond(c);
+                let branch = self.code.len();
+                self.push(Op::JumpIfFalse(0), -1);
+                self.num(a);
+                let skip = self.code.len();
+                self.push(Op::Jump(0), 0);
+                self.depth -= 1;
+                self.code[branch] = Op::JumpIfFalse(self.code.len());
+                self.num(b);
+                self.code[skip] = Op::Jump(self.code.len());
             }
         }
-        Num::Binary(op, a, b) => {
-            let (a, b) = (eval_num(a, x, y), eval_num(b, x, y));
-            match op {
-                Binary::Add => a + b,
-                Binary::Sub => a - b,
-                Binary::Mul => a * b,
-                Binary::Div => a / b,
-                Binary::Pow => a.powf(b),
-                Binary::Min => a.min(b),
-                Binary::Max => a.max(b),
+    }
+
+    fn cond(&mut self, c: &Cond) {
+        match c {
+            Cond::Compare(op, a, b) => {
+                self.num(a);
+                self.num(b);
+                self.push(Op::Compare(*op), -1);
             }
-        }
-        Num::If(c, a, b) => {
-            if eval_cond(c, x, y) {
-                eval_num(a, x, y)
-            } else {
-                eval_num(b, x, y)
+            Cond::And(a, b) | Cond::Or(a, b) => {
+                self.cond(a);
+                self.cond(b);
+                self.push(
+                    if matches!(c, Cond::And(..)) {
+                        Op::And
+                    } else {
+                        Op::Or
+                    },
+                    -1,
+                );
             }
         }
     }
 }
 
-fn eval_cond(c: &Cond, x: f64, y: f64) -> bool {
-    match c {
-        Cond::Compare(op, a, b) => {
-            let (a, b) = (eval_num(a, x, y), eval_num(b, x, y));
-            match op {
-                Compare::Lt => a < b,
-                Compare::Le => a <= b,
-                Compare::Gt => a > b,
-                Compare::Ge => a >= b,
-            }
-        }
-        Cond::And(a, b) => eval_cond(a, x, y) && eval_cond(b, x, y),
-        Cond::Or(a, b) => eval_cond(a, x, y) || eval_cond(b, x, y),
+#[inline]
+fn unary(op: Unary, a: f64) -> f64 {
+    match op {
+        Unary::Neg => -a,
+        Unary::Sqrt => a.sqrt(),
+        Unary::Exp => a.exp(),
+        Unary::Log => a.ln(),
+        Unary::Sin => a.sin(),
+        Unary::Cos => a.cos(),
+        Unary::Abs => a.abs(),
+    }
+}
+
+#[inline]
+fn binary(op: Binary, a: f64, b: f64) -> f64 {
+    match op {
+        Binary::Add => a + b,
+        Binary::Sub => a - b,
+        Binary::Mul => a * b,
+        Binary::Div => a / b,
+        Binary::Pow => a.powf(b),
+        Binary::Min => a.min(b),
+        Binary::Max => a.max(b),
+    }
+}
+
+#[inline]
+fn compare(op: Compare, a: f64, b: f64) -> bool {
+    match op {
+        Compare::Lt => a < b,
+        Compare::Le => a <= b,
+        Compare::Gt => a > b,
+        Compare::Ge => a >= b,
     }
 }
 
@@ -287,6 +421,8 @@ struct Parser {
     tokens: Vec<(usize, Token)>,
     pos: usize,
     end: usize,
+    /// Nesting depth (bounded, so that no input can exhaust the call stack).
+    depth: usize,
 }
 
 impl Parser {
@@ -407,6 +543,16 @@ impl Parser {
     }
 
     fn unary(&mut self) -> Result<Num, ExprError> {
+        self.depth += 1;
+        if self.depth > STACK / 2 {
+            return Err(self.error_at(self.here(), "expression nested too deeply"));
+        }
+        let result = self.unary_inner();
+        self.depth -= 1;
+        result
+    }
+
+    fn unary_inner(&mut self) -> Result<Num, ExprError> {
         if self.peek_op("-") {
             self.pos += 1;
             return Ok(Num::Unary(Unary::Neg, Box::new(self.unary()?)));
@@ -574,6 +720,26 @@ mod tests {
             .unwrap_err()
             .message
             .contains("malformed number"));
+    }
+
+    #[test]
+    fn hostile_inputs_are_refused_not_crashed() {
+        let deep = format!("{}x{}", "(".repeat(100_000), ")".repeat(100_000));
+        assert!(Expr::parse(&deep).unwrap_err().message.contains("too long"));
+        let nested = format!("{}x{}", "(".repeat(40), ")".repeat(40));
+        assert!(Expr::parse(&nested)
+            .unwrap_err()
+            .message
+            .contains("nested too deeply"));
+        assert!(Expr::parse(&"-".repeat(5000))
+            .unwrap_err()
+            .message
+            .contains("nested too deeply"));
+        let long_sum = vec!["x"; 4000].join(" + ");
+        assert_eq!(Expr::parse(&long_sum).unwrap().eval(1.0, 0.0), 4000.0);
+        let nested_ifs = (0..10).fold("y".to_string(), |e, k| format!("if(x > {k}, {e}, {k})"));
+        assert_eq!(Expr::parse(&nested_ifs).unwrap().eval(20.0, 7.0), 7.0);
+        assert_eq!(Expr::parse(&nested_ifs).unwrap().eval(4.5, 7.0), 9.0);
     }
 
     #[test]

@@ -2,7 +2,8 @@
 //! held fixed (the active set): faer's supernodal LLᵀ, symbolic analysis once per mesh.
 //!
 //! A held vertex a keeps its row and column in the pattern with only the diagonal K_aa, so the
-//! pattern, and hence the symbolic factorization, never changes with the active set.
+//! pattern, and hence the symbolic factorization, never changes with the active set. Several
+//! [`Factorization`]s can share one [`InteriorSystem`] (e.g. on two threads).
 
 use crate::assembly::Stiffness;
 use dyn_stack::{MemBuffer, MemStack};
@@ -12,35 +13,27 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
-/// The interior block K_II (lower triangle, CSC in interior numbering) and its factorization.
-pub struct InteriorSolver {
+/// The interior block K_II (lower triangle, CSC in interior numbering) and its symbolic analysis.
+pub struct InteriorSystem {
     /// Interior vertex of each unknown.
     pub vertices: Vec<usize>,
-    /// Unknown of each vertex (`usize::MAX` on ∂ω).
-    pub unknown: Vec<usize>,
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
-    /// K_II values in the lower pattern, and their vertex pair (for masking).
     k_val: Vec<f64>,
-    val: Vec<f64>,
     symbolic: SymbolicCholesky<usize>,
-    factor: Vec<f64>,
-    buffer: MemBuffer,
-    factored_with: Option<Vec<bool>>,
 }
 
 /// The matrix is not positive definite (cannot happen for a valid mesh; reported, not panicked).
 #[derive(Debug, Clone)]
 pub struct NotPositiveDefinite;
 
-impl InteriorSolver {
+impl InteriorSystem {
     /// Extracts K_II from K and runs the symbolic analysis (AMD ordering).
     pub fn new(k: &Stiffness, on_boundary: &[bool]) -> Self {
-        let n_all = k.n();
-        let mut unknown = vec![usize::MAX; n_all];
+        let mut unknown = vec![usize::MAX; k.n()];
         let mut vertices = Vec::new();
-        for a in 0..n_all {
-            if !on_boundary[a] {
+        for (a, &b) in on_boundary.iter().enumerate() {
+            if !b {
                 unknown[a] = vertices.len();
                 vertices.push(a);
             }
@@ -69,20 +62,12 @@ impl InteriorSolver {
             CholeskySymbolicParams::default(),
         )
         .expect("symbolic Cholesky of a valid pattern");
-        let scratch = symbolic
-            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
-            .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
-        InteriorSolver {
+        InteriorSystem {
             vertices,
-            unknown,
-            factor: vec![0.0; symbolic.len_val()],
-            val: k_val.clone(),
             col_ptr,
             row_idx,
             k_val,
             symbolic,
-            buffer: MemBuffer::new(scratch),
-            factored_with: None,
         }
     }
 
@@ -95,28 +80,55 @@ impl InteriorSolver {
         self.symbolic.len_val()
     }
 
-    /// Factorizes K_II with the unknowns in `held` reduced to their diagonal; skipped when the
+    /// Workspace for numeric factorizations of this system.
+    pub fn factorization(&self) -> Factorization<'_> {
+        let scratch = self
+            .symbolic
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
+            .or(self.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+        Factorization {
+            system: self,
+            val: self.k_val.clone(),
+            factor: vec![0.0; self.symbolic.len_val()],
+            buffer: MemBuffer::new(scratch),
+            held: None,
+        }
+    }
+}
+
+/// A numeric factorization of K_II with some unknowns held (reduced to their diagonal).
+pub struct Factorization<'a> {
+    system: &'a InteriorSystem,
+    val: Vec<f64>,
+    factor: Vec<f64>,
+    buffer: MemBuffer,
+    held: Option<Vec<bool>>,
+}
+
+impl Factorization<'_> {
+    /// Factorizes with the unknowns in `held` reduced to their diagonal; skipped when the
     /// current factorization already has that held set. Returns whether it factorized.
     pub fn factorize(&mut self, held: &[bool]) -> Result<bool, NotPositiveDefinite> {
-        if self.factored_with.as_deref() == Some(held) {
+        if self.held.as_deref() == Some(held) {
             return Ok(false);
         }
-        let n = self.n();
+        let s = self.system;
+        let n = s.n();
         for j in 0..n {
-            for p in self.col_ptr[j]..self.col_ptr[j + 1] {
-                let i = self.row_idx[p];
+            for p in s.col_ptr[j]..s.col_ptr[j + 1] {
+                let i = s.row_idx[p];
                 self.val[p] = if i != j && (held[i] || held[j]) {
                     0.0
                 } else {
-                    self.k_val[p]
+                    s.k_val[p]
                 };
             }
         }
         let a = SparseColMatRef::new(
-            SymbolicSparseColMatRef::new_checked(n, n, &self.col_ptr, None, &self.row_idx),
+            SymbolicSparseColMatRef::new_checked(n, n, &s.col_ptr, None, &s.row_idx),
             &self.val,
         );
-        self.symbolic
+        s.symbolic
             .factorize_numeric_llt(
                 &mut self.factor,
                 a,
@@ -127,14 +139,14 @@ impl InteriorSolver {
                 Default::default(),
             )
             .map_err(|_| NotPositiveDefinite)?;
-        self.factored_with = Some(held.to_vec());
+        self.held = Some(held.to_vec());
         Ok(true)
     }
 
     /// Solves the factorized system in place.
     pub fn solve(&mut self, rhs: &mut [f64]) {
-        let n = self.n();
-        let llt = LltRef::new(&self.symbolic, &self.factor);
+        let n = self.system.n();
+        let llt = LltRef::new(&self.system.symbolic, &self.factor);
         llt.solve_in_place_with_conj(
             Conj::No,
             MatMut::from_column_major_slice_mut(rhs, n, 1),

@@ -1,7 +1,6 @@
 //! Conforming triangulations T_h of a polygon ω: built-in meshes, checks, the boundary ∂ω,
 //! and P1 interpolation from one mesh to another (for warm starts).
 
-use std::collections::HashMap;
 use std::fmt;
 
 /// A triangle mesh with counter-clockwise triangles and its boundary vertices.
@@ -131,41 +130,57 @@ impl Mesh {
             return Err(MeshError::UnusedVertex { vertex });
         }
 
-        // Edges: each is shared by one (boundary) or two (interior) triangles.
-        let mut edges: HashMap<(usize, usize), Vec<usize>> =
-            HashMap::with_capacity(3 * triangles.len() / 2 + n);
+        // Edges: each is shared by one (boundary) or two (interior) triangles. Half-edges are
+        // grouped by their smaller vertex (a counting sort), then matched by the larger one.
+        let mut start = vec![0usize; n + 1];
+        for tri in &triangles {
+            for k in 0..3 {
+                start[tri[k].min(tri[(k + 1) % 3]) + 1] += 1;
+            }
+        }
+        for a in 0..n {
+            start[a + 1] += start[a];
+        }
+        let mut fill = start.clone();
+        let mut half = vec![(0usize, 0usize); 3 * triangles.len()];
         for (t, tri) in triangles.iter().enumerate() {
             for k in 0..3 {
                 let (a, b) = (tri[k], tri[(k + 1) % 3]);
-                edges.entry((a.min(b), a.max(b))).or_default().push(t);
+                half[fill[a.min(b)]] = (a.max(b), t);
+                fill[a.min(b)] += 1;
             }
         }
         let mut on_boundary = vec![false; n];
         let mut boundary_edges = Vec::new();
         let mut parent: Vec<usize> = (0..triangles.len()).collect();
-        for (&(a, b), ts) in &edges {
-            match ts.as_slice() {
-                [_] => {
-                    on_boundary[a] = true;
-                    on_boundary[b] = true;
-                    boundary_edges.push((a, b));
-                }
-                [t, s] => {
-                    // Counter-clockwise neighbours traverse a shared edge in opposite directions.
-                    if traverses(&triangles[*t], a, b) == traverses(&triangles[*s], a, b) {
-                        return Err(MeshError::Inverted {
-                            triangle: (*t).max(*s),
-                            neighbour: (*t).min(*s),
-                        });
+        for a in 0..n {
+            let group = &mut half[start[a]..start[a + 1]];
+            group.sort_unstable();
+            for edge in group.chunk_by(|x, y| x.0 == y.0) {
+                let b = edge[0].0;
+                match edge {
+                    [_] => {
+                        on_boundary[a] = true;
+                        on_boundary[b] = true;
+                        boundary_edges.push((a, b));
                     }
-                    union(&mut parent, *t, *s);
-                }
-                _ => {
-                    return Err(MeshError::NonManifoldEdge {
-                        a,
-                        b,
-                        count: ts.len(),
-                    })
+                    [(_, t), (_, s)] => {
+                        // Counter-clockwise neighbours traverse a shared edge in opposite directions.
+                        if traverses(&triangles[*t], a, b) == traverses(&triangles[*s], a, b) {
+                            return Err(MeshError::Inverted {
+                                triangle: *s,
+                                neighbour: *t,
+                            });
+                        }
+                        union(&mut parent, *t, *s);
+                    }
+                    _ => {
+                        return Err(MeshError::NonManifoldEdge {
+                            a,
+                            b,
+                            count: edge.len(),
+                        })
+                    }
                 }
             }
         }

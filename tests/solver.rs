@@ -3,7 +3,7 @@
 use membrane_contact::assembly::Stiffness;
 use membrane_contact::case::Case;
 use membrane_contact::contact::{self, DiscreteProblem, SolveError, SolverOptions};
-use membrane_contact::linear::InteriorSolver;
+use membrane_contact::linear::InteriorSystem;
 use membrane_contact::run::{self, Start};
 use std::path::PathBuf;
 
@@ -19,8 +19,9 @@ fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
 /// u with K u = F/μ in the interior and u = bc on ∂ω, by a plain Poisson solve.
 fn poisson(problem: &DiscreteProblem, load: &[f64], mu: f64, bc: &[f64]) -> Vec<f64> {
     let k: &Stiffness = &problem.stiffness;
-    let mut sys = InteriorSolver::new(k, &problem.mesh.on_boundary);
-    sys.factorize(&vec![false; sys.n()]).unwrap();
+    let sys = InteriorSystem::new(k, &problem.mesh.on_boundary);
+    let mut factor = sys.factorization();
+    factor.factorize(&vec![false; sys.n()]).unwrap();
     let mut x: Vec<f64> = sys
         .vertices
         .iter()
@@ -32,7 +33,7 @@ fn poisson(problem: &DiscreteProblem, load: &[f64], mu: f64, bc: &[f64]) -> Vec<
                     .sum::<f64>()
         })
         .collect();
-    sys.solve(&mut x);
+    factor.solve(&mut x);
     let mut u = bc.to_vec();
     for (i, &a) in sys.vertices.iter().enumerate() {
         u[a] = x[i];
