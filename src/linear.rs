@@ -1,12 +1,15 @@
 //! Sparse Cholesky solves for the Dirichlet problem on the interior vertices, with some vertices
 //! held fixed (the active set): faer's supernodal LLᵀ, symbolic analysis once per mesh.
 //!
-//! A held vertex a keeps its row and column in the pattern with only the diagonal K_aa, so the
-//! pattern, and hence the symbolic factorization, never changes with the active set. Several
-//! [`Factorization`]s can share one [`InteriorSystem`] (e.g. on two threads).
+//! The fill-reducing ordering is computed once per mesh (AMD on K_II). Held vertices (w_a = 0) are
+//! dropped from the system: the reduced matrix K_FF on the free unknowns is factorized in the
+//! ordering of K_II restricted to them, which is still fill-reducing and cheaper than K_II (a
+//! contact region cuts the separators). Several [`Factorization`]s can share one
+//! [`InteriorSystem`] (e.g. on two threads).
 
 use crate::assembly::Stiffness;
 use dyn_stack::{MemBuffer, MemStack};
+use faer::perm::PermRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky, SymmetricOrdering,
 };
@@ -80,55 +83,113 @@ impl InteriorSystem {
         self.symbolic.len_val()
     }
 
-    /// Workspace for numeric factorizations of this system.
+    /// An empty factorization of this system.
     pub fn factorization(&self) -> Factorization<'_> {
-        let scratch = self
-            .symbolic
-            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
-            .or(self.symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
         Factorization {
             system: self,
-            val: self.k_val.clone(),
-            factor: vec![0.0; self.symbolic.len_val()],
-            buffer: MemBuffer::new(scratch),
+            reduced: None,
+            factor: Vec::new(),
+            buffer: MemBuffer::new(dyn_stack::StackReq::EMPTY),
             held: None,
         }
     }
+
+    /// K_FF for the free unknowns (`free[k]` is the unknown of reduced index k) with its symbolic
+    /// analysis in the restricted ordering; `None` when nothing is held (K_II itself is used).
+    fn reduce(&self, held: &[bool]) -> Option<Reduced> {
+        if !held.iter().any(|&h| h) {
+            return None;
+        }
+        let n = self.n();
+        let mut index = vec![usize::MAX; n];
+        let mut free = Vec::new();
+        for (i, &h) in held.iter().enumerate() {
+            if !h {
+                index[i] = free.len();
+                free.push(i);
+            }
+        }
+        let (mut col_ptr, mut row_idx, mut val) = (vec![0], Vec::new(), Vec::new());
+        for &j in &free {
+            for p in self.col_ptr[j]..self.col_ptr[j + 1] {
+                let i = index[self.row_idx[p]];
+                if i != usize::MAX {
+                    row_idx.push(i);
+                    val.push(self.k_val[p]);
+                }
+            }
+            col_ptr.push(row_idx.len());
+        }
+        let m = free.len();
+        let order = self.symbolic.perm().expect("AMD gives an ordering").arrays().0;
+        let forward: Vec<usize> = order
+            .iter()
+            .map(|&i| index[i])
+            .filter(|&i| i != usize::MAX)
+            .collect();
+        let mut inverse = vec![0; m];
+        for (k, &i) in forward.iter().enumerate() {
+            inverse[i] = k;
+        }
+        let symbolic = factorize_symbolic_cholesky(
+            SymbolicSparseColMatRef::new_checked(m, m, &col_ptr, None, &row_idx),
+            Side::Lower,
+            SymmetricOrdering::Custom(PermRef::new_checked(&forward, &inverse, m)),
+            CholeskySymbolicParams::default(),
+        )
+        .expect("symbolic Cholesky of a valid pattern");
+        Some(Reduced {
+            free,
+            col_ptr,
+            row_idx,
+            val,
+            symbolic,
+        })
+    }
 }
 
-/// A numeric factorization of K_II with some unknowns held (reduced to their diagonal).
+/// The system restricted to the free unknowns.
+struct Reduced {
+    free: Vec<usize>,
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    val: Vec<f64>,
+    symbolic: SymbolicCholesky<usize>,
+}
+
+/// A numeric factorization of K_II with some unknowns held at zero.
 pub struct Factorization<'a> {
     system: &'a InteriorSystem,
-    val: Vec<f64>,
+    reduced: Option<Reduced>,
     factor: Vec<f64>,
     buffer: MemBuffer,
     held: Option<Vec<bool>>,
 }
 
 impl Factorization<'_> {
-    /// Factorizes with the unknowns in `held` reduced to their diagonal; skipped when the
-    /// current factorization already has that held set. Returns whether it factorized.
+    /// Factorizes K_FF, F the unknowns not `held`; skipped when the current factorization already
+    /// has that held set. Returns whether it factorized.
     pub fn factorize(&mut self, held: &[bool]) -> Result<bool, NotPositiveDefinite> {
         if self.held.as_deref() == Some(held) {
             return Ok(false);
         }
         let s = self.system;
-        let n = s.n();
-        for j in 0..n {
-            for p in s.col_ptr[j]..s.col_ptr[j + 1] {
-                let i = s.row_idx[p];
-                self.val[p] = if i != j && (held[i] || held[j]) {
-                    0.0
-                } else {
-                    s.k_val[p]
-                };
-            }
-        }
+        self.reduced = s.reduce(held);
+        let (symbolic, col_ptr, row_idx, val) = match &self.reduced {
+            Some(r) => (&r.symbolic, &r.col_ptr, &r.row_idx, &r.val),
+            None => (&s.symbolic, &s.col_ptr, &s.row_idx, &s.k_val),
+        };
+        let m = col_ptr.len() - 1;
+        self.factor.resize(symbolic.len_val(), 0.0);
+        let scratch = symbolic
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
+            .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+        self.buffer = MemBuffer::new(scratch);
         let a = SparseColMatRef::new(
-            SymbolicSparseColMatRef::new_checked(n, n, &s.col_ptr, None, &s.row_idx),
-            &self.val,
+            SymbolicSparseColMatRef::new_checked(m, m, col_ptr, None, row_idx),
+            val,
         );
-        s.symbolic
+        symbolic
             .factorize_numeric_llt(
                 &mut self.factor,
                 a,
@@ -143,15 +204,33 @@ impl Factorization<'_> {
         Ok(true)
     }
 
-    /// Solves the factorized system in place.
+    /// Solves the factorized system in place; held unknowns come out as zero.
     pub fn solve(&mut self, rhs: &mut [f64]) {
-        let n = self.system.n();
-        let llt = LltRef::new(&self.system.symbolic, &self.factor);
-        llt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(rhs, n, 1),
-            Par::Seq,
-            MemStack::new(&mut self.buffer),
-        );
+        let s = self.system;
+        match &self.reduced {
+            None => {
+                let llt = LltRef::new(&s.symbolic, &self.factor);
+                llt.solve_in_place_with_conj(
+                    Conj::No,
+                    MatMut::from_column_major_slice_mut(rhs, s.n(), 1),
+                    Par::Seq,
+                    MemStack::new(&mut self.buffer),
+                );
+            }
+            Some(r) => {
+                let mut x: Vec<f64> = r.free.iter().map(|&i| rhs[i]).collect();
+                let llt = LltRef::new(&r.symbolic, &self.factor);
+                llt.solve_in_place_with_conj(
+                    Conj::No,
+                    MatMut::from_column_major_slice_mut(&mut x, r.free.len(), 1),
+                    Par::Seq,
+                    MemStack::new(&mut self.buffer),
+                );
+                rhs.fill(0.0);
+                for (&i, v) in r.free.iter().zip(x) {
+                    rhs[i] = v;
+                }
+            }
+        }
     }
 }
