@@ -7,7 +7,7 @@ BIN := target/release/membrane-contact
 # Link Debian's serial libhdf5 (its default pkg-config entry is the OpenMPI build).
 export HDF5_DIR := /usr/lib/x86_64-linux-gnu/hdf5/serial
 DEBIAN_PACKAGES := libhdf5-dev pkg-config python3-dolfinx python3-petsc4py python3-meshio \
-	python3-h5py python3-paraview python3-matplotlib python3-sympy
+	python3-h5py python3-paraview python3-matplotlib python3-sympy fonts-dejavu-core
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 BENCH_SIZES ?= 256 512 1024
 

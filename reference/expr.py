@@ -1,7 +1,7 @@
 """The case-file expression language (src/expr.rs), evaluated identically in Python.
 
 The same grammar as the Rust parser (see data/cases/README.md): numbers, x, y, pi, + - * / ^,
-parentheses, sqrt, exp, log, sin, cos, abs, min, max, if(cond, a, b) with cond built from
+parentheses, sqrt, exp, log, sin, cos, abs, min, max, atan2, if(cond, a, b) with cond built from
 < <= > >= && ||. `parse` returns a tree; `to_numpy` and `to_ufl` turn it into a NumPy value at
 points or a UFL expression of the spatial coordinate.
 """
@@ -13,7 +13,7 @@ _TOKEN = re.compile(
     r"|(?P<op><=|>=|&&|\|\||[<>+\-*/^(),]))"
 )
 UNARY = {"sqrt", "exp", "log", "sin", "cos", "abs"}
-BINARY = {"min", "max"}
+BINARY = {"min", "max", "atan2"}
 
 
 class ExprError(ValueError):
@@ -190,6 +190,7 @@ def to_numpy(tree, x, y):
         "abs": np.abs,
         "min": np.fmin,
         "max": np.fmax,
+        "atan2": np.arctan2,
         "if": np.where,
     }
     with np.errstate(all="ignore"):
@@ -214,6 +215,7 @@ def to_ufl(tree, mesh):
         "abs": abs,
         "min": ufl.min_value,
         "max": ufl.max_value,
+        "atan2": ufl.atan_2,
         "if": ufl.conditional,
     }
     return _build(tree, X[0], X[1], lib)
@@ -237,6 +239,7 @@ def to_sympy(tree):
         "abs": sp.Abs,
         "min": sp.Min,
         "max": sp.Max,
+        "atan2": sp.atan2,
         "if": lambda c, a, b: sp.Piecewise((a, c), (b, True)),
     }
     return _build(tree, x, y, lib), x, y

@@ -286,6 +286,21 @@ impl Case {
         }
     }
 
+    /// Sets the grading exponent of an L-shaped mesh.
+    pub fn set_grading(&mut self, g: f64) -> Result<(), CaseError> {
+        match &mut self.file.mesh {
+            MeshSpec::Lshape { grading, .. } if g >= 1.0 && g.is_finite() => {
+                *grading = g;
+                Ok(())
+            }
+            MeshSpec::Lshape { .. } => Err(CaseError(format!("grading {g}: need a number ≥ 1"))),
+            _ => Err(CaseError(format!(
+                "{}: grading applies to L-shaped meshes only",
+                self.origin
+            ))),
+        }
+    }
+
     /// Cells per side of a built-in mesh.
     pub fn cells(&self) -> Option<usize> {
         match &self.file.mesh {

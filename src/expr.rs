@@ -14,7 +14,7 @@
 //! atom  := number | x | y | pi | name "(" args ")" | "(" expr ")"
 //! ```
 //!
-//! Functions: sqrt, exp, log (natural), sin, cos, abs (one argument), min, max (two),
+//! Functions: sqrt, exp, log (natural), sin, cos, abs (one argument), min, max, atan2(y, x) (two),
 //! and the piecewise form `if(condition, a, b)`. All arithmetic is in f64: `1/2` is 0.5.
 //!
 //! The language is this small on purpose: the Python reference must evaluate it identically (as UFL
@@ -58,6 +58,7 @@ enum Binary {
     Pow,
     Min,
     Max,
+    Atan2,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -321,6 +322,7 @@ fn binary(op: Binary, a: f64, b: f64) -> f64 {
         Binary::Pow => a.powf(b),
         Binary::Min => a.min(b),
         Binary::Max => a.max(b),
+        Binary::Atan2 => a.atan2(b),
     }
 }
 
@@ -612,16 +614,14 @@ impl Parser {
     fn call(&mut self, name: &str, at: usize, args: Vec<(usize, Node)>) -> Result<Num, ExprError> {
         let arity = match name {
             "sqrt" | "exp" | "log" | "sin" | "cos" | "abs" => 1,
-            "min" | "max" => 2,
+            "min" | "max" | "atan2" => 2,
             "if" => 3,
-            _ => {
-                return Err(self.error_at(
-                    at,
-                    &format!(
-                        "unknown function '{name}' (known: sqrt, exp, log, sin, cos, abs, min, max, if)"
-                    ),
-                ))
-            }
+            _ => return Err(self.error_at(
+                at,
+                &format!(
+                    "unknown function '{name}' (known: sqrt, exp, log, sin, cos, abs, min, max, atan2, if)"
+                ),
+            )),
         };
         if args.len() != arity {
             return Err(self.error_at(
@@ -648,6 +648,7 @@ impl Parser {
         Ok(match name {
             "min" => Num::Binary(Binary::Min, first, Box::new(nums.next().unwrap())),
             "max" => Num::Binary(Binary::Max, first, Box::new(nums.next().unwrap())),
+            "atan2" => Num::Binary(Binary::Atan2, first, Box::new(nums.next().unwrap())),
             "sqrt" => Num::Unary(Unary::Sqrt, first),
             "exp" => Num::Unary(Unary::Exp, first),
             "log" => Num::Unary(Unary::Log, first),
@@ -677,6 +678,8 @@ mod tests {
         assert_eq!(ev("1.5e2 + 2E-1", 0.0, 0.0), 150.2);
         assert!((ev("sin(pi/2) + cos(0) + exp(0) + log(exp(2))", 0.0, 0.0) - 5.0).abs() < 1e-15);
         assert_eq!(ev("min(x, y) + max(x, y) + abs(-3) + sqrt(16)", 1.0, 2.0), 10.0);
+        assert_eq!(ev("atan2(y, x)", -1.0, 0.0), std::f64::consts::PI);
+        assert_eq!(ev("atan2(y, x)", 0.0, -2.0), -std::f64::consts::FRAC_PI_2);
     }
 
     #[test]

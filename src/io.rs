@@ -47,6 +47,20 @@ impl std::fmt::Display for IoError {
 
 impl std::error::Error for IoError {}
 
+/// Writes a file through a temporary file in the same directory and a rename.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), IoError> {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let result = std::fs::write(&tmp, bytes).and_then(|_| std::fs::rename(&tmp, path));
+    result.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        IoError(format!("{}: {e}", path.display()))
+    })
+}
+
 /// Writes `h5_path` and one XDMF sidecar per grid (`NAME.xdmf` for the first, `NAME-GRID.xdmf`
 /// for the others, so that ParaView shows them as separate datasets), atomically: everything is
 /// written to temporary files first and renamed at the end. Returns the XDMF paths.

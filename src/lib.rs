@@ -10,7 +10,7 @@
 //!
 //! The data flow one way: [`case`] → [`mesh`] → [`assembly`] → [`contact`] (the reduced
 //! variational inequality (3.4)) → [`action`] (λ_h by the local postprocessing (4.5)) →
-//! [`norms`] → [`io`]. [`run`] strings them together.
+//! [`norms`] → [`io`]. [`run`] strings them together; [`study`] repeats a run over refined meshes.
 
 pub mod action;
 pub mod assembly;
@@ -23,3 +23,4 @@ pub mod mesh;
 pub mod norms;
 mod quadrature_tables;
 pub mod run;
+pub mod study;

@@ -218,8 +218,9 @@ impl Mesh {
     }
 
     /// The L-shaped domain (−1, 1)² \ [0, 1] × [−1, 0] with n × n cells on the full square (n even).
-    /// Vertices near the re-entrant corner (0, 0) are graded: a point at distance r from it in
-    /// the max-norm moves to r^(1/β)·…, i.e. coordinates t ↦ sign(t)|t|^(1/β); β = 1 is uniform.
+    /// With `grading` β > 1 the vertices are pulled towards the re-entrant corner (0, 0) (Remark 10):
+    /// a vertex at max-norm distance r moves radially to distance r^β, so cells near the corner have
+    /// size ~ h r^(1−1/β); β = 1 is the uniform mesh. The boundary is mapped onto itself.
     pub fn l_shape(n: usize, diagonal: Diagonal, grading: f64) -> Result<Self, MeshError> {
         let n = n + n % 2;
         let (mut points, triangles) = rectangle_raw([-1.0, -1.0], [1.0, 1.0], n, n, diagonal);
@@ -235,7 +236,7 @@ impl Mesh {
             for p in points.iter_mut() {
                 let r = p[0].abs().max(p[1].abs());
                 if r > 0.0 {
-                    let s = r.powf(1.0 / grading) / r;
+                    let s = r.powf(grading) / r;
                     p[0] *= s;
                     p[1] *= s;
                 }
@@ -584,6 +585,15 @@ mod tests {
         let g = Mesh::l_shape(8, Diagonal::Right, 2.0).unwrap();
         assert!((g.measure() - 3.0).abs() < 1e-13);
         assert!(g.h() > m.h());
+        // Grading shrinks the cells at the corner: the vertex next to it moves from 1/4 to 1/16.
+        let nearest = |mesh: &Mesh| {
+            mesh.points
+                .iter()
+                .map(|p| p[0].hypot(p[1]))
+                .filter(|&r| r > 0.0)
+                .fold(f64::MAX, f64::min)
+        };
+        assert!((nearest(&m) - 0.25).abs() < 1e-14 && (nearest(&g) - 0.0625).abs() < 1e-14);
     }
 
     #[test]

@@ -1,10 +1,13 @@
 //! Error norms against an exact solution: ‖u_i − u_ih‖_L², |u_i − u_ih|_H¹ (Theorem 9), the
-//! energy norm, and ‖λ − λ_h‖_L² with λ_h piecewise constant on the dual cells (Remark 22).
+//! energy norm, ‖λ − λ_h‖_L² with λ_h piecewise constant on the dual cells (Remark 22), and a
+//! computable approximation of ‖λ − λ_h‖_H⁻¹ (Theorem 21).
 
 use crate::action::{Action, DualMesh};
-use crate::assembly::{gradients, Quadrature};
+use crate::assembly::{gradients, Quadrature, Stiffness};
 use crate::case::Exact;
 use crate::contact::{DiscreteProblem, Solution};
+use crate::expr::Expr;
+use crate::linear::InteriorSystem;
 use crate::mesh::{orient, Mesh};
 
 /// Degree of the rule used for error integrals (well above the P1 error's).
@@ -107,4 +110,79 @@ fn p1_errors(
         }
     }
     (l2.sqrt(), if grad.is_some() { h1.sqrt() } else { f64::NAN })
+}
+
+/// ‖λ − λ_h‖_H⁻¹(ω), approximated by the dual norm over P1 functions on the dual submesh S_h
+/// (mesh size about h/2): sup_{v ∈ P1_0(S_h)} (λ − λ_h, v)/|v|_H¹ = |z|_H¹ with z ∈ P1_0(S_h),
+/// (∇z, ∇v) = (λ − λ_h, v). A lower bound of the true norm that converges to it; λ_h is constant on
+/// each sub-triangle, so the integrals are exact up to the quadrature of λ.
+pub fn h_minus_1_lambda(mesh: &Mesh, action: &Action, lambda: &Expr) -> f64 {
+    let dual = DualMesh::new(mesh);
+    let lambda_h: Vec<f64> = dual
+        .owner
+        .iter()
+        .map(|&a| {
+            if mesh.on_boundary[a] {
+                0.0
+            } else {
+                action.lambda[a]
+            }
+        })
+        .collect();
+    let sub = Mesh::new(dual.points, dual.triangles).expect("the dual submesh of a valid mesh is valid");
+    dual_norm(&sub, |t, x| lambda.eval(x[0], x[1]) - lambda_h[t])
+}
+
+/// sup over v ∈ P1_0(mesh) of (r, v)/|v|_H¹, for r given per triangle and point.
+pub fn dual_norm(mesh: &Mesh, r: impl Fn(usize, [f64; 2]) -> f64) -> f64 {
+    let k = Stiffness::assemble(mesh);
+    let mut b = vec![0.0; mesh.n_vertices()];
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        ERROR_QUADRATURE.for_each_point(mesh, t, |x, w, l| {
+            let v = r(t, x);
+            for i in 0..3 {
+                b[tri[i]] += w * v * l[i];
+            }
+        });
+    }
+    let system = InteriorSystem::new(&k, &mesh.on_boundary);
+    let mut factor = system.factorization();
+    factor
+        .factorize(&vec![false; system.n()])
+        .expect("the stiffness matrix of a valid mesh is positive definite");
+    let rhs: Vec<f64> = system.vertices.iter().map(|&a| b[a]).collect();
+    let mut z = rhs.clone();
+    factor.solve(&mut z);
+    rhs.iter()
+        .zip(&z)
+        .map(|(b, z)| b * z)
+        .sum::<f64>()
+        .max(0.0)
+        .sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Diagonal;
+
+    #[test]
+    fn dual_norm_of_a_sine() {
+        // r = sin(πx) sin(πy) on the unit square: −Δz = r gives z = r/(2π²), ‖r‖²_H⁻¹ = ‖r‖²/(2π²).
+        let exact = 1.0 / (2.0 * std::f64::consts::SQRT_2 * std::f64::consts::PI);
+        let pi = std::f64::consts::PI;
+        let error = |n| {
+            let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], n, n, Diagonal::Right).unwrap();
+            let norm = dual_norm(&mesh, |_, x| (pi * x[0]).sin() * (pi * x[1]).sin());
+            assert!(norm <= exact, "the discrete dual norm is a lower bound");
+            exact - norm
+        };
+        let (e32, e64) = (error(32), error(64));
+        assert!(e32 < 2e-3 * exact, "{e32}");
+        assert!((3.5..4.5).contains(&(e32 / e64)), "O(h²): {e32} / {e64}");
+        let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], 32, 32, Diagonal::Right).unwrap();
+        // A field that oscillates at the mesh scale has a much smaller H⁻¹ than L² norm.
+        let checker = dual_norm(&mesh, |t, _| if t % 2 == 0 { 1.0 } else { -1.0 });
+        assert!(checker < 0.05, "{checker}");
+    }
 }
