@@ -261,6 +261,20 @@ class Reference:
         lam = expr.to_ufl(expr.parse(exact["lambda"]), sub)
         dxs = ufl.dx(domain=sub, metadata={"quadrature_degree": ERROR_DEGREE})
         out["l2_lambda"] = np.sqrt(scalar((lam - lh) ** 2 * dxs))
+        # ||lam - lam_h||_H-1 as the dual norm over P1_0 on S_h: |z|_H1 with -lap z = lam - lam_h.
+        V1 = fem.FunctionSpace(sub, ("Lagrange", 1))
+        z, v = ufl.TrialFunction(V1), ufl.TestFunction(V1)
+        sub.topology.create_connectivity(1, 2)
+        dofs = fem.locate_dofs_topological(V1, 1, dmesh.exterior_facet_indices(sub.topology))
+        bc = fem.dirichletbc(PETSc.ScalarType(0.0), dofs, V1)
+        problem = fem.petsc.LinearProblem(
+            ufl.inner(ufl.grad(z), ufl.grad(v)) * ufl.dx(domain=sub),
+            (lam - lh) * v * dxs,
+            bcs=[bc],
+            petsc_options={"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"},
+        )
+        zh = problem.solve()
+        out["hm1_lambda"] = np.sqrt(max(scalar((lam - lh) * zh * dxs), 0.0))
         return out
 
 

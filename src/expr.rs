@@ -616,12 +616,14 @@ impl Parser {
             "sqrt" | "exp" | "log" | "sin" | "cos" | "abs" => 1,
             "min" | "max" | "atan2" => 2,
             "if" => 3,
-            _ => return Err(self.error_at(
-                at,
-                &format!(
+            _ => {
+                return Err(self.error_at(
+                    at,
+                    &format!(
                     "unknown function '{name}' (known: sqrt, exp, log, sin, cos, abs, min, max, atan2, if)"
                 ),
-            )),
+                ))
+            }
         };
         if args.len() != arity {
             return Err(self.error_at(

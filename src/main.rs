@@ -31,6 +31,9 @@ enum Command {
         /// Start the active-set method from no contact instead of nested iteration.
         #[arg(long)]
         cold: bool,
+        /// With an exact solution, also compute ‖λ − λh‖_H⁻¹ (a solve on the dual submesh).
+        #[arg(long)]
+        hminus1: bool,
         /// Print the built-in default case and exit.
         #[arg(long)]
         print_default: bool,
@@ -72,8 +75,9 @@ fn main() -> ExitCode {
             output,
             n,
             cold,
+            hminus1,
             ..
-        } => solve(case, output, n, cold),
+        } => solve(case, output, n, cold, hminus1),
         Command::Study {
             case,
             levels,
@@ -110,6 +114,7 @@ fn solve(
     output: Option<PathBuf>,
     n: Option<usize>,
     cold: bool,
+    hminus1: bool,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let mut case = read_case(&case_path)?;
     if let Some(n) = n {
@@ -128,6 +133,9 @@ fn solve(
     println!("case        {} — {}", case.origin, case.file.title);
     let start = if cold { Start::Cold } else { Start::Nested };
     let mut result = run::solve(&case, start, None)?;
+    if hminus1 {
+        result.compute_h_minus_1(&case);
+    }
     let xdmf = result.write(&case, &output)?;
     print!("{}", result.summary());
     let sidecars: Vec<String> = xdmf.iter().map(|p| p.display().to_string()).collect();

@@ -27,6 +27,8 @@ pub struct Errors {
     pub max_nodal_u: f64,
     /// ‖λ − λ_h‖_L²(ω), λ_h = Σ_a λ_a χ_{D_a} (zero near ∂ω).
     pub l2_lambda: f64,
+    /// ‖λ − λ_h‖_H⁻¹(ω) by [`h_minus_1_lambda`] (NaN unless asked for: it costs a solve on S_h).
+    pub h_minus_1_lambda: f64,
 }
 
 impl Errors {
@@ -63,6 +65,7 @@ impl Errors {
             energy: (problem.mu1 * h1_u1 * h1_u1 + problem.mu2 * h1_u2 * h1_u2).sqrt(),
             max_nodal_u,
             l2_lambda: l2_lambda.sqrt(),
+            h_minus_1_lambda: f64::NAN,
         }
     }
 }

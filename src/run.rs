@@ -161,6 +161,14 @@ pub fn solve(
 }
 
 impl Run {
+    /// Adds ‖λ − λ_h‖_H⁻¹ to the errors (a solve on the dual submesh, about 6N unknowns).
+    pub fn compute_h_minus_1(&mut self, case: &Case) {
+        if let (Some(errors), Some(exact)) = (&mut self.errors, &case.exact) {
+            errors.h_minus_1_lambda =
+                crate::norms::h_minus_1_lambda(&self.problem.mesh, &self.action, &exact.lambda);
+        }
+    }
+
     /// Writes the result file and its XDMF sidecars; returns the XDMF paths.
     pub fn write(&mut self, case: &Case, h5_path: &Path) -> Result<Vec<PathBuf>, RunError> {
         let t = Instant::now();
@@ -294,6 +302,9 @@ impl Run {
                 ("error_energy", Attr::Float(e.energy)),
                 ("error_l2_lambda", Attr::Float(e.l2_lambda)),
             ]);
+            if e.h_minus_1_lambda.is_finite() {
+                attrs.push(("error_hm1_lambda", Attr::Float(e.h_minus_1_lambda)));
+            }
         }
         let xdmf = io::write_result(h5_path, &grids, &attrs)?;
         self.timings.write = t.elapsed().as_secs_f64();

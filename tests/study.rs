@@ -35,7 +35,7 @@ fn convex_case_shows_the_rates_of_theorem_9() {
     }
     // λ_h → λ in L² (Remark 22) and faster in H⁻¹ (Theorem 21).
     let l2 = last_eoc(&l, e(|e| e.l2_lambda)).0;
-    let hm1 = last_eoc(&l, |l| l.h_minus_1_lambda.unwrap()).0;
+    let hm1 = last_eoc(&l, e(|e| e.h_minus_1_lambda)).0;
     assert!(l2 > 0.3 && hm1 > 0.9 && hm1 > l2, "λ: L2 EOC {l2}, H-1 EOC {hm1}");
     // Nested iteration keeps the iterations bounded; a cold start needs more on the finest level.
     assert!(
