@@ -310,14 +310,31 @@ impl Case {
         }
     }
 
+    /// Fails early when a built-in mesh would not fit in the available memory.
+    pub fn check_memory(&self) -> Result<(), CaseError> {
+        let vertices = match &self.file.mesh {
+            MeshSpec::Rectangle { n, diagonal, .. } => {
+                let crossed = usize::from(*diagonal == Diagonal::Crossed);
+                (n[0].saturating_add(1))
+                    .saturating_mul(n[1].saturating_add(1))
+                    .saturating_add(crossed.saturating_mul(n[0].saturating_mul(n[1])))
+            }
+            MeshSpec::Lshape { n, .. } => n.saturating_add(2).saturating_mul(n.saturating_add(2)),
+            MeshSpec::File { .. } => return Ok(()),
+        };
+        crate::mesh::check_memory(vertices).map_err(|e| CaseError(format!("{}: mesh: {e}", self.origin)))
+    }
+
     /// Builds or reads the mesh.
     pub fn mesh(&self) -> Result<Mesh, CaseError> {
         let named = |e: crate::mesh::MeshError| CaseError(format!("{}: mesh: {e}", self.origin));
         match &self.file.mesh {
             MeshSpec::Rectangle { corners, n, diagonal } => {
+                self.check_memory()?;
                 Mesh::rectangle(corners[0], corners[1], n[0], n[1], *diagonal).map_err(named)
             }
             MeshSpec::Lshape { n, diagonal, grading } => {
+                self.check_memory()?;
                 Mesh::l_shape(*n, *diagonal, *grading).map_err(named)
             }
             MeshSpec::File { path } => {

@@ -16,16 +16,45 @@ pub struct Mesh {
 #[derive(Debug, Clone, PartialEq)]
 pub enum MeshError {
     Empty,
-    NotFinite { vertex: usize },
-    VertexIndex { triangle: usize, index: usize },
-    Degenerate { triangle: usize, area: f64 },
-    DuplicateVertex { first: usize, second: usize },
-    UnusedVertex { vertex: usize },
-    NonManifoldEdge { a: usize, b: usize, count: usize },
-    Inverted { triangle: usize, neighbour: usize },
-    HangingNode { vertex: usize },
-    Disconnected { components: usize },
+    NotFinite {
+        vertex: usize,
+    },
+    VertexIndex {
+        triangle: usize,
+        index: usize,
+    },
+    Degenerate {
+        triangle: usize,
+        area: f64,
+    },
+    DuplicateVertex {
+        first: usize,
+        second: usize,
+    },
+    UnusedVertex {
+        vertex: usize,
+    },
+    NonManifoldEdge {
+        a: usize,
+        b: usize,
+        count: usize,
+    },
+    Inverted {
+        triangle: usize,
+        neighbour: usize,
+    },
+    HangingNode {
+        vertex: usize,
+    },
+    Disconnected {
+        components: usize,
+    },
     NoInteriorVertex,
+    TooLarge {
+        vertices: usize,
+        needed_gb: f64,
+        available_gb: f64,
+    },
 }
 
 impl fmt::Display for MeshError {
@@ -58,11 +87,46 @@ impl fmt::Display for MeshError {
                 write!(f, "the mesh has {components} separate components; ω must be connected")
             }
             MeshError::NoInteriorVertex => write!(f, "the mesh has no interior vertex: nothing to solve"),
+            MeshError::TooLarge {
+                vertices,
+                needed_gb,
+                available_gb,
+            } => write!(
+                f,
+                "{vertices} vertices need about {needed_gb:.1} GB of memory, but only {available_gb:.1} GB \
+                 are available: use a coarser mesh"
+            ),
         }
     }
 }
 
 impl std::error::Error for MeshError {}
+
+/// Peak memory of a solve per mesh vertex, measured with `make bench` (1.9 GB at 1.05M vertices,
+/// nested iteration included), with a margin.
+const BYTES_PER_VERTEX: f64 = 2200.0;
+
+/// Fails early, with an estimate, when a mesh of `vertices` vertices would not fit in the memory
+/// available now (`MemAvailable` of /proc/meminfo; no check where that cannot be read).
+pub fn check_memory(vertices: usize) -> Result<(), MeshError> {
+    let available = std::fs::read_to_string("/proc/meminfo").ok().and_then(|s| {
+        let line = s.lines().find(|l| l.starts_with("MemAvailable:"))?;
+        line.split_whitespace()
+            .nth(1)?
+            .parse::<f64>()
+            .ok()
+            .map(|kb| kb * 1024.0)
+    });
+    let needed = vertices as f64 * BYTES_PER_VERTEX;
+    match available {
+        Some(available) if needed > available => Err(MeshError::TooLarge {
+            vertices,
+            needed_gb: needed / 1e9,
+            available_gb: available / 1e9,
+        }),
+        _ => Ok(()),
+    }
+}
 
 /// Twice the signed area of the triangle (p, q, r).
 #[inline]

@@ -102,6 +102,7 @@ pub fn solve(
     start: Start,
     warm: Option<(&crate::mesh::Mesh, &Solution)>,
 ) -> Result<Run, RunError> {
+    case.check_memory()?;
     let mut timings = Timings::default();
     let mut coarse_iterations = Vec::new();
     let t = Instant::now();

@@ -242,6 +242,15 @@ fn iteration_cap() {
 }
 
 #[test]
+fn mesh_too_large_for_memory() {
+    let e = case_fails(&format!(
+        "{GOOD}[mesh]\nkind = \"rectangle\"\nn = [200000, 200000]\n"
+    ));
+    contains(&e, "40000400001 vertices need about 88000.9 GB");
+    contains(&e, "use a coarser mesh");
+}
+
+#[test]
 fn missing_mesh_file() {
     let e = fails(
         &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"absent.h5\"\n"),
