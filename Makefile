@@ -11,7 +11,7 @@ DEBIAN_PACKAGES := libhdf5-dev pkg-config python3-dolfinx python3-petsc4py pytho
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 BENCH_SIZES ?= 256 512 1024
 
-.PHONY: all deps build run test cargo-test validate bench bench-reference lint clean
+.PHONY: all deps build run test cargo-test validate bench bench-reference study fuzz lint clean
 
 all: build
 
@@ -46,6 +46,19 @@ bench: deps
 
 bench-reference: build
 	$(PY) reference/bench_reference.py --bin $(BIN)
+
+# Convergence studies of the shipped exact cases (tables and plots under study/).
+study: build
+	$(BIN) study data/cases/default.toml --levels 8,16,32,64,128,256,512 --cold
+	$(BIN) study data/cases/disk_jump.toml --levels 8,16,32,64,128,256
+	$(BIN) study data/cases/lshape_corner.toml --levels 8,16,32,64,128,256 --grading 1,2
+
+FUZZ_SECONDS ?= 600
+fuzz: deps
+	command -v cargo-fuzz >/dev/null || cargo install cargo-fuzz
+	cd fuzz && for t in case expr mesh xdmf; do \
+		RUSTC_BOOTSTRAP=1 cargo fuzz run -O $$t -- -max_total_time=$(FUZZ_SECONDS) -max_len=4096 || exit 1; \
+	done
 
 lint:
 	cargo fmt --all -- --check

@@ -339,7 +339,7 @@ impl Case {
             }
             MeshSpec::File { path } => {
                 let path = self.base_dir.join(path);
-                crate::io::read_mesh(&path).map_err(|e| CaseError(format!("{}: {e}", path.display())))
+                crate::io::read_mesh(&path).map_err(|e| CaseError(e.to_string()))
             }
         }
     }

@@ -130,7 +130,10 @@ fn solve(
             PathBuf::from("results").join(format!("{}.h5", case_name(&case_path)))
         }
     };
-    println!("case        {} — {}", case.origin, case.file.title);
+    match case.file.title.as_str() {
+        "" => println!("case        {}", case.origin),
+        title => println!("case        {} — {title}", case.origin),
+    }
     let start = if cold { Start::Cold } else { Start::Nested };
     let mut result = run::solve(&case, start, None)?;
     if hminus1 {

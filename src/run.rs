@@ -46,6 +46,11 @@ impl From<IoError> for RunError {
     }
 }
 
+/// A datum that fails on the mesh (g < 0 on ∂ω, a non-finite load), named with its case.
+fn data_error(case: &Case, e: SolveError) -> RunError {
+    RunError::Case(CaseError(format!("{}: {e}", case.origin)))
+}
+
 /// Wall-clock seconds of each phase.
 #[derive(Debug, Clone, Default)]
 pub struct Timings {
@@ -117,7 +122,8 @@ pub fn solve(
         for &cells in levels.iter().rev() {
             let mut coarse_case = case.clone();
             coarse_case.set_cells(cells);
-            let problem = DiscreteProblem::new(coarse_case.mesh()?, &case.data)?;
+            let problem =
+                DiscreteProblem::new(coarse_case.mesh()?, &case.data).map_err(|e| data_error(case, e))?;
             let g = guess
                 .as_ref()
                 .map(|(m, w, l): &(Mesh, Vec<f64>, Vec<f64>)| Guess::interpolate(&problem.mesh, m, w, l));
@@ -131,7 +137,7 @@ pub fn solve(
     let t = Instant::now();
     let mesh = case.mesh()?;
     timings.mesh = t.elapsed().as_secs_f64();
-    let problem = DiscreteProblem::new(mesh, &case.data)?;
+    let problem = DiscreteProblem::new(mesh, &case.data).map_err(|e| data_error(case, e))?;
     timings.assembly = problem.setup_seconds;
     let g = match (warm, &guess) {
         (Some((m, s)), _) => Some(Guess::interpolate(&problem.mesh, m, &s.gap, &s.multiplier)),
