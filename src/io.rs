@@ -224,7 +224,12 @@ type RawMesh = (Vec<[f64; 2]>, Vec<[usize; 3]>);
 fn read_xdmf(path: &Path) -> Result<RawMesh, IoError> {
     let err = |m: String| IoError(format!("{}: {m}", path.display()));
     let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
-    let doc = roxmltree::Document::parse(&text).map_err(|e| err(format!("not valid XDMF (XML): {e}")))?;
+    let options = roxmltree::ParsingOptions {
+        allow_dtd: true,
+        ..Default::default()
+    };
+    let doc = roxmltree::Document::parse_with_options(&text, options)
+        .map_err(|e| err(format!("not valid XDMF (XML): {e}")))?;
     let grid = doc
         .descendants()
         .find(|n| n.has_tag_name("Grid") && n.children().any(|c| c.has_tag_name("Topology")))
