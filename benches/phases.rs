@@ -52,9 +52,9 @@ fn main() {
                 tm.postprocess,
                 tm.contact_solve(),
                 total,
-                r.solution.stats.iterations,
+                r.solution.obstacle.stats.iterations,
                 r.coarse_iterations.iter().map(|i| i.to_string()).collect::<Vec<_>>().join(","),
-                r.solution.stats.factorizations,
+                r.solution.obstacle.stats.factorizations,
                 peak_mb()
             );
         }

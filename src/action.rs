@@ -48,9 +48,9 @@ impl Action {
             lambda2[a] = l2;
             diff = diff.max((l1 - l2).abs());
             min_lambda = min_lambda.min(l1);
-            compl = compl.max((l1 * solution.gap[a]).abs());
+            compl = compl.max((l1 * solution.obstacle.gap[a]).abs());
             total += l1 * m;
-            if solution.contact[a] {
+            if solution.obstacle.contact[a] {
                 area += m;
             }
         }

@@ -194,18 +194,13 @@ pub struct Obstacle {
     pub stats: SolverStats,
 }
 
-/// The solution (u1h, u2h) of (3.4), with the separated variables and the contact set.
+/// The solution (u1h, u2h) of (3.4), with the obstacle problem's w = u1h − u2h, its multiplier,
+/// the contact set and the solver statistics.
 #[derive(Debug, Clone)]
 pub struct Solution {
     pub u1: Vec<f64>,
     pub u2: Vec<f64>,
-    /// w = u1h − u2h.
-    pub gap: Vec<f64>,
-    /// The obstacle problem's multiplier λ_a = r_a / m_a at interior vertices (0 on ∂ω).
-    pub multiplier: Vec<f64>,
-    /// Interior vertices where the membranes touch (the final active set).
-    pub contact: Vec<bool>,
-    pub stats: SolverStats,
+    pub obstacle: Obstacle,
 }
 
 /// An initial guess of the gap w and the multiplier λ at every vertex, e.g. a coarser mesh's
@@ -258,28 +253,18 @@ pub fn solve(
         (v.join().expect("the v thread does not panic"), w)
     });
     let (v, v_stats) = v?;
-    let Obstacle {
-        gap: w,
-        multiplier,
-        contact,
-        mut stats,
-    } = obstacle?;
+    let mut obstacle = obstacle?;
+    let stats = &mut obstacle.stats;
     stats.symbolic_seconds = symbolic_seconds;
     stats.numeric_seconds += v_stats.numeric_seconds;
     stats.solve_seconds += v_stats.solve_seconds;
     stats.factorizations += v_stats.factorizations;
-    let (c1, c2) = (mu2 / (mu1 + mu2), mu1 / (mu1 + mu2));
-    let u1 = v.iter().zip(&w).map(|(v, w)| v + c1 * w).collect();
-    let u2 = v.iter().zip(&w).map(|(v, w)| v - c2 * w).collect();
     stats.wall_seconds = start.elapsed().as_secs_f64();
-    Ok(Solution {
-        u1,
-        u2,
-        gap: w,
-        multiplier,
-        contact,
-        stats,
-    })
+    let (c1, c2) = (mu2 / (mu1 + mu2), mu1 / (mu1 + mu2));
+    let w = &obstacle.gap;
+    let u1 = v.iter().zip(w).map(|(v, w)| v + c1 * w).collect();
+    let u2 = v.iter().zip(w).map(|(v, w)| v - c2 * w).collect();
+    Ok(Solution { u1, u2, obstacle })
 }
 
 /// Solves the obstacle problem alone: μ* K w ≥ f_w, w ≥ 0 at interior vertices, w = g_h on ∂ω,

@@ -290,15 +290,25 @@ fn open_h5(path: &Path) -> Result<hdf5::File, IoError> {
     hdf5::File::open(path).map_err(|e| IoError(format!("{}: not a readable HDF5 file: {e}", path.display())))
 }
 
-fn read_points(path: &Path, dataset: &str) -> Result<Vec<[f64; 2]>, IoError> {
+/// A two-dimensional dataset, after the memory check on its number of rows.
+fn read_table<T: hdf5::H5Type>(
+    path: &Path,
+    dataset: &str,
+    what: &str,
+) -> Result<ndarray::Array2<T>, IoError> {
     let err = |m: String| IoError(format!("{}:{dataset}: {m}", path.display()));
     let file = open_h5(path)?;
     let data = file
         .dataset(dataset)
         .map_err(|e| err(format!("no such dataset: {e}")))?;
-    let a = data
-        .read_2d::<f64>()
-        .map_err(|e| err(format!("cannot read coordinates: {e}")))?;
+    crate::mesh::check_memory(data.shape().first().copied().unwrap_or(0)).map_err(|e| err(e.to_string()))?;
+    data.read_2d::<T>()
+        .map_err(|e| err(format!("cannot read {what}: {e}")))
+}
+
+fn read_points(path: &Path, dataset: &str) -> Result<Vec<[f64; 2]>, IoError> {
+    let err = |m: String| IoError(format!("{}:{dataset}: {m}", path.display()));
+    let a = read_table::<f64>(path, dataset, "coordinates")?;
     let dim = a.ncols();
     if !(dim == 2 || dim == 3) {
         return Err(err(format!(
@@ -323,13 +333,7 @@ fn read_points(path: &Path, dataset: &str) -> Result<Vec<[f64; 2]>, IoError> {
 
 fn read_cells(path: &Path, dataset: &str) -> Result<Vec<[usize; 3]>, IoError> {
     let err = |m: String| IoError(format!("{}:{dataset}: {m}", path.display()));
-    let file = open_h5(path)?;
-    let data = file
-        .dataset(dataset)
-        .map_err(|e| err(format!("no such dataset: {e}")))?;
-    let a = data
-        .read_2d::<i64>()
-        .map_err(|e| err(format!("cannot read cells: {e}")))?;
+    let a = read_table::<i64>(path, dataset, "cells")?;
     if a.ncols() != 3 {
         return Err(err(format!(
             "cells have {} vertices, need 3 (triangles)",

@@ -140,15 +140,20 @@ pub fn solve(
     let problem = DiscreteProblem::new(mesh, &case.data).map_err(|e| data_error(case, e))?;
     timings.assembly = problem.setup_seconds;
     let g = match (warm, &guess) {
-        (Some((m, s)), _) => Some(Guess::interpolate(&problem.mesh, m, &s.gap, &s.multiplier)),
+        (Some((m, s)), _) => Some(Guess::interpolate(
+            &problem.mesh,
+            m,
+            &s.obstacle.gap,
+            &s.obstacle.multiplier,
+        )),
         (None, Some((m, w, l))) => Some(Guess::interpolate(&problem.mesh, m, w, l)),
         _ => None,
     };
     let solution = contact::solve(&problem, g.as_ref(), case.options)?;
-    timings.symbolic = solution.stats.symbolic_seconds;
-    timings.numeric = solution.stats.numeric_seconds;
-    timings.solve = solution.stats.solve_seconds;
-    timings.final_solve = solution.stats.wall_seconds;
+    timings.symbolic = solution.obstacle.stats.symbolic_seconds;
+    timings.numeric = solution.obstacle.stats.numeric_seconds;
+    timings.solve = solution.obstacle.stats.solve_seconds;
+    timings.final_solve = solution.obstacle.stats.wall_seconds;
 
     let t = Instant::now();
     let action = Action::compute(&problem, &solution);
@@ -181,7 +186,12 @@ impl Run {
         let t = Instant::now();
         let mesh = &self.problem.mesh;
         let s = &self.solution;
-        let contact: Vec<f64> = s.contact.iter().map(|&c| f64::from(u8::from(c))).collect();
+        let contact: Vec<f64> = s
+            .obstacle
+            .contact
+            .iter()
+            .map(|&c| f64::from(u8::from(c)))
+            .collect();
         let dual = DualMesh::new(mesh);
         let dual_lambda = dual.cell_field(mesh, &self.action.lambda);
         let owner: Vec<f64> = dual.owner.iter().map(|&a| a as f64).collect();
@@ -196,7 +206,7 @@ impl Run {
             },
             Field {
                 name: "gap",
-                values: &s.gap,
+                values: &s.obstacle.gap,
             },
             Field {
                 name: "lambda",
@@ -253,7 +263,7 @@ impl Run {
                 ],
             },
         ];
-        let st = &s.stats;
+        let st = &s.obstacle.stats;
         let a = &self.action;
         let tm = &self.timings;
         let mut attrs: Vec<(&str, Attr)> = vec![
@@ -286,7 +296,7 @@ impl Run {
             ("max_lambda_times_gap", Attr::Float(a.complementarity)),
             (
                 "min_gap",
-                Attr::Float(s.gap.iter().copied().fold(f64::INFINITY, f64::min)),
+                Attr::Float(s.obstacle.gap.iter().copied().fold(f64::INFINITY, f64::min)),
             ),
             ("total_force", Attr::Float(a.total)),
             ("contact_area", Attr::Float(a.contact_area)),
@@ -321,7 +331,7 @@ impl Run {
     /// A short human-readable summary.
     pub fn summary(&self) -> String {
         let m = &self.problem.mesh;
-        let s = &self.solution.stats;
+        let s = &self.solution.obstacle.stats;
         let a = &self.action;
         let t = &self.timings;
         let lmax = a.lambda.iter().copied().fold(0.0, f64::max);
@@ -344,7 +354,7 @@ impl Run {
             a.membrane_difference,
             a.min_lambda,
             a.complementarity,
-            self.solution.gap.iter().copied().fold(f64::INFINITY, f64::min),
+            self.solution.obstacle.gap.iter().copied().fold(f64::INFINITY, f64::min),
         );
         if let Some(e) = &self.errors {
             out += &format!(

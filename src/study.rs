@@ -55,9 +55,15 @@ pub fn run(
             r.compute_h_minus_1(&c);
         }
         let cold_iterations = if options.cold && warm.is_some() {
-            Some(run::solve(&c, Start::Cold, None)?.solution.stats.iterations)
+            Some(
+                run::solve(&c, Start::Cold, None)?
+                    .solution
+                    .obstacle
+                    .stats
+                    .iterations,
+            )
         } else if options.cold {
-            Some(r.solution.stats.iterations)
+            Some(r.solution.obstacle.stats.iterations)
         } else {
             None
         };
@@ -66,7 +72,7 @@ pub fn run(
             h: r.problem.mesh.h(),
             vertices: r.problem.mesh.n_vertices(),
             errors: r.errors.clone(),
-            iterations: r.solution.stats.iterations,
+            iterations: r.solution.obstacle.stats.iterations,
             cold_iterations,
             seconds: r.timings.contact_solve() + r.timings.assembly + r.timings.mesh,
         };

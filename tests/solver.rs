@@ -49,7 +49,7 @@ fn linear_solution_without_contact_is_reproduced() {
         assert!((r.solution.u1[a] - (1.0 + p[0] + 2.0 * p[1])).abs() < 1e-13);
         assert!(r.solution.u2[a].abs() < 1e-13);
     }
-    assert!(r.solution.contact.iter().all(|&c| !c));
+    assert!(r.solution.obstacle.contact.iter().all(|&c| !c));
     assert!(r.action.lambda.iter().all(|l| l.abs() < 1e-11));
 }
 
@@ -64,11 +64,11 @@ fn no_contact_equals_two_poisson_solves() {
     let zero = vec![0.0; p.mesh.n_vertices()];
     let u1 = poisson(p, &p.load1, 1.5, &p.g_h);
     let u2 = poisson(p, &p.load2, 3.0, &zero);
-    assert!(r.solution.contact.iter().all(|&c| !c));
+    assert!(r.solution.obstacle.contact.iter().all(|&c| !c));
     assert!(max_abs_diff(&u1, &r.solution.u1) < 1e-13);
     assert!(max_abs_diff(&u2, &r.solution.u2) < 1e-13);
     assert!(r.action.lambda.iter().all(|l| l.abs() < 1e-10));
-    assert!(r.solution.gap.iter().all(|&w| w > 0.0));
+    assert!(r.solution.obstacle.gap.iter().all(|&w| w > 0.0));
 }
 
 #[test]
@@ -79,7 +79,7 @@ fn full_contact_moves_the_membranes_together() {
     let r = run::solve(&c, Start::Cold, None).unwrap();
     let p = &r.problem;
     let interior = p.mesh.interior();
-    assert!(interior.iter().all(|&a| r.solution.contact[a]));
+    assert!(interior.iter().all(|&a| r.solution.obstacle.contact[a]));
     assert!(max_abs_diff(&r.solution.u1, &r.solution.u2) == 0.0);
     let sum: Vec<f64> = p.load1.iter().zip(&p.load2).map(|(a, b)| a + b).collect();
     let v = poisson(p, &sum, 4.0, &vec![0.0; p.mesh.n_vertices()]);
@@ -97,7 +97,7 @@ fn action_satisfies_proposition_12_and_complementarity() {
     let r = run::solve(&c, Start::Nested, None).unwrap();
     let a = &r.action;
     let lmax = a.lambda.iter().copied().fold(0.0, f64::max);
-    let wmax = r.solution.gap.iter().copied().fold(0.0, f64::max);
+    let wmax = r.solution.obstacle.gap.iter().copied().fold(0.0, f64::max);
     assert!(lmax > 1.0, "the default case has contact");
     assert!(
         a.membrane_difference / lmax < 1e-10,
@@ -110,11 +110,11 @@ fn action_satisfies_proposition_12_and_complementarity() {
         a.complementarity
     );
     assert!(a.min_lambda > -1e-10 * lmax);
-    assert!(r.solution.gap.iter().all(|&w| w >= 0.0));
+    assert!(r.solution.obstacle.gap.iter().all(|&w| w >= 0.0));
     // At contact vertices the gap is exactly 0; elsewhere λ vanishes up to round-off.
-    for (v, &touch) in r.solution.contact.iter().enumerate() {
+    for (v, &touch) in r.solution.obstacle.contact.iter().enumerate() {
         if touch {
-            assert_eq!(r.solution.gap[v], 0.0);
+            assert_eq!(r.solution.obstacle.gap[v], 0.0);
         } else {
             assert!(a.lambda[v].abs() < 1e-10 * lmax);
         }
@@ -143,11 +143,15 @@ fn nested_iteration_and_cold_start_agree() {
     let c = Case::default_case();
     let warm = run::solve(&c, Start::Nested, None).unwrap();
     let cold = run::solve(&c, Start::Cold, None).unwrap();
-    assert_eq!(warm.solution.contact, cold.solution.contact);
+    assert_eq!(warm.solution.obstacle.contact, cold.solution.obstacle.contact);
     assert!(max_abs_diff(&warm.solution.u1, &cold.solution.u1) < 1e-13);
     assert!(max_abs_diff(&warm.action.lambda, &cold.action.lambda) < 1e-9);
-    assert!(warm.solution.stats.iterations <= 4, "{:?}", warm.solution.stats);
-    assert!(cold.solution.stats.iterations > warm.solution.stats.iterations);
+    assert!(
+        warm.solution.obstacle.stats.iterations <= 4,
+        "{:?}",
+        warm.solution.obstacle.stats
+    );
+    assert!(cold.solution.obstacle.stats.iterations > warm.solution.obstacle.stats.iterations);
 }
 
 #[test]
