@@ -55,13 +55,11 @@ pub fn run(
             r.compute_h_minus_1(&c);
         }
         let cold_iterations = if options.cold && warm.is_some() {
-            Some(
-                run::solve(&c, Start::Cold, None)?
-                    .solution
-                    .obstacle
-                    .stats
-                    .iterations,
-            )
+            // A cold start needs about one iteration per ring of vertices the contact set spans.
+            let mut cold_case = c.clone();
+            cold_case.options.max_iterations = cold_case.options.max_iterations.max(4 * cells);
+            let cold = run::solve(&cold_case, Start::Cold, None)?;
+            Some(cold.solution.obstacle.stats.iterations)
         } else if options.cold {
             Some(r.solution.obstacle.stats.iterations)
         } else {
