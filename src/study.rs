@@ -8,6 +8,7 @@
 use crate::case::Case;
 use crate::norms::Errors;
 use crate::run::{self, RunError, Start};
+use plotters::coord::ranged1d::Ranged;
 use plotters::prelude::*;
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -184,6 +185,44 @@ pub fn csv(levels: &[Level]) -> String {
     s
 }
 
+/// Draws a labelled polyline with its points marked.
+fn marked_line<'a, DB: DrawingBackend + 'a, X: Ranged<ValueType = f64>, Y: Ranged<ValueType = f64>>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    name: &str,
+    points: &[(f64, f64)],
+    color: RGBAColor,
+) -> Result<(), String> {
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| format!("cannot draw the plot: {e}");
+    chart
+        .draw_series(LineSeries::new(points.to_vec(), color.stroke_width(2)))
+        .map_err(err)?
+        .label(name)
+        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+    chart
+        .draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))
+        .map_err(err)?;
+    Ok(())
+}
+
+/// Draws the legend and writes the picture.
+fn finish<'a, DB: DrawingBackend + 'a, X: Ranged<ValueType = f64>, Y: Ranged<ValueType = f64>>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    position: SeriesLabelPosition,
+) -> Result<(), String> {
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 13))
+        .position(position)
+        .draw()
+        .map_err(|e| format!("cannot draw the plot: {e}"))?;
+    chart
+        .plotting_area()
+        .present()
+        .map_err(|e| format!("cannot write the plot: {e}"))
+}
+
 /// Registers a TrueType font for plot labels (plotters draws text with ab_glyph).
 fn register_font() -> Result<(), String> {
     const FONTS: [&str; 2] = [
@@ -254,15 +293,7 @@ pub fn plot_errors(path: &Path, title: &str, studies: &[(String, &[Level])]) -> 
         .draw()
         .map_err(|e| err(&e))?;
     for (i, (name, points)) in series.iter().enumerate() {
-        let color = Palette99::pick(i).to_rgba();
-        chart
-            .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))
-            .map_err(|e| err(&e))?
-            .label(name.as_str())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
-        chart
-            .draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))
-            .map_err(|e| err(&e))?;
+        marked_line(&mut chart, name, points, Palette99::pick(i).to_rgba())?;
     }
     for (slope, style) in [
         (1.0, BLACK.stroke_width(1)),
@@ -276,15 +307,7 @@ pub fn plot_errors(path: &Path, title: &str, studies: &[(String, &[Level])]) -> 
             .label(format!("slope {slope}"))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 13))
-        .position(SeriesLabelPosition::LowerRight)
-        .draw()
-        .map_err(|e| err(&e))?;
-    root.present().map_err(|e| err(&e))
+    finish(&mut chart, SeriesLabelPosition::LowerRight).map_err(|e| format!("{}: {e}", path.display()))
 }
 
 /// Iterations per level, nested and (when computed) cold.
@@ -327,22 +350,7 @@ pub fn plot_iterations(path: &Path, title: &str, levels: &[Level]) -> Result<(),
         if points.is_empty() {
             continue;
         }
-        chart
-            .draw_series(LineSeries::new(points.clone(), color.stroke_width(2)))
-            .map_err(|e| err(&e))?
-            .label(name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
-        chart
-            .draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))
-            .map_err(|e| err(&e))?;
+        marked_line(&mut chart, name, &points, color.to_rgba())?;
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .label_font(("sans-serif", 13))
-        .position(SeriesLabelPosition::UpperLeft)
-        .draw()
-        .map_err(|e| err(&e))?;
-    root.present().map_err(|e| err(&e))
+    finish(&mut chart, SeriesLabelPosition::UpperLeft).map_err(|e| format!("{}: {e}", path.display()))
 }
