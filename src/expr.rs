@@ -91,7 +91,6 @@ enum Cond {
 /// A parsed expression of (x, y), compiled to a stack program for fast evaluation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Expr {
-    source: String,
     code: Vec<Op>,
 }
 
@@ -150,15 +149,7 @@ impl Expr {
         if c.max_depth > STACK {
             return Err(p.error_at(0, "expression nested too deeply"));
         }
-        Ok(Expr {
-            source: source.to_string(),
-            code: c.code,
-        })
-    }
-
-    /// The text the expression was parsed from.
-    pub fn source(&self) -> &str {
-        &self.source
+        Ok(Expr { code: c.code })
     }
 
     /// The value at the point (x, y).
