@@ -10,6 +10,7 @@ DEBIAN_PACKAGES := libhdf5-dev pkg-config python3-dolfinx python3-petsc4py pytho
 	python3-h5py python3-paraview python3-matplotlib python3-sympy fonts-dejavu-core
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 BENCH_SIZES ?= 256 512 1024
+BENCH_REPEAT ?= 3
 
 .PHONY: all deps build run test cargo-test validate bench bench-reference study fuzz lint clean
 
@@ -39,10 +40,10 @@ validate: build
 
 bench: deps
 	cargo build --release --benches
-	@for n in $(BENCH_SIZES); do \
+	@for n in $(BENCH_SIZES); do for r in $$(seq $(BENCH_REPEAT)); do \
 		cargo bench -q --bench phases -- poisson $$n | grep '^poisson' ; \
 		cargo bench -q --bench phases -- contact $$n | grep '^contact' ; \
-	done | $(PY) reference/bench_table.py
+	done; done | tee target/bench.log | $(PY) reference/bench_table.py
 
 bench-reference: build
 	$(PY) reference/bench_reference.py --bin $(BIN)

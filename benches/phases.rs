@@ -41,7 +41,7 @@ fn main() {
             let total = t.elapsed().as_secs_f64();
             let tm = &r.timings;
             println!(
-                "contact {n} vertices={} mesh={:.3} assembly={:.3} coarse={:.3} symbolic={:.3} numeric={:.3} solve={:.3} postprocess={:.3} contact_solve={:.3} total={:.3} iterations={} coarse_iterations={} factorizations={} peak_mb={:.0}",
+                "contact {n} vertices={} mesh={:.3} assembly={:.3} coarse={:.3} symbolic={:.3} numeric={:.3} solve={:.3} postprocess={:.3} contact_solve={:.3} total={:.3} iterations={} local_iterations={} coarse_iterations={} factorizations={} peak_mb={:.0}",
                 r.problem.mesh.n_vertices(),
                 tm.mesh,
                 tm.assembly,
@@ -50,9 +50,10 @@ fn main() {
                 tm.numeric,
                 tm.solve,
                 tm.postprocess,
-                tm.contact_solve(),
+                tm.contact_solve,
                 total,
                 r.solution.obstacle.stats.iterations,
+                r.solution.obstacle.stats.local_iterations,
                 r.coarse_iterations.iter().map(|i| i.to_string()).collect::<Vec<_>>().join(","),
                 r.solution.obstacle.stats.factorizations,
                 peak_mb()

@@ -359,19 +359,50 @@ impl Mesh {
         e.dedup();
         e
     }
+}
 
-    /// The P1 interpolant on this mesh of a P1 field `values` given on `coarse`: each vertex is
-    /// located in `coarse` (or, outside it, at the nearest triangle) and interpolated there.
-    pub fn interpolate_from(&self, coarse: &Mesh, values: &[f64]) -> Vec<f64> {
+/// P1 interpolation from a coarse mesh onto the vertices of a fine one: each fine vertex is
+/// located in the coarse mesh (or, outside it, at the nearest triangle) with its barycentric
+/// coordinates. Its transpose restricts nodal loads: Pᵀ(f, φ_a)_a = (f, φ_A)_A exactly when the
+/// meshes are nested, since then every coarse hat function is a combination of fine ones.
+pub struct Prolongation {
+    coarse_vertices: usize,
+    weights: Vec<([usize; 3], [f64; 3])>,
+}
+
+impl Prolongation {
+    pub fn new(fine: &Mesh, coarse: &Mesh) -> Self {
         let locator = Locator::new(coarse);
-        self.points
+        let weights = fine
+            .points
             .iter()
             .map(|&p| {
                 let (t, bary) = locator.locate(coarse, p);
-                let tri = coarse.triangles[t];
-                (0..3).map(|k| bary[k] * values[tri[k]]).sum()
+                (coarse.triangles[t], bary)
             })
+            .collect();
+        Prolongation {
+            coarse_vertices: coarse.n_vertices(),
+            weights,
+        }
+    }
+
+    /// The fine P1 interpolant of the coarse P1 field `values`.
+    pub fn apply(&self, values: &[f64]) -> Vec<f64> {
+        (self.weights.iter())
+            .map(|(tri, bary)| (0..3).map(|k| bary[k] * values[tri[k]]).sum())
             .collect()
+    }
+
+    /// Pᵀ `fine`: a fine nodal load restricted to the coarse vertices.
+    pub fn restrict(&self, fine: &[f64]) -> Vec<f64> {
+        let mut coarse = vec![0.0; self.coarse_vertices];
+        for ((tri, bary), f) in self.weights.iter().zip(fine) {
+            for k in 0..3 {
+                coarse[tri[k]] += bary[k] * f;
+            }
+        }
+        coarse
     }
 }
 
@@ -734,9 +765,27 @@ mod tests {
         let fine = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], 7, 5, Diagonal::Crossed).unwrap();
         let f = |p: [f64; 2]| 2.0 * p[0] - 3.0 * p[1] + 1.0;
         let v: Vec<f64> = coarse.points.iter().map(|&p| f(p)).collect();
-        let w = fine.interpolate_from(&coarse, &v);
+        let p = Prolongation::new(&fine, &coarse);
+        let w = p.apply(&v);
         for (p, w) in fine.points.iter().zip(w) {
             assert!((w - f(*p)).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn restriction_of_nested_loads_is_exact() {
+        // (f, φ_A) on the coarse mesh = Pᵀ (f, φ_a) on its uniform refinement, for every diagonal.
+        for diagonal in [Diagonal::Right, Diagonal::Left, Diagonal::Crossed] {
+            let coarse = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 3, 2, diagonal).unwrap();
+            let fine = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 6, 4, diagonal).unwrap();
+            let f = crate::expr::Expr::parse("x*y + 1").unwrap();
+            let quad = crate::assembly::Quadrature { degree: 4 };
+            let direct = crate::assembly::load(&coarse, &f, quad).unwrap();
+            let restricted =
+                Prolongation::new(&fine, &coarse).restrict(&crate::assembly::load(&fine, &f, quad).unwrap());
+            for (a, b) in direct.iter().zip(&restricted) {
+                assert!((a - b).abs() < 1e-14, "{a} vs {b}");
+            }
         }
     }
 }

@@ -73,7 +73,7 @@ pub fn run(
             errors: r.errors.clone(),
             iterations: r.solution.obstacle.stats.iterations,
             cold_iterations,
-            seconds: r.timings.contact_solve() + r.timings.assembly + r.timings.mesh,
+            seconds: r.timings.contact_solve + r.timings.assembly + r.timings.mesh,
         };
         progress(i, &level);
         levels.push(level);

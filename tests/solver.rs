@@ -158,10 +158,31 @@ fn nested_iteration_and_cold_start_agree() {
 fn iteration_cap_is_an_error() {
     let c = Case::default_case();
     let p = DiscreteProblem::new(c.mesh().unwrap(), &c.data).unwrap();
-    let err = contact::solve(&p, None, SolverOptions { max_iterations: 2 }).unwrap_err();
+    let err = contact::solve(
+        &p,
+        || Ok::<_, SolveError>(None),
+        SolverOptions { max_iterations: 2 },
+    )
+    .unwrap_err();
     assert!(
         matches!(err, SolveError::IterationCap { iterations: 2, .. }),
         "{err}"
     );
     assert!(err.to_string().contains("did not converge in 2 iterations"));
+}
+
+#[test]
+fn local_corrections_leave_two_global_iterations() {
+    // On 256² cells the free boundary of the 128² guess is off by a few vertices. The local
+    // corrections settle it, so one global solve finds the contact set and a second confirms it
+    // (three without them). The result is that of a cold start.
+    let mut c = Case::default_case();
+    c.set_cells(256);
+    let warm = run::solve(&c, Start::Nested, None).unwrap();
+    let s = &warm.solution.obstacle.stats;
+    assert_eq!(s.iterations, 2, "{s:?}");
+    assert!(s.local_iterations > 0, "{s:?}");
+    let cold = run::solve(&c, Start::Cold, None).unwrap();
+    assert_eq!(warm.solution.obstacle.contact, cold.solution.obstacle.contact);
+    assert!(max_abs_diff(&warm.solution.u2, &cold.solution.u2) < 1e-13);
 }
