@@ -4,8 +4,11 @@
 //! The fill-reducing ordering is computed once per mesh (AMD on K_II). Held vertices (w_a = 0) are
 //! dropped from the system: the reduced matrix K_FF on the free unknowns is factorized in the
 //! ordering of K_II restricted to them, which is still fill-reducing and cheaper than K_II (a
-//! contact region cuts the separators). Several [`Factorization`]s can share one
-//! [`InteriorSystem`] (e.g. on two threads).
+//! contact region cuts the separators). The symbolic analysis of K_FF is kept while the held set
+//! changes near the free boundary only: its pattern leaves out just the unknowns held deeper than
+//! [`MARGIN`] graph steps inside the held set, and unknowns held in the pattern become decoupled
+//! rows K_aa w_a = 0. Several [`Factorization`]s can share one [`InteriorSystem`] (e.g. on two
+//! threads).
 
 use crate::assembly::Stiffness;
 use dyn_stack::{MemBuffer, MemStack};
@@ -88,22 +91,45 @@ impl InteriorSystem {
         Factorization {
             system: self,
             reduced: None,
+            pattern_set: false,
+            analysed: None,
+            values: Vec::new(),
+            analyses: 0,
             factor: Vec::new(),
             buffer: MemBuffer::new(dyn_stack::StackReq::EMPTY),
             held: None,
         }
     }
 
-    /// K_FF for the free unknowns (`free[k]` is the unknown of reduced index k) with its symbolic
-    /// analysis in the restricted ordering; `None` when nothing is held (K_II itself is used).
-    fn reduce(&self, held: &[bool]) -> Option<Reduced> {
+    /// The unknowns held more than `margin` graph steps away from every free one: after k sweeps
+    /// of relaxing the distance along the edges of K_II (both ways), every unknown within k steps
+    /// of a free one has its exact distance, and the others keep an upper bound above k.
+    fn deep(&self, held: &[bool], margin: usize) -> Vec<bool> {
         if !held.iter().any(|&h| h) {
+            return vec![false; self.n()];
+        }
+        let mut dist: Vec<usize> = held.iter().map(|&h| if h { usize::MAX } else { 0 }).collect();
+        for _ in 0..margin {
+            for j in 0..self.n() {
+                for &i in &self.row_idx[self.col_ptr[j]..self.col_ptr[j + 1]] {
+                    dist[i] = dist[i].min(dist[j].saturating_add(1));
+                    dist[j] = dist[j].min(dist[i].saturating_add(1));
+                }
+            }
+        }
+        dist.iter().map(|&d| d > margin).collect()
+    }
+
+    /// K restricted to the unknowns not `left_out`, with its symbolic analysis in the ordering
+    /// of K_II restricted to them; `None` when none is left out (K_II itself is the pattern).
+    fn reduce(&self, left_out: &[bool]) -> Option<Reduced> {
+        if !left_out.iter().any(|&h| h) {
             return None;
         }
         let n = self.n();
         let mut index = vec![usize::MAX; n];
         let mut free = Vec::new();
-        for (i, &h) in held.iter().enumerate() {
+        for (i, &h) in left_out.iter().enumerate() {
             if !h {
                 index[i] = free.len();
                 free.push(i);
@@ -148,7 +174,12 @@ impl InteriorSystem {
     }
 }
 
-/// The system restricted to the free unknowns.
+/// Graph steps between the free unknowns and those left out of the pattern of K_FF.
+const MARGIN: usize = 8;
+/// A pattern is kept while it has at most this many times the unknowns of a fresh one.
+const PATTERN_SLACK: f64 = 1.05;
+
+/// K_II restricted to the unknowns of a pattern (`free[k]` is the unknown of index k).
 struct Reduced {
     free: Vec<usize>,
     col_ptr: Vec<usize>,
@@ -160,34 +191,82 @@ struct Reduced {
 /// A numeric factorization of K_II with some unknowns held at zero.
 pub struct Factorization<'a> {
     system: &'a InteriorSystem,
+    /// The pattern factorized: `Some` restricted, `None` all of K_II; `pattern_set` is false
+    /// before the first factorization.
     reduced: Option<Reduced>,
+    pattern_set: bool,
+    /// The values factorized: K on the pattern with held unknowns decoupled.
+    values: Vec<f64>,
     factor: Vec<f64>,
     buffer: MemBuffer,
     held: Option<Vec<bool>>,
+    /// The held set the pattern was last chosen for.
+    analysed: Option<Vec<bool>>,
+    /// Symbolic analyses done (one per pattern).
+    pub analyses: usize,
 }
 
 impl Factorization<'_> {
+    /// Chooses the pattern for the held set `held`: the current one while it contains every free
+    /// unknown and is not much larger than a fresh one, else a fresh one with its symbolic
+    /// analysis. Sizes the factor storage. [`Self::factorize`] calls it; calling it first moves
+    /// this work out of the numeric factorization (e.g. while another thread factorizes).
+    pub fn analyse(&mut self, held: &[bool]) {
+        let s = self.system;
+        let left_out = s.deep(held, MARGIN);
+        let fresh = left_out.iter().filter(|&&d| !d).count();
+        let fits = self.pattern_set
+            && match &self.reduced {
+                None => s.n() as f64 <= PATTERN_SLACK * fresh as f64,
+                Some(r) => {
+                    let mut inside = vec![false; s.n()];
+                    r.free.iter().for_each(|&i| inside[i] = true);
+                    r.free.len() as f64 <= PATTERN_SLACK * fresh as f64
+                        && (0..s.n()).all(|i| inside[i] || held[i])
+                }
+            };
+        if !fits {
+            self.reduced = s.reduce(&left_out);
+            self.pattern_set = true;
+            self.analyses += 1;
+        }
+        let symbolic = self.reduced.as_ref().map_or(&s.symbolic, |r| &r.symbolic);
+        self.factor.resize(symbolic.len_val(), 0.0);
+        self.analysed = Some(held.to_vec());
+    }
+
     /// Factorizes K_FF, F the unknowns not `held`; skipped when the current factorization already
     /// has that held set. Returns whether it factorized.
     pub fn factorize(&mut self, held: &[bool]) -> Result<bool, NotPositiveDefinite> {
         if self.held.as_deref() == Some(held) {
             return Ok(false);
         }
+        if self.analysed.as_deref() != Some(held) {
+            self.analyse(held);
+        }
         let s = self.system;
-        self.reduced = s.reduce(held);
         let (symbolic, col_ptr, row_idx, val) = match &self.reduced {
             Some(r) => (&r.symbolic, &r.col_ptr, &r.row_idx, &r.val),
             None => (&s.symbolic, &s.col_ptr, &s.row_idx, &s.k_val),
         };
+        let unknown = |k: usize| self.reduced.as_ref().map_or(k, |r| r.free[k]);
+        // Held unknowns inside the pattern become decoupled rows K_aa w_a = 0.
+        self.values.clear();
+        for j in 0..col_ptr.len() - 1 {
+            for p in col_ptr[j]..col_ptr[j + 1] {
+                let i = row_idx[p];
+                let decoupled = held[unknown(i)] || held[unknown(j)];
+                self.values.push(if decoupled && i != j { 0.0 } else { val[p] });
+            }
+        }
         let m = col_ptr.len() - 1;
-        self.factor.resize(symbolic.len_val(), 0.0);
         let scratch = symbolic
             .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
             .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
         self.buffer = MemBuffer::new(scratch);
         let a = SparseColMatRef::new(
             SymbolicSparseColMatRef::new_checked(m, m, col_ptr, None, row_idx),
-            val,
+            &self.values,
         );
         symbolic
             .factorize_numeric_llt(
@@ -206,6 +285,12 @@ impl Factorization<'_> {
 
     /// Solves the factorized system in place; held unknowns come out as zero.
     pub fn solve(&mut self, rhs: &mut [f64]) {
+        let held = self.held.as_deref().expect("factorized before solving");
+        for (r, &h) in rhs.iter_mut().zip(held) {
+            if h {
+                *r = 0.0;
+            }
+        }
         let s = self.system;
         match &self.reduced {
             None => {
@@ -232,5 +317,66 @@ impl Factorization<'_> {
                 }
             }
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{Diagonal, Mesh};
+
+    /// max |(K x)_a − b_a| over the free unknowns, and max |x_a| over the held ones.
+    fn residuals(k: &Stiffness, system: &InteriorSystem, held: &[bool], x: &[f64]) -> (f64, f64) {
+        let mut u = vec![0.0; k.n()];
+        for (i, &a) in system.vertices.iter().enumerate() {
+            u[a] = x[i];
+        }
+        let (mut free, mut fixed) = (0.0_f64, 0.0_f64);
+        for (i, &a) in system.vertices.iter().enumerate() {
+            if held[i] {
+                fixed = fixed.max(x[i].abs());
+            } else {
+                free = free.max((k.row_dot(a, &u) - 1.0).abs());
+            }
+        }
+        (free, fixed)
+    }
+
+    #[test]
+    fn a_pattern_serves_held_sets_that_move_near_the_free_boundary() {
+        let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], 40, 40, Diagonal::Right).unwrap();
+        let k = Stiffness::assemble(&mesh);
+        let system = InteriorSystem::new(&k, &mesh.on_boundary);
+        let disk = |r: f64| -> Vec<bool> {
+            (system.vertices.iter())
+                .map(|&a| {
+                    let p = mesh.points[a];
+                    (p[0] - 0.5).hypot(p[1] - 0.5) < r
+                })
+                .collect()
+        };
+        let mut factor = system.factorization();
+        // The held disk shrinks by a ring, then grows by one: the first pattern serves all three.
+        for (r, analyses) in [(0.3, 1), (0.27, 1), (0.33, 1)] {
+            let held = disk(r);
+            assert!(factor.factorize(&held).unwrap());
+            let mut x = vec![1.0; system.n()];
+            factor.solve(&mut x);
+            let (free, fixed) = residuals(&k, &system, &held, &x);
+            assert!(free < 1e-12 && fixed == 0.0, "r = {r}: {free} {fixed}");
+            assert_eq!(factor.analyses, analyses, "r = {r}");
+        }
+        // Freeing the centre of the disk, deep inside, needs a new pattern.
+        let mut held = disk(0.33);
+        let centre = (system.vertices.iter())
+            .position(|&a| mesh.points[a] == [0.5, 0.5])
+            .unwrap();
+        held[centre] = false;
+        factor.factorize(&held).unwrap();
+        let mut x = vec![1.0; system.n()];
+        factor.solve(&mut x);
+        let (free, fixed) = residuals(&k, &system, &held, &x);
+        assert!(free < 1e-12 && fixed == 0.0, "{free} {fixed}");
+        assert_eq!(factor.analyses, 2);
     }
 }
