@@ -187,9 +187,17 @@ pub struct NotFinite {
     pub value: f64,
 }
 
-/// The load vector F_a = (f, φ_a) over all vertices, by the quadrature rule. The triangles are
-/// split into two halves assembled on two threads (always two, so results do not depend on the
-/// machine).
+/// `part` of 0..n over its two halves, the first on a second thread: always two, so that sums do
+/// not depend on the machine.
+pub fn in_two_halves<T: Send>(n: usize, part: impl Fn(std::ops::Range<usize>) -> T + Sync) -> [T; 2] {
+    std::thread::scope(|s| {
+        let first = s.spawn(|| part(0..n / 2));
+        let second = part(n / 2..n);
+        [first.join().expect("a worker thread does not panic"), second]
+    })
+}
+
+/// The load vector F_a = (f, φ_a) over all vertices, by the quadrature rule, on two threads.
 pub fn load(mesh: &Mesh, f: &Expr, quad: Quadrature) -> Result<Vec<f64>, NotFinite> {
     if let Some(c) = f.constant() {
         if !c.is_finite() {
@@ -201,12 +209,7 @@ pub fn load(mesh: &Mesh, f: &Expr, quad: Quadrature) -> Result<Vec<f64>, NotFini
         // Exact for constants: (c, φ_a) = c m_a.
         return Ok(lumped_mass(mesh).into_iter().map(|m| c * m).collect());
     }
-    let half = mesh.triangles.len() / 2;
-    let (first, second) = std::thread::scope(|s| {
-        let first = s.spawn(|| load_part(mesh, f, quad, 0..half));
-        let second = load_part(mesh, f, quad, half..mesh.triangles.len());
-        (first.join().expect("load assembly does not panic"), second)
-    });
+    let [first, second] = in_two_halves(mesh.triangles.len(), |range| load_part(mesh, f, quad, range));
     let mut out = first?;
     for (o, s) in out.iter_mut().zip(second?) {
         *o += s;

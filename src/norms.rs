@@ -3,7 +3,7 @@
 //! computable approximation of ‖λ − λ_h‖_H⁻¹ (Theorem 21).
 
 use crate::action::{Action, DualMesh};
-use crate::assembly::{gradients, Quadrature, Stiffness};
+use crate::assembly::{gradients, in_two_halves, Quadrature, Stiffness};
 use crate::case::Exact;
 use crate::contact::{DiscreteProblem, Solution};
 use crate::expr::Expr;
@@ -47,16 +47,21 @@ impl Errors {
             })
             .fold(0.0, f64::max);
         let dual = DualMesh::new(mesh);
-        let mut l2_lambda = 0.0;
-        for (t, &a) in dual.triangles.iter().zip(&dual.owner) {
-            let lambda_h = if mesh.on_boundary[a] {
-                0.0
-            } else {
-                action.lambda[a]
-            };
-            let corners = t.map(|v| dual.points[v]);
-            l2_lambda += integrate(corners, |x| (exact.lambda.eval(x[0], x[1]) - lambda_h).powi(2));
-        }
+        let l2_lambda: f64 = in_two_halves(dual.triangles.len(), |range| {
+            let mut sum = 0.0;
+            for (t, &a) in dual.triangles[range.clone()].iter().zip(&dual.owner[range]) {
+                let lambda_h = if mesh.on_boundary[a] {
+                    0.0
+                } else {
+                    action.lambda[a]
+                };
+                let corners = t.map(|v| dual.points[v]);
+                sum += integrate(corners, |x| (exact.lambda.eval(x[0], x[1]) - lambda_h).powi(2));
+            }
+            sum
+        })
+        .iter()
+        .sum();
         Errors {
             l2_u1,
             l2_u2,
@@ -94,8 +99,29 @@ fn p1_errors(
     u: &crate::expr::Expr,
     grad: Option<&[crate::expr::Expr; 2]>,
 ) -> (f64, f64) {
+    let [first, second] = in_two_halves(mesh.triangles.len(), |range| {
+        p1_error_sums(mesh, uh, u, grad, range)
+    });
+    let (l2, h1) = (first.0 + second.0, first.1 + second.1);
+    (l2.sqrt(), if grad.is_some() { h1.sqrt() } else { f64::NAN })
+}
+
+/// ∫ (u − u_h)² and ∫ |∇(u − u_h)|² over the triangles in `range`.
+fn p1_error_sums(
+    mesh: &Mesh,
+    uh: &[f64],
+    u: &crate::expr::Expr,
+    grad: Option<&[crate::expr::Expr; 2]>,
+    range: std::ops::Range<usize>,
+) -> (f64, f64) {
     let (mut l2, mut h1) = (0.0, 0.0);
-    for (t, tri) in mesh.triangles.iter().enumerate() {
+    for (t, tri) in mesh
+        .triangles
+        .iter()
+        .enumerate()
+        .skip(range.start)
+        .take(range.len())
+    {
         let corners = mesh.corners(t);
         let g = gradients(corners);
         let grad_h = [0, 1].map(|k| (0..3).map(|i| g[i][k] * uh[tri[i]]).sum::<f64>());
@@ -112,7 +138,7 @@ fn p1_errors(
             });
         }
     }
-    (l2.sqrt(), if grad.is_some() { h1.sqrt() } else { f64::NAN })
+    (l2, h1)
 }
 
 /// ‖λ − λ_h‖_H⁻¹(ω), approximated by the dual norm over P1 functions on the dual submesh S_h
