@@ -164,21 +164,69 @@ impl Quadrature {
         TRIANGLE_RULES[self.degree.min(Self::MAX_DEGREE)]
     }
 
-    /// Calls `visit(x, y, weight, barycentric)` at each physical quadrature point of triangle t.
-    #[inline]
-    pub fn for_each_point(&self, mesh: &Mesh, t: usize, mut visit: impl FnMut([f64; 2], f64, [f64; 3])) {
-        let [p, q, r] = mesh.corners(t);
-        let jac = crate::mesh::orient(p, q, r);
-        for &[xi, eta, w] in self.rule() {
-            let l = [1.0 - xi - eta, xi, eta];
-            let x = [
-                l[0] * p[0] + l[1] * q[0] + l[2] * r[0],
-                l[0] * p[1] + l[1] * q[1] + l[2] * r[1],
-            ];
-            visit(x, w * jac, l);
+    /// Visits the triangles `range` (corners given by `corners`) with the E `fields` evaluated at
+    /// their quadrature points: `visit(t, points, values)`, values[e][q] the field e at points[q].
+    /// The fields are evaluated for [`TRIANGLES_PER_BLOCK`] triangles at a time
+    /// ([`Expr::eval_many`]).
+    pub fn visit<const E: usize>(
+        &self,
+        corners: impl Fn(usize) -> [[f64; 2]; 3],
+        range: std::ops::Range<usize>,
+        fields: [&Expr; E],
+        mut visit: impl FnMut(usize, &[QuadraturePoint], [&[f64]; E]),
+    ) {
+        let rule = self.rule();
+        let np = rule.len();
+        let mut points = Vec::with_capacity(TRIANGLES_PER_BLOCK * np);
+        let mut xs = Vec::with_capacity(TRIANGLES_PER_BLOCK * np);
+        let mut values = [(); E].map(|_| vec![0.0; TRIANGLES_PER_BLOCK * np]);
+        let mut start = range.start;
+        while start < range.end {
+            let block = start..range.end.min(start + TRIANGLES_PER_BLOCK);
+            points.clear();
+            for t in block.clone() {
+                let [p, q, r] = corners(t);
+                let jac = crate::mesh::orient(p, q, r);
+                for &[xi, eta, w] in rule {
+                    let l = [1.0 - xi - eta, xi, eta];
+                    points.push(QuadraturePoint {
+                        x: [
+                            l[0] * p[0] + l[1] * q[0] + l[2] * r[0],
+                            l[0] * p[1] + l[1] * q[1] + l[2] * r[1],
+                        ],
+                        weight: w * jac,
+                        barycentric: l,
+                    });
+                }
+            }
+            xs.clear();
+            xs.extend(points.iter().map(|p| p.x));
+            for (f, v) in fields.iter().zip(values.iter_mut()) {
+                f.eval_many(&xs, &mut v[..xs.len()]);
+            }
+            for (k, t) in block.clone().enumerate() {
+                let q = k * np..(k + 1) * np;
+                visit(
+                    t,
+                    &points[q.clone()],
+                    std::array::from_fn(|e| &values[e][q.clone()]),
+                );
+            }
+            start = block.end;
         }
     }
 }
+
+/// A physical quadrature point: its position, weight × |J| and barycentric coordinates.
+#[derive(Debug, Clone, Copy)]
+pub struct QuadraturePoint {
+    pub x: [f64; 2],
+    pub weight: f64,
+    pub barycentric: [f64; 3],
+}
+
+/// Triangles whose quadrature points are evaluated together.
+const TRIANGLES_PER_BLOCK: usize = 16;
 
 /// A non-finite value of an expression at a point.
 #[derive(Debug, Clone, PartialEq)]
@@ -225,18 +273,22 @@ fn load_part(
 ) -> Result<Vec<f64>, NotFinite> {
     let mut out = vec![0.0; mesh.n_vertices()];
     let mut bad = None;
-    for t in triangles {
-        let tri = mesh.triangles[t];
-        quad.for_each_point(mesh, t, |x, w, l| {
-            let v = f.eval(x[0], x[1]);
-            if !v.is_finite() && bad.is_none() {
-                bad = Some(NotFinite { point: x, value: v });
+    quad.visit(
+        |t| mesh.corners(t),
+        triangles,
+        [f],
+        |t, points, [values]| {
+            let tri = mesh.triangles[t];
+            for (p, &v) in points.iter().zip(values) {
+                if !v.is_finite() && bad.is_none() {
+                    bad = Some(NotFinite { point: p.x, value: v });
+                }
+                for k in 0..3 {
+                    out[tri[k]] += p.weight * v * p.barycentric[k];
+                }
             }
-            for k in 0..3 {
-                out[tri[k]] += w * v * l[k];
-            }
-        });
-    }
+        },
+    );
     match bad {
         Some(e) => Err(e),
         None => Ok(out),

@@ -92,6 +92,8 @@ enum Cond {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Expr {
     code: Vec<Op>,
+    /// The deepest stack the program needs.
+    depth: usize,
 }
 
 /// One instruction of the stack program (conditions are 1.0 / 0.0 on the stack).
@@ -107,13 +109,26 @@ enum Op {
     Compare(Compare),
     And,
     Or,
-    JumpIfFalse(usize),
-    Jump(usize),
+    /// c, a, b → a where c ≠ 0, else b (both branches are evaluated: floats do not trap, and the
+    /// program stays straight-line, so that it runs over blocks of points).
+    Select,
 }
 
 /// Longest accepted expression, in tokens, and the deepest nesting of the stack program.
 const MAX_TOKENS: usize = 10_000;
 const STACK: usize = 64;
+/// Points per block of [`Expr::eval_many`].
+pub const BLOCK: usize = 32;
+
+/// The stack slots sp − 1 (mutable) and sp.
+fn two<const B: usize>(stack: &mut [[f64; B]], sp: usize) -> (&mut [f64; B], &[f64; B]) {
+    let (lo, hi) = stack.split_at_mut(sp);
+    (&mut lo[sp - 1], &hi[0])
+}
+
+fn truth(b: bool) -> f64 {
+    f64::from(u8::from(b))
+}
 
 impl Expr {
     /// Parses `source`; the error names the offending token and its position.
@@ -149,70 +164,107 @@ impl Expr {
         if c.max_depth > STACK {
             return Err(p.error_at(0, "expression nested too deeply"));
         }
-        Ok(Expr { code: c.code })
+        Ok(Expr {
+            code: c.code,
+            depth: c.max_depth,
+        })
     }
 
     /// The value at the point (x, y).
-    #[inline]
     pub fn eval(&self, x: f64, y: f64) -> f64 {
-        let mut stack = [0.0f64; STACK];
+        let mut out = [0.0];
+        self.run(&[[x, y]], &mut out, &mut [[0.0; 1]; STACK]);
+        out[0]
+    }
+
+    /// The values at `points`, into `out`: the program runs once per block of [`BLOCK`] points,
+    /// each instruction over the whole block.
+    pub fn eval_many(&self, points: &[[f64; 2]], out: &mut [f64]) {
+        let mut stack = vec![[0.0; BLOCK]; self.depth.max(1)];
+        for (points, out) in points.chunks(BLOCK).zip(out.chunks_mut(BLOCK)) {
+            self.run(points, out, &mut stack);
+        }
+    }
+
+    /// Runs the program on up to B points at once.
+    fn run<const B: usize>(&self, points: &[[f64; 2]], out: &mut [f64], stack: &mut [[f64; B]]) {
+        let m = points.len();
         let mut sp = 0;
-        let mut pc = 0;
-        while pc < self.code.len() {
-            match self.code[pc] {
+        for op in &self.code {
+            match *op {
                 Op::Const(c) => {
-                    stack[sp] = c;
+                    stack[sp][..m].fill(c);
                     sp += 1;
                 }
-                Op::X => {
-                    stack[sp] = x;
+                Op::X | Op::Y => {
+                    let k = usize::from(matches!(op, Op::Y));
+                    for (s, p) in stack[sp].iter_mut().zip(points) {
+                        *s = p[k];
+                    }
                     sp += 1;
                 }
-                Op::Y => {
-                    stack[sp] = y;
-                    sp += 1;
-                }
-                Op::Unary(op) => stack[sp - 1] = unary(op, stack[sp - 1]),
-                Op::Binary(op) => {
-                    sp -= 1;
-                    stack[sp - 1] = binary(op, stack[sp - 1], stack[sp]);
-                }
-                Op::PowI(k) => stack[sp - 1] = stack[sp - 1].powi(k),
-                Op::Compare(op) => {
-                    sp -= 1;
-                    stack[sp - 1] = f64::from(u8::from(compare(op, stack[sp - 1], stack[sp])));
-                }
-                Op::And => {
-                    sp -= 1;
-                    stack[sp - 1] = f64::from(u8::from(stack[sp - 1] != 0.0 && stack[sp] != 0.0));
-                }
-                Op::Or => {
-                    sp -= 1;
-                    stack[sp - 1] = f64::from(u8::from(stack[sp - 1] != 0.0 || stack[sp] != 0.0));
-                }
-                Op::JumpIfFalse(target) => {
-                    sp -= 1;
-                    if stack[sp] == 0.0 {
-                        pc = target;
-                        continue;
+                Op::Unary(f) => {
+                    let a = &mut stack[sp - 1][..m];
+                    match f {
+                        Unary::Neg => map1(a, |a| -a),
+                        Unary::Sqrt => map1(a, f64::sqrt),
+                        Unary::Exp => map1(a, f64::exp),
+                        Unary::Log => map1(a, f64::ln),
+                        Unary::Sin => map1(a, f64::sin),
+                        Unary::Cos => map1(a, f64::cos),
+                        Unary::Abs => map1(a, f64::abs),
                     }
                 }
-                Op::Jump(target) => {
-                    pc = target;
-                    continue;
+                Op::PowI(2) => map1(&mut stack[sp - 1][..m], |a| a * a),
+                Op::PowI(k) => map1(&mut stack[sp - 1][..m], |a| a.powi(k)),
+                Op::Binary(f) => {
+                    sp -= 1;
+                    let (a, b) = two(stack, sp);
+                    let (a, b) = (&mut a[..m], &b[..m]);
+                    match f {
+                        Binary::Add => map2(a, b, |a, b| a + b),
+                        Binary::Sub => map2(a, b, |a, b| a - b),
+                        Binary::Mul => map2(a, b, |a, b| a * b),
+                        Binary::Div => map2(a, b, |a, b| a / b),
+                        Binary::Pow => map2(a, b, f64::powf),
+                        Binary::Min => map2(a, b, f64::min),
+                        Binary::Max => map2(a, b, f64::max),
+                        Binary::Atan2 => map2(a, b, f64::atan2),
+                    }
+                }
+                Op::Compare(f) => {
+                    sp -= 1;
+                    let (a, b) = two(stack, sp);
+                    (a[..m].iter_mut().zip(&b[..m])).for_each(|(a, b)| *a = truth(compare(f, *a, *b)));
+                }
+                Op::And | Op::Or => {
+                    sp -= 1;
+                    let and = matches!(op, Op::And);
+                    let (a, b) = two(stack, sp);
+                    a[..m].iter_mut().zip(&b[..m]).for_each(|(a, b)| {
+                        *a = truth(if and {
+                            *a != 0.0 && *b != 0.0
+                        } else {
+                            *a != 0.0 || *b != 0.0
+                        })
+                    });
+                }
+                Op::Select => {
+                    sp -= 2;
+                    let (c, rest) = stack[sp - 1..].split_at_mut(1);
+                    let (a, b) = rest.split_at(1);
+                    for i in 0..m {
+                        c[0][i] = if c[0][i] != 0.0 { a[0][i] } else { b[0][i] };
+                    }
                 }
             }
-            pc += 1;
         }
-        stack[0]
+        out.copy_from_slice(&stack[0][..m]);
     }
 
     /// The value, if the expression does not read x or y.
     pub fn constant(&self) -> Option<f64> {
-        let reads_xy = self
-            .code
-            .iter()
-            .any(|op| matches!(op, Op::X | Op::Y | Op::JumpIfFalse(_)));
+        let reads_xy = self.code.iter().any(|op| matches!(op, Op::X | Op::Y));
         (!reads_xy).then(|| self.eval(0.0, 0.0))
     }
 }
@@ -254,15 +306,9 @@ impl Compiler {
             }
             Num::If(c, a, b) => {
                 self.cond(c);
-                let branch = self.code.len();
-                self.push(Op::JumpIfFalse(0), -1);
                 self.num(a);
-                let skip = self.code.len();
-                self.push(Op::Jump(0), 0);
-                self.depth -= 1;
-                self.code[branch] = Op::JumpIfFalse(self.code.len());
                 self.num(b);
-                self.code[skip] = Op::Jump(self.code.len());
+                self.push(Op::Select, -2);
             }
         }
     }
@@ -290,31 +336,16 @@ impl Compiler {
     }
 }
 
+/// a ← f(a) elementwise.
 #[inline]
-fn unary(op: Unary, a: f64) -> f64 {
-    match op {
-        Unary::Neg => -a,
-        Unary::Sqrt => a.sqrt(),
-        Unary::Exp => a.exp(),
-        Unary::Log => a.ln(),
-        Unary::Sin => a.sin(),
-        Unary::Cos => a.cos(),
-        Unary::Abs => a.abs(),
-    }
+fn map1(a: &mut [f64], f: impl Fn(f64) -> f64) {
+    a.iter_mut().for_each(|a| *a = f(*a));
 }
 
+/// a ← f(a, b) elementwise.
 #[inline]
-fn binary(op: Binary, a: f64, b: f64) -> f64 {
-    match op {
-        Binary::Add => a + b,
-        Binary::Sub => a - b,
-        Binary::Mul => a * b,
-        Binary::Div => a / b,
-        Binary::Pow => a.powf(b),
-        Binary::Min => a.min(b),
-        Binary::Max => a.max(b),
-        Binary::Atan2 => a.atan2(b),
-    }
+fn map2(a: &mut [f64], b: &[f64], f: impl Fn(f64, f64) -> f64) {
+    a.iter_mut().zip(b).for_each(|(a, b)| *a = f(*a, *b));
 }
 
 #[inline]
@@ -736,6 +767,26 @@ mod tests {
         let nested_ifs = (0..10).fold("y".to_string(), |e, k| format!("if(x > {k}, {e}, {k})"));
         assert_eq!(Expr::parse(&nested_ifs).unwrap().eval(20.0, 7.0), 7.0);
         assert_eq!(Expr::parse(&nested_ifs).unwrap().eval(4.5, 7.0), 9.0);
+    }
+
+    #[test]
+    fn blocks_of_points_agree_with_single_points() {
+        let e = Expr::parse(
+            "if(x < 0.3 && y >= 0.2 || x > 0.9, atan2(y, x)^2, -min(x^3, y) / 2) + sqrt(abs(x - y))",
+        )
+        .unwrap();
+        // 100 points: three full blocks and a partial one.
+        let points: Vec<[f64; 2]> = (0..100)
+            .map(|k| [k as f64 / 99.0, ((7 * k) % 100) as f64 / 99.0])
+            .collect();
+        let mut many = vec![0.0; points.len()];
+        e.eval_many(&points, &mut many);
+        for (p, v) in points.iter().zip(&many) {
+            assert_eq!(v.to_bits(), e.eval(p[0], p[1]).to_bits(), "at {p:?}");
+        }
+        let x = 0.1_f64;
+        let y = 0.5_f64;
+        assert_eq!(e.eval(x, y), y.atan2(x).powi(2) + (x - y).abs().sqrt());
     }
 
     #[test]
