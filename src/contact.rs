@@ -282,33 +282,43 @@ pub fn solve<E: From<SolveError>>(
         let system = InteriorSystem::new(&problem.stiffness, &problem.mesh.on_boundary);
         (system, t.elapsed().as_secs_f64())
     };
-    let (v, obstacle) = std::thread::scope(|scope| {
-        let v = scope.spawn(|| {
-            let (system, _) = system.get_or_init(analyse);
-            // v: (μ1+μ2) K v = F1 + F2 inside, v = μ1 g_h/(μ1+μ2) on ∂ω.
-            let bc: Vec<f64> = problem.g_h.iter().map(|g| mu1 * g / (mu1 + mu2)).collect();
-            let rhs = system_rhs(
-                system,
-                problem,
-                &|a| problem.load1[a] + problem.load2[a],
-                mu1 + mu2,
-                &bc,
-            );
-            let mut stats = SolverStats::default();
-            let mut factor = system.factorization();
-            let x = {
-                let _turn = take_turn(&turn);
-                factorize(&mut factor, &vec![false; system.n()], &mut stats)?;
-                solve_with(&mut factor, &rhs, &vec![false; system.n()], &mut stats)
-            };
-            Ok::<_, SolveError>((scatter(system, &x, &bc), stats))
-        });
-        let w = warm().and_then(|guess| {
+    let v_job = || {
+        let (system, _) = system.get_or_init(analyse);
+        // v: (μ1+μ2) K v = F1 + F2 inside, v = μ1 g_h/(μ1+μ2) on ∂ω.
+        let bc: Vec<f64> = problem.g_h.iter().map(|g| mu1 * g / (mu1 + mu2)).collect();
+        let rhs = system_rhs(
+            system,
+            problem,
+            &|a| problem.load1[a] + problem.load2[a],
+            mu1 + mu2,
+            &bc,
+        );
+        let mut stats = SolverStats::default();
+        let mut factor = system.factorization();
+        let x = {
+            let _turn = take_turn(&turn);
+            factorize(&mut factor, &vec![false; system.n()], &mut stats)?;
+            solve_with(&mut factor, &rhs, &vec![false; system.n()], &mut stats)
+        };
+        Ok::<_, SolveError>((scatter(system, &x, &bc), stats))
+    };
+    let w_job = || {
+        warm().and_then(|guess| {
             let (system, _) = system.get_or_init(analyse);
             Ok(obstacle(problem, system, guess.as_ref(), options, Some(&turn))?)
-        });
-        (v.join().expect("the v thread does not panic"), w)
-    });
+        })
+    };
+    // With one core the two run one after the other: time-sliced, they share its cache (at 1024²
+    // cells on one core, 7.3–8.7 s side by side against 6.2 s in turn).
+    let (v, obstacle) = if std::thread::available_parallelism().is_ok_and(|n| n.get() > 1) {
+        std::thread::scope(|scope| {
+            let v = scope.spawn(v_job);
+            let w = w_job();
+            (v.join().expect("the v thread does not panic"), w)
+        })
+    } else {
+        (v_job(), w_job())
+    };
     let symbolic_seconds = system.get().map_or(0.0, |s| s.1);
     let mut obstacle = obstacle?;
     let (v, v_stats) = v?;
