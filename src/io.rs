@@ -128,7 +128,12 @@ fn write_hdf5(path: &Path, shown: &Path, grids: &[Grid], attrs: &[(&str, Attr)])
     for grid in grids {
         let group = file.create_group(grid.name).map_err(named)?;
         let points = Array2::from_shape_fn((grid.points.len(), 2), |(i, k)| grid.points[i][k]);
-        let cells = Array2::from_shape_fn((grid.triangles.len(), 3), |(i, k)| grid.triangles[i][k] as i64);
+        // 32-bit vertex indices (XDMF `Int`, `Precision="4"`): the memory guard stops meshes
+        // long before 2³¹ vertices.
+        if i32::try_from(grid.points.len()).is_err() {
+            return Err(IoError(format!("{}: more than 2³¹ vertices", shown.display())));
+        }
+        let cells = Array2::from_shape_fn((grid.triangles.len(), 3), |(i, k)| grid.triangles[i][k] as i32);
         group
             .new_dataset_builder()
             .with_data(&points)
@@ -176,7 +181,8 @@ fn write_hdf5(path: &Path, shown: &Path, grids: &[Grid], attrs: &[(&str, Attr)])
 
 fn xdmf(h5_name: &str, g: &Grid) -> String {
     let item = |dims: String, number: &str, path: String| {
-        format!("<DataItem Dimensions=\"{dims}\" NumberType=\"{number}\" Precision=\"8\" Format=\"HDF\">{h5_name}:{path}</DataItem>")
+        let precision = if number == "Int" { 4 } else { 8 };
+        format!("<DataItem Dimensions=\"{dims}\" NumberType=\"{number}\" Precision=\"{precision}\" Format=\"HDF\">{h5_name}:{path}</DataItem>")
     };
     let mut s = String::from("<?xml version=\"1.0\"?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n");
     {
