@@ -1,4 +1,4 @@
-//! `make bench`: time of each phase and peak memory of the contact solve on the unit square with
+//! `make bench`: time of each phase (writing the result included) and peak memory of the contact solve on the unit square with
 //! N × N cells, beside one scalar Poisson factorization + solve on the same mesh.
 //!
 //! Usage: `cargo bench --bench phases -- contact N` or `-- poisson N` (one process per figure, so
@@ -37,11 +37,13 @@ fn main() {
             case.set_cells(n);
             case.exact = None;
             let t = Instant::now();
-            let r = run::solve(&case, Start::Nested, None).expect("solve");
+            let mut r = run::solve(&case, Start::Nested, None).expect("solve");
             let total = t.elapsed().as_secs_f64();
+            let dir = tempfile::tempdir().expect("a temporary directory");
+            r.write(&case, &dir.path().join("bench.h5")).expect("write");
             let tm = &r.timings;
             println!(
-                "contact {n} vertices={} mesh={:.3} assembly={:.3} coarse={:.3} symbolic={:.3} numeric={:.3} solve={:.3} postprocess={:.3} contact_solve={:.3} total={:.3} iterations={} local_iterations={} coarse_iterations={} factorizations={} peak_mb={:.0}",
+                "contact {n} vertices={} mesh={:.3} assembly={:.3} coarse={:.3} symbolic={:.3} numeric={:.3} solve={:.3} postprocess={:.3} write={:.3} contact_solve={:.3} total={:.3} iterations={} local_iterations={} coarse_iterations={} factorizations={} peak_mb={:.0}",
                 r.problem.mesh.n_vertices(),
                 tm.mesh,
                 tm.assembly,
@@ -50,6 +52,7 @@ fn main() {
                 tm.numeric,
                 tm.solve,
                 tm.postprocess,
+                tm.write,
                 tm.contact_solve,
                 total,
                 r.solution.obstacle.stats.iterations,

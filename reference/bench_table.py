@@ -21,7 +21,7 @@ def main():
             kind, n, values = parse(line)
             runs.setdefault(n, {}).setdefault(kind, []).append(values)
     cols = ("cells", "vertices", "runs", "mesh", "assembly", "coarse", "symbolic", "numeric", "solve",
-            "contact solve", "iterations", "Poisson", "ratio", "median ratio", "peak MB", "Poisson MB")
+            "postprocess", "write", "contact solve", "iterations", "Poisson", "ratio", "median ratio", "peak MB", "Poisson MB")
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for n in sorted(runs):
@@ -32,10 +32,10 @@ def main():
         p = min(ps, key=lambda r: float(r["total"]))
         c_med = statistics.median(float(r["contact_solve"]) for r in cs)
         p_med = statistics.median(float(r["total"]) for r in ps)
-        print("| %d² | %s | %d | %s | %s | %s | %s | %s | %s | %s (median %.3f) | %s + %s local (coarse %s) "
+        print("| %d² | %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s (median %.3f) | %s + %s local (coarse %s) "
               "| %s (median %.3f) | **%.2f** | %.2f | %s | %s |" % (
                   n, c["vertices"], len(cs), c["mesh"], c["assembly"], c["coarse"], c["symbolic"], c["numeric"],
-                  c["solve"], c["contact_solve"], c_med, c["iterations"], c["local_iterations"],
+                  c["solve"], c["postprocess"], c["write"], c["contact_solve"], c_med, c["iterations"], c["local_iterations"],
                   c["coarse_iterations"], p["total"], p_med, float(c["contact_solve"]) / float(p["total"]),
                   c_med / p_med, max(r["peak_mb"] for r in cs), p["peak_mb"]))
     print("\nseconds; fastest run of each (median in brackets); ratio = contact solve / Poisson (symbolic + "
