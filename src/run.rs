@@ -298,6 +298,7 @@ impl Run {
             ),
             ("factorizations", Attr::Int(st.factorizations as i64)),
             ("local_iterations", Attr::Int(st.local_iterations as i64)),
+            ("symbolic_analyses", Attr::Int(st.analyses as i64)),
             ("seconds_local", Attr::Float(st.local_seconds)),
             ("factor_nnz", Attr::Int(st.factor_nnz as i64)),
             ("max_lambda1_minus_lambda2", Attr::Float(a.membrane_difference)),

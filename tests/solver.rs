@@ -182,6 +182,8 @@ fn local_corrections_leave_two_global_iterations() {
     let s = &warm.solution.obstacle.stats;
     assert_eq!(s.iterations, 2, "{s:?}");
     assert!(s.local_iterations > 0, "{s:?}");
+    // The second global factorization reuses the first one's symbolic analysis.
+    assert_eq!(s.analyses, 1, "{s:?}");
     let cold = run::solve(&c, Start::Cold, None).unwrap();
     assert_eq!(warm.solution.obstacle.contact, cold.solution.obstacle.contact);
     assert!(max_abs_diff(&warm.solution.u2, &cold.solution.u2) < 1e-13);
