@@ -1,6 +1,8 @@
-"""`make validate`: every case marked for validation is solved by the Rust code and by the dolfinx
-reference on the same meshes; fields are compared vertex by vertex and, for cases with an exact
-solution, error norms and their experimental orders of convergence (EOC) side by side.
+"""`make validate`: every case marked for validation is solved by the Rust code and by two dolfinx
+references on the same meshes -- SNES-VI in (w, u2) (solve_reference.py) and a primal-dual
+active-set loop on the mixed (u1, u2, lambda) system (solve_mixed.py); fields are compared vertex
+by vertex and, for cases with an exact solution, error norms and their experimental orders of
+convergence (EOC) side by side.
 
 Fails (exit 1) when fields differ by more than --tol (relative, max norm), contact sets differ,
 the two codes' EOCs differ by more than 0.02, the Rust H1 EOC on a convex domain misses the
@@ -25,6 +27,7 @@ ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
 import compare  # noqa: E402
 import exact_cases  # noqa: E402
+import solve_mixed  # noqa: E402
 import solve_reference  # noqa: E402
 
 # (key, label, the paper's rate on convex domains: Thm 9 for H1 (exact), Thm 21 for H-1 (at least))
@@ -60,11 +63,15 @@ def run_case(path, binary, out, tol, failures):
             return None
         summary = solve_reference.solve_file(rust, ref)
         diffs, mismatch = compare.compare(rust, ref)
+        mixed_path = os.path.join(workdir, "mixed-%d.h5" % n)
+        mixed = solve_mixed.solve_file(rust, mixed_path)
+        mixed_diffs, mixed_mismatch = compare.compare(rust, mixed_path)
         with h5py.File(rust, "r") as f:
             attrs = {k: f.attrs[k] for k in f.attrs}
         level = {"n": n, "h": float(attrs["h"]), "vertices": int(attrs["vertices"]), "diffs": diffs,
                  "mismatch": mismatch, "rust_iterations": int(attrs["iterations"]), "rust_seconds": rust_seconds,
                  "snes_iterations": summary["snes_iterations"], "ref_seconds": summary["seconds"],
+                 "mixed_diffs": mixed_diffs, "mixed_mismatch": mixed_mismatch, "mixed_iterations": mixed["iterations"],
                  "rust": {k: float(attrs["error_" + k]) for k, _, _ in NORMS if "error_" + k in attrs},
                  "ref": {k: float(summary[k]) for k, _, _ in NORMS if k in summary}, "file": rust}
         for field, (mx, _) in diffs.items():
@@ -72,6 +79,12 @@ def run_case(path, binary, out, tol, failures):
                 failures.append("%s n=%d: %s differs by %.2e (relative max) > %.0e" % (name, n, field, mx, tol))
         if mismatch:
             failures.append("%s n=%d: contact sets differ at %d vertices" % (name, n, mismatch))
+        for field, (mx, _) in mixed_diffs.items():
+            if not mx <= tol:
+                failures.append("%s n=%d: %s differs from the mixed reference by %.2e > %.0e" % (name, n, field, mx, tol))
+        if mixed_mismatch:
+            failures.append("%s n=%d: contact sets of Rust and the mixed reference differ at %d vertices"
+                            % (name, n, mixed_mismatch))
         levels.append(level)
     convex = case["mesh"]["kind"] == "rectangle"
     rates = {}
@@ -149,13 +162,16 @@ def fmt(v):
 def tables(result):
     """Markdown tables of one case: field agreement, then errors and EOCs."""
     lines = ["### %s — %s" % (result["name"], result["title"]), "",
-             "| n | vertices | max Δu1 | max Δu2 | max Δgap | max Δλ | contact mismatches | Rust it. | SNES it. |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "| n | vertices | max Δu1 | max Δu2 | max Δgap | max Δλ | contact mismatches | Rust it. | SNES it. "
+             "| mixed: max Δu | mixed: max Δλ | mixed: mismatches | mixed it. |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for lv in result["levels"]:
-        d = lv["diffs"]
-        lines.append("| %d | %d | %s | %s | %s | %s | %d | %d | %d |" % (
+        d, md = lv["diffs"], lv["mixed_diffs"]
+        lines.append("| %d | %d | %s | %s | %s | %s | %d | %d | %d | %s | %s | %d | %d |" % (
             lv["n"], lv["vertices"], fmt(d["u1"][0]), fmt(d["u2"][0]), fmt(d["gap"][0]), fmt(d["lambda"][0]),
-            lv["mismatch"], lv["rust_iterations"], lv["snes_iterations"]))
+            lv["mismatch"], lv["rust_iterations"], lv["snes_iterations"],
+            fmt(max(md[k][0] for k in ("u1", "u2", "gap"))), fmt(md["lambda"][0]), lv["mixed_mismatch"],
+            lv["mixed_iterations"]))
     lines.append("")
     if result["rates"]:
         head = "| n | h |" + "".join(" %s Rust | EOC | reference | EOC |" % label for key, label, _ in NORMS
