@@ -34,9 +34,14 @@ def check(path):
             problems.append("point field %s missing" % name)
         elif arr.GetDataType() != VTK_DOUBLE or arr.GetNumberOfTuples() != mesh.GetNumberOfPoints():
             problems.append("point field %s: type %s, %d values" % (name, arr.GetDataTypeAsString(), arr.GetNumberOfTuples()))
-    arr = dual.GetCellData().GetArray("lambda")
-    if arr is None or arr.GetDataType() != VTK_DOUBLE or arr.GetNumberOfTuples() != dual.GetNumberOfCells():
-        problems.append("dual cell field lambda missing or not double")
+    cells = dual.GetCellData()
+    if cells.GetArray("lambda") is None:
+        problems.append("dual cell field lambda missing")
+    for i in range(cells.GetNumberOfArrays()):
+        arr = cells.GetArray(i)
+        if arr.GetDataType() != VTK_DOUBLE or arr.GetNumberOfTuples() != dual.GetNumberOfCells():
+            problems.append("dual cell field %s: type %s, %d values"
+                            % (arr.GetName(), arr.GetDataTypeAsString(), arr.GetNumberOfTuples()))
     if dual.GetNumberOfCells() != 6 * mesh.GetNumberOfCells():
         problems.append("dual mesh has %d cells for %d triangles" % (dual.GetNumberOfCells(), mesh.GetNumberOfCells()))
     return problems

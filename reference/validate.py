@@ -7,8 +7,8 @@ convergence (EOC) side by side.
 Fails (exit 1) when fields differ by more than --tol (relative, max norm), contact sets differ,
 the two codes' EOCs differ by more than 0.02, the Rust H1 EOC on a convex domain misses the
 paper's rate 1 (Theorem 9) by more than 0.1, the H-1 EOC of the action falls below 1 - 0.1
-(Theorem 21), an exact case fails its SymPy check, or ParaView
-cannot read a result in double precision. Writes OUT/report.md with plots.
+(Theorem 21), the flux reconstruction (4.13) misses the local conservation of Lemma 17, an exact
+case fails its SymPy check, or ParaView cannot read a result in double precision. Writes OUT/report.md with plots.
 """
 import argparse
 import glob
@@ -38,6 +38,7 @@ AT_LEAST = {"hm1_lambda"}
 EOC_AGREEMENT = 0.02
 THEORY_MARGIN = 0.1
 NEGLIGIBLE = 1e-10
+FLUX_CONSERVATION = 1e-10  # relative defect of Lemma 17's local conservation, a round-off identity
 
 
 def eocs(h, e):
@@ -55,7 +56,7 @@ def run_case(path, binary, out, tol, failures):
         rust = os.path.join(workdir, "rust-%d.h5" % n)
         ref = os.path.join(workdir, "reference-%d.h5" % n)
         t = time.perf_counter()
-        proc = subprocess.run([binary, "solve", path, "--n", str(n), "--hminus1", "-o", rust],
+        proc = subprocess.run([binary, "solve", path, "--n", str(n), "--hminus1", "--flux", "-o", rust],
                               capture_output=True, text=True)
         rust_seconds = time.perf_counter() - t
         if proc.returncode != 0:
@@ -79,6 +80,11 @@ def run_case(path, binary, out, tol, failures):
                 failures.append("%s n=%d: %s differs by %.2e (relative max) > %.0e" % (name, n, field, mx, tol))
         if mismatch:
             failures.append("%s n=%d: contact sets differ at %d vertices" % (name, n, mismatch))
+        for i in (1, 2):
+            defect = float(attrs["flux_conservation_%d" % i])
+            if not defect <= FLUX_CONSERVATION:
+                failures.append("%s n=%d: the flux t%dh is not conservative on the dual cells (defect %.1e)"
+                                % (name, n, i, defect))
         for field, (mx, _) in mixed_diffs.items():
             if not mx <= tol:
                 failures.append("%s n=%d: %s differs from the mixed reference by %.2e > %.0e" % (name, n, field, mx, tol))

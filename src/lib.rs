@@ -10,13 +10,15 @@
 //!
 //! The data flow one way: [`case`] → [`mesh`] → [`assembly`] → [`contact`] (the reduced
 //! variational inequality (3.4)) → [`action`] (λ_h by the local postprocessing (4.5)) →
-//! [`norms`] → [`io`]. [`run`] strings them together; [`study`] repeats a run over refined meshes.
+//! [`flux`] (the H(div) reconstruction (4.13)) → [`norms`] → [`io`]. [`run`] strings them together;
+//! [`study`] repeats a run over refined meshes.
 
 pub mod action;
 pub mod assembly;
 pub mod case;
 pub mod contact;
 pub mod expr;
+pub mod flux;
 pub mod io;
 pub mod linear;
 pub mod mesh;

@@ -34,6 +34,10 @@ enum Command {
         /// With an exact solution, also compute ‖λ − λh‖_H⁻¹ (a solve on the dual submesh).
         #[arg(long)]
         hminus1: bool,
+        /// Also reconstruct the fluxes t_ih (4.13) on the dual submesh, check their local
+        /// conservation and write t_ih and div t_ih as its cell data.
+        #[arg(long)]
+        flux: bool,
         /// Print the built-in default case and exit.
         #[arg(long)]
         print_default: bool,
@@ -76,8 +80,9 @@ fn main() -> ExitCode {
             n,
             cold,
             hminus1,
+            flux,
             ..
-        } => solve(case, output, n, cold, hminus1),
+        } => solve(case, output, n, cold, hminus1, flux),
         Command::Study {
             case,
             levels,
@@ -115,6 +120,7 @@ fn solve(
     n: Option<usize>,
     cold: bool,
     hminus1: bool,
+    flux: bool,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let mut case = read_case(&case_path)?;
     if let Some(n) = n {
@@ -138,6 +144,9 @@ fn solve(
     let mut result = run::solve(&case, start, None)?;
     if hminus1 {
         result.compute_h_minus_1(&case);
+    }
+    if flux {
+        result.compute_flux();
     }
     let xdmf = result.write(&case, &output)?;
     print!("{}", result.summary());

@@ -1,9 +1,11 @@
 //! The discrete problem (3.4) and the action (4.5) on cases whose answer is known.
 
+use membrane_contact::action::DualMesh;
 use membrane_contact::assembly::Stiffness;
 use membrane_contact::case::Case;
 use membrane_contact::contact::{self, DiscreteProblem, SolveError, SolverOptions};
 use membrane_contact::linear::InteriorSystem;
+use membrane_contact::mesh::orient;
 use membrane_contact::run::{self, Start};
 use std::path::PathBuf;
 
@@ -187,4 +189,32 @@ fn local_corrections_leave_two_global_iterations() {
     let cold = run::solve(&c, Start::Cold, None).unwrap();
     assert_eq!(warm.solution.obstacle.contact, cold.solution.obstacle.contact);
     assert!(max_abs_diff(&warm.solution.u2, &cold.solution.u2) < 1e-13);
+}
+
+#[test]
+fn flux_reconstruction_is_conservative_and_converges() {
+    // t_1h (4.13) on S_h: conservative on every D_a (Lemma 17) to round-off, and an O(h)
+    // approximation of −μ1 ∇u1 (area-weighted mean deviation at the cell centroids).
+    let mut c = Case::default_case();
+    let exact = c.exact.clone().unwrap();
+    let [gx, gy] = exact.grad_u1.unwrap();
+    let mut deviation = Vec::new();
+    for n in [16, 32] {
+        c.set_cells(n);
+        let mut r = run::solve(&c, Start::Nested, None).unwrap();
+        r.compute_flux();
+        let [(t1, d1), (_, d2)] = r.flux.as_ref().unwrap();
+        assert!(*d1 < 1e-12 && *d2 < 1e-11, "{d1} {d2}");
+        let dual = DualMesh::new(&r.problem.mesh);
+        let mut sum = 0.0;
+        for (cell, t) in dual.triangles.iter().zip(t1.at_centroids(&dual)) {
+            let p = cell.map(|v| dual.points[v]);
+            let x = [0, 1].map(|i| (p[0][i] + p[1][i] + p[2][i]) / 3.0);
+            let exact = [gx.eval(x[0], x[1]), gy.eval(x[0], x[1])].map(|g| -c.data.mu1 * g);
+            sum += 0.5 * orient(p[0], p[1], p[2]) * (t[0] - exact[0]).hypot(t[1] - exact[1]);
+        }
+        deviation.push(sum);
+    }
+    let rate = (deviation[0] / deviation[1]).log2();
+    assert!(rate > 0.9, "deviations {deviation:?}, rate {rate}");
 }

@@ -1,0 +1,176 @@
+//! The H(div)-conforming flux reconstruction t_ih of Section 4.2: lowest-order Raviart–Thomas on
+//! the submesh S_h (4.12), with the normal flux (4.13) t_ih·n = −μ_i ∂_n u_ih|_K on the edges of S_h
+//! inside a triangle K. On the halves of the edges of T_h, which (4.13) leaves free, t_ih·n is the
+//! mean of −μ_i ∂_n u_ih over the two triangles sharing the edge (one triangle's on ∂ω), so that
+//! the normal flux is single-valued and t_ih ∈ H(div).
+//!
+//! The edges of S_h inside D_a carry ∇u_ih of one triangle from both sides, and ∂D_a is made of
+//! them, so ∫_{D_a} div t_ih = −μ_i ∫_{∂D_a} ∂_n u_ih = μ_i ∫∇u_ih·∇φ_a (4.18). By (4.5) this is the
+//! local conservation behind Lemma 17:
+//!   ∫_{D_a} div t_1h = (f1, φ_a) + λ_a meas(D_a),   ∫_{D_a} div t_2h = (f2, φ_a) − λ_a meas(D_a).
+
+use crate::action::DualMesh;
+use crate::assembly::gradients;
+use crate::mesh::{orient, Mesh};
+
+/// t_ih on S_h by its degrees of freedom.
+#[derive(Debug, Clone)]
+pub struct Flux {
+    /// ∫_e t_ih·n over the edges of each cell of S_h, n outward; edge k runs from the cell's
+    /// vertex k to vertex k + 1.
+    pub edge_flux: Vec<[f64; 3]>,
+}
+
+impl Flux {
+    /// t_ih for the P1 field `u` with tension `mu` (`dual` = S_h of `mesh`).
+    pub fn reconstruct(mesh: &Mesh, dual: &DualMesh, u: &[f64], mu: f64) -> Flux {
+        // −μ ∇u_h on each triangle, and the mean over the triangles sharing each edge of T_h.
+        let flux: Vec<[f64; 2]> = (0..mesh.triangles.len())
+            .map(|t| {
+                let g = gradients(mesh.corners(t));
+                let tri = mesh.triangles[t];
+                [0, 1].map(|k| -mu * (0..3).map(|i| g[i][k] * u[tri[i]]).sum::<f64>())
+            })
+            .collect();
+        let edges = mesh.edges();
+        let edge = |a: usize, b: usize| edges.binary_search(&(a.min(b), a.max(b))).unwrap();
+        let (mut sum, mut count) = (vec![[0.0; 2]; edges.len()], vec![0.0; edges.len()]);
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            for k in 0..3 {
+                let e = edge(tri[k], tri[(k + 1) % 3]);
+                sum[e] = [sum[e][0] + flux[t][0], sum[e][1] + flux[t][1]];
+                count[e] += 1.0;
+            }
+        }
+        let mean = |a: usize, b: usize| {
+            let e = edge(a, b);
+            [sum[e][0] / count[e], sum[e][1] / count[e]]
+        };
+        // S_h lists six cells per triangle: [a, m_ab, c] then [a, c, m_ca] for each vertex a of K
+        // (see DualMesh::new); the half of ∂K is edge 0 of the first and edge 2 of the second.
+        let edge_flux = (dual.triangles.iter().enumerate())
+            .map(|(s, cell)| {
+                let t = s / 6;
+                let tri = mesh.triangles[t];
+                let k = (s % 6) / 2;
+                let half = if s % 2 == 0 {
+                    (0, mean(tri[k], tri[(k + 1) % 3]))
+                } else {
+                    (2, mean(tri[(k + 2) % 3], tri[k]))
+                };
+                let p = cell.map(|v| dual.points[v]);
+                [0, 1, 2].map(|j| {
+                    let q = if j == half.0 { half.1 } else { flux[t] };
+                    let (a, b) = (p[j], p[(j + 1) % 3]);
+                    // The outward normal of a counter-clockwise cell, times the edge length.
+                    q[0] * (b[1] - a[1]) - q[1] * (b[0] - a[0])
+                })
+            })
+            .collect();
+        Flux { edge_flux }
+    }
+
+    /// div t_ih on each cell of S_h (a constant): Σ_k F_k / |κ|.
+    pub fn divergence(&self, dual: &DualMesh) -> Vec<f64> {
+        (dual.triangles.iter().zip(&self.edge_flux))
+            .map(|(cell, f)| {
+                let p = cell.map(|v| dual.points[v]);
+                (f[0] + f[1] + f[2]) / (0.5 * orient(p[0], p[1], p[2]))
+            })
+            .collect()
+    }
+
+    /// t_ih at the centroid of each cell of S_h: Σ_k F_k ψ_k with ψ_k(x) = (x − p_{k+2})/(2|κ|),
+    /// the basis function of edge k (unit flux through it, none through the others).
+    pub fn at_centroids(&self, dual: &DualMesh) -> Vec<[f64; 2]> {
+        (dual.triangles.iter().zip(&self.edge_flux))
+            .map(|(cell, f)| {
+                let p = cell.map(|v| dual.points[v]);
+                let c = [0, 1].map(|i| (p[0][i] + p[1][i] + p[2][i]) / 3.0);
+                let two_area = orient(p[0], p[1], p[2]);
+                [0, 1].map(|i| (0..3).map(|k| f[k] * (c[i] - p[(k + 2) % 3][i]) / two_area).sum())
+            })
+            .collect()
+    }
+
+    /// ∫_{D_a} div t_ih at every vertex a.
+    pub fn over_dual_cells(&self, mesh: &Mesh, dual: &DualMesh) -> Vec<f64> {
+        let mut total = vec![0.0; mesh.n_vertices()];
+        for (f, &a) in self.edge_flux.iter().zip(&dual.owner) {
+            total[a] += f[0] + f[1] + f[2];
+        }
+        total
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::assembly::Stiffness;
+    use crate::mesh::Diagonal;
+    use std::collections::HashMap;
+
+    fn setting() -> (Mesh, DualMesh, Vec<f64>) {
+        let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 5, 7, Diagonal::Crossed).unwrap();
+        let dual = DualMesh::new(&mesh);
+        let u = mesh
+            .points
+            .iter()
+            .map(|p| (3.0 * p[0]).sin() + p[0] * p[1] * p[1])
+            .collect();
+        (mesh, dual, u)
+    }
+
+    #[test]
+    fn the_normal_flux_is_single_valued() {
+        let (mesh, dual, u) = setting();
+        let flux = Flux::reconstruct(&mesh, &dual, &u, 1.5);
+        let mut seen: HashMap<(usize, usize), f64> = HashMap::new();
+        let mut interior = 0;
+        for (cell, f) in dual.triangles.iter().zip(&flux.edge_flux) {
+            for k in 0..3 {
+                let (a, b) = (cell[k], cell[(k + 1) % 3]);
+                if let Some(other) = seen.remove(&(b, a)) {
+                    assert!((other + f[k]).abs() < 1e-14, "edge {a}–{b}: {other} vs {}", f[k]);
+                    interior += 1;
+                } else {
+                    seen.insert((a, b), f[k]);
+                }
+            }
+        }
+        assert!(interior > 9 * mesh.triangles.len() - mesh.n_vertices());
+    }
+
+    #[test]
+    fn a_linear_field_gives_its_exact_flux() {
+        let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], 4, 3, Diagonal::Left).unwrap();
+        let dual = DualMesh::new(&mesh);
+        let u: Vec<f64> = mesh
+            .points
+            .iter()
+            .map(|p| 1.0 + 2.0 * p[0] - 3.0 * p[1])
+            .collect();
+        let flux = Flux::reconstruct(&mesh, &dual, &u, 2.0);
+        for t in flux.at_centroids(&dual) {
+            assert!((t[0] + 4.0).abs() < 1e-12 && (t[1] - 6.0).abs() < 1e-12, "{t:?}");
+        }
+        assert!(flux.divergence(&dual).iter().all(|d| d.abs() < 1e-11));
+    }
+
+    #[test]
+    fn divergence_over_a_dual_cell_is_the_stiffness_row() {
+        // ∫_{D_a} div t_h = μ ∫∇u_h·∇φ_a (4.18) at every interior vertex.
+        let (mesh, dual, u) = setting();
+        let flux = Flux::reconstruct(&mesh, &dual, &u, 1.5);
+        let k = Stiffness::assemble(&mesh);
+        let total = flux.over_dual_cells(&mesh, &dual);
+        for a in (0..mesh.n_vertices()).filter(|&a| !mesh.on_boundary[a]) {
+            let expected = 1.5 * k.row_dot(a, &u);
+            assert!(
+                (total[a] - expected).abs() < 1e-12,
+                "vertex {a}: {} vs {expected}",
+                total[a]
+            );
+        }
+    }
+}
