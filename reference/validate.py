@@ -38,7 +38,7 @@ AT_LEAST = {"hm1_lambda"}
 EOC_AGREEMENT = 0.02
 THEORY_MARGIN = 0.1
 NEGLIGIBLE = 1e-10
-FLUX_CONSERVATION = 1e-10  # relative defect of Lemma 17's local conservation, a round-off identity
+FLUX_CONSERVATION = 1e-13  # relative defect of Lemma 17's local conservation, a round-off identity
 
 
 def eocs(h, e):

@@ -102,9 +102,9 @@ impl fmt::Display for MeshError {
 
 impl std::error::Error for MeshError {}
 
-/// Peak memory of a solve per mesh vertex, measured with `make bench` (1.9 GB at 1.05M vertices,
-/// nested iteration included), with a margin.
-const BYTES_PER_VERTEX: f64 = 2200.0;
+/// Peak memory of a run per mesh vertex, with a margin: measured at 1.05M vertices, 1.9 GB for a
+/// solve with nested iteration and the written result, 2.6 GB with `--flux`.
+const BYTES_PER_VERTEX: f64 = 2700.0;
 
 /// Fails early, with an estimate, when a mesh of `vertices` vertices would not fit in the memory
 /// available now (`MemAvailable` of /proc/meminfo; no check where that cannot be read).

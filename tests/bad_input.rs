@@ -246,7 +246,7 @@ fn mesh_too_large_for_memory() {
     let e = case_fails(&format!(
         "{GOOD}[mesh]\nkind = \"rectangle\"\nn = [200000, 200000]\n"
     ));
-    contains(&e, "40000400001 vertices need about 88000.9 GB");
+    contains(&e, "40000400001 vertices need about 108001.1 GB");
     contains(&e, "use a coarser mesh");
 }
 

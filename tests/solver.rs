@@ -204,7 +204,7 @@ fn flux_reconstruction_is_conservative_and_converges() {
         let mut r = run::solve(&c, Start::Nested, None).unwrap();
         r.compute_flux();
         let [(t1, d1), (_, d2)] = r.flux.as_ref().unwrap();
-        assert!(*d1 < 1e-12 && *d2 < 1e-11, "{d1} {d2}");
+        assert!(*d1 < 1e-14 && *d2 < 1e-14, "{d1} {d2}");
         let dual = DualMesh::new(&r.problem.mesh);
         let mut sum = 0.0;
         for (cell, t) in dual.triangles.iter().zip(t1.at_centroids(&dual)) {
