@@ -375,9 +375,13 @@ fn obstacle(
         None => vec![false; n],
     };
     if let Some(guess) = warm {
-        // The guess's free boundary is off by a few mesh sizes: settle it locally first.
+        // The guess's free boundary is off by a few mesh sizes: settle it locally first, with the
+        // guess (and g_h on ∂ω) as Dirichlet data.
+        let data: Vec<f64> = (guess.gap.iter().zip(&problem.g_h).enumerate())
+            .map(|(a, (&w, &g))| if problem.mesh.on_boundary[a] { g } else { w })
+            .collect();
         let seeds = interface(problem, system, &active);
-        active = w_problem.local_correction(system, &guess.gap, &seeds, active, &mut stats);
+        active = w_problem.local_correction(system, &data, &seeds, active, &mut stats);
     }
     let mut factor = system.factorization();
     let mut correcting = true;
@@ -415,9 +419,9 @@ fn obstacle(
                 stats,
             });
         }
-        // Local corrections only while the number of changes falls: they cannot cycle with the
-        // global steps, and the plain primal–dual active-set steps after them converge on their
-        // own (K is an M-matrix).
+        // Local corrections only while the number of changes falls, so that they cannot cycle
+        // with the global steps; then plain primal–dual active-set steps, which converge on their
+        // own when K is an M-matrix (no obtuse angles), and meet the iteration cap otherwise.
         let k = stats.changes.len();
         correcting &= k < 2 || stats.changes[k - 1] < stats.changes[k - 2];
         active = if correcting {
