@@ -433,7 +433,7 @@ impl Run {
         }
         out += &format!(
             "seconds     mesh {:.3}, assembly {:.3}, contact solve {:.3} (coarse levels {:.3}, symbolic {:.3}, \
-             numeric {:.3} + solves {:.3} on two threads), postprocess {:.3}, write {:.3}\n",
+             numeric {:.3} + solves {:.3} summed over v and w), postprocess {:.3}, write {:.3}\n",
             t.mesh, t.assembly, t.contact_solve, t.coarse, t.symbolic, t.numeric, t.solve, t.postprocess, t.write
         );
         out
