@@ -13,12 +13,10 @@ not converge on this system: see ../shared/NOTES.md.)
 
 Usage: /usr/bin/python3 reference/solve_mixed.py RUST_RESULT.h5 -o MIXED.h5
 """
-import argparse
 import os
 import sys
 import time
 
-import h5py
 import numpy as np
 import ufl
 from dolfinx import fem
@@ -30,7 +28,7 @@ import dolfinx.fem.petsc  # noqa: F401  (registers fem.petsc)
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import expr  # noqa: E402
-from solve_reference import make_mesh, match_points, read_rust  # noqa: E402
+from solve_reference import command_line, make_mesh, match_points, read_rust, write_fields  # noqa: E402
 
 
 def solve(points, cells, case, max_it=200):
@@ -120,29 +118,14 @@ def solve_file(rust_path, out_path):
     t = time.perf_counter()
     res = solve(data["points"], data["cells"], data["case"])
     seconds = time.perf_counter() - t
-    tmp = out_path + ".tmp"
-    with h5py.File(tmp, "w") as f:
-        f["mesh/geometry"] = data["points"]
-        f["mesh/topology"] = data["cells"]
-        fields = {"u1": res["u1"], "u2": res["u2"], "gap": res["u1"] - res["u2"], "lambda": res["lambda"],
-                  "contact": res["contact"].astype(float)}
-        for k, v in fields.items():
-            f["mesh/" + k] = v
-        f.attrs["case_text"] = data["case_text"]
-        f.attrs["program"] = "reference: mixed (u1, u2, lambda), primal-dual active sets, dolfinx + MUMPS"
-        f.attrs["iterations"] = res["iterations"]
-    os.replace(tmp, out_path)
+    fields = {"u1": res["u1"], "u2": res["u2"], "gap": res["u1"] - res["u2"], "lambda": res["lambda"],
+              "contact": res["contact"].astype(float)}
+    write_fields(out_path, data, fields, {
+        "program": "reference: mixed (u1, u2, lambda), primal-dual active sets, dolfinx + MUMPS",
+        "iterations": res["iterations"]})
     return {"iterations": res["iterations"], "seconds": seconds}
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("rust_result")
-    ap.add_argument("-o", "--output", required=True)
-    a = ap.parse_args()
-    s = solve_file(a.rust_result, a.output)
-    print("mixed reference: %d active-set iterations, %.3f s -> %s" % (s["iterations"], s["seconds"], a.output))
-
-
 if __name__ == "__main__":
-    main()
+    command_line(__doc__, solve_file, lambda s: "mixed reference: %d active-set iterations, %.3f s"
+                 % (s["iterations"], s["seconds"]))

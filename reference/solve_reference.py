@@ -303,6 +303,15 @@ def solve_file(rust_path, out_path, guess=None):
                 res["w"], res["s"], lam, data["dual_points"], data["dual_cells"], data["dual_owner"], case["exact"]
             )
         )
+    write_fields(out_path, data, fields,
+                 {"program": "reference: dolfinx %s + PETSc SNES vinewtonrsls" % dolfinx_version(), **summary})
+    summary["fields"] = fields
+    return summary
+
+
+def write_fields(out_path, data, fields, attrs):
+    """Writes vertex fields on the mesh of a Rust result `data` in its layout, through a temporary
+    file renamed at the end."""
     tmp = out_path + ".tmp"
     with h5py.File(tmp, "w") as f:
         f["mesh/geometry"] = data["points"]
@@ -310,12 +319,18 @@ def solve_file(rust_path, out_path, guess=None):
         for k, v in fields.items():
             f["mesh/" + k] = v
         f.attrs["case_text"] = data["case_text"]
-        f.attrs["program"] = "reference: dolfinx %s + PETSc SNES vinewtonrsls" % dolfinx_version()
-        for k, v in summary.items():
+        for k, v in attrs.items():
             f.attrs[k] = v
     os.replace(tmp, out_path)
-    summary["fields"] = fields
-    return summary
+
+
+def command_line(doc, solve_file, describe):
+    """`SCRIPT RUST_RESULT.h5 -o OUT.h5`: solves the problem of a Rust result file, prints a line."""
+    ap = argparse.ArgumentParser(description=doc.split("\n")[0])
+    ap.add_argument("rust_result")
+    ap.add_argument("-o", "--output", required=True)
+    a = ap.parse_args()
+    print("%s -> %s" % (describe(solve_file(a.rust_result, a.output)), a.output))
 
 
 def dolfinx_version():
@@ -324,17 +339,6 @@ def dolfinx_version():
     return dolfinx.__version__
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("rust_result")
-    ap.add_argument("-o", "--output", required=True)
-    a = ap.parse_args()
-    s = solve_file(a.rust_result, a.output)
-    print(
-        "reference: %d SNES iterations, %.3f s, polish rounds %d -> %s"
-        % (s["snes_iterations"], s["seconds"], s["polish_rounds"], a.output)
-    )
-
-
 if __name__ == "__main__":
-    main()
+    command_line(__doc__, solve_file, lambda s: "reference: %d SNES iterations, %.3f s, polish rounds %d"
+                 % (s["snes_iterations"], s["seconds"], s["polish_rounds"]))
