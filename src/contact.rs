@@ -298,7 +298,7 @@ pub fn solve<E: From<SolveError>>(
         let x = {
             let _turn = take_turn(&turn);
             factorize(&mut factor, &vec![false; system.n()], &mut stats)?;
-            solve_with(&mut factor, &rhs, &vec![false; system.n()], &mut stats)
+            solve_with(&mut factor, &rhs, &mut stats)
         };
         Ok::<_, SolveError>((scatter(system, &x, &bc), stats))
     };
@@ -399,7 +399,7 @@ fn obstacle(
         let step = {
             let _turn = turn.map(take_turn);
             factorize(&mut factor, &active, &mut stats)?;
-            w_problem.step(system, &mut factor, &rhs, &active, &problem.g_h, &mut stats)
+            w_problem.step(system, &mut factor, &rhs, &problem.g_h, &mut stats)
         };
         let changed: Vec<usize> = (0..n).filter(|&i| step.next[i] != active[i]).collect();
         stats.changes.push(changed.len());
@@ -484,11 +484,10 @@ impl<'p> WProblem<'p> {
         system: &InteriorSystem,
         factor: &mut Factorization,
         rhs: &[f64],
-        active: &[bool],
         bc: &[f64],
         stats: &mut SolverStats,
     ) -> Step {
-        let w_int = solve_with(factor, rhs, active, stats);
+        let w_int = solve_with(factor, rhs, stats);
         let w = scatter(system, &w_int, bc);
         let k = &self.problem.stiffness;
         let residual: Vec<f64> = (system.vertices.iter())
@@ -535,7 +534,7 @@ impl<'p> WProblem<'p> {
             if factorize(&mut factor, &active, &mut local_stats).is_err() {
                 return next;
             }
-            let step = self.step(&local, &mut factor, &rhs, &active, w, &mut local_stats);
+            let step = self.step(&local, &mut factor, &rhs, w, &mut local_stats);
             let done = step.next == active;
             active = step.next;
             if done {
@@ -552,10 +551,7 @@ impl<'p> WProblem<'p> {
 
 /// The unknowns of `system` within `rings` graph steps of `seeds`, sorted.
 fn band(problem: &DiscreteProblem, system: &InteriorSystem, seeds: &[usize], rings: usize) -> Vec<usize> {
-    let mut index = vec![usize::MAX; problem.mesh.n_vertices()];
-    for (i, &a) in system.vertices.iter().enumerate() {
-        index[a] = i;
-    }
+    let index = &system.unknown;
     let mut in_band = vec![false; system.n()];
     let mut front: Vec<usize> = seeds.to_vec();
     for &i in &front {
@@ -579,10 +575,7 @@ fn band(problem: &DiscreteProblem, system: &InteriorSystem, seeds: &[usize], rin
 
 /// Unknowns on the free boundary of `active`: those with a neighbour on the other side.
 fn interface(problem: &DiscreteProblem, system: &InteriorSystem, active: &[bool]) -> Vec<usize> {
-    let mut index = vec![usize::MAX; problem.mesh.n_vertices()];
-    for (i, &a) in system.vertices.iter().enumerate() {
-        index[a] = i;
-    }
+    let index = &system.unknown;
     (0..system.n())
         .filter(|&i| {
             problem
@@ -613,14 +606,10 @@ fn factorize(factor: &mut Factorization, held: &[bool], stats: &mut SolverStats)
     Ok(())
 }
 
-/// Solves with the held unknowns fixed at 0.
-fn solve_with(factor: &mut Factorization, b: &[f64], held: &[bool], stats: &mut SolverStats) -> Vec<f64> {
+/// Solves with the factorization's held unknowns fixed at 0.
+fn solve_with(factor: &mut Factorization, b: &[f64], stats: &mut SolverStats) -> Vec<f64> {
     let t = Instant::now();
-    let mut x: Vec<f64> = b
-        .iter()
-        .zip(held)
-        .map(|(b, h)| if *h { 0.0 } else { *b })
-        .collect();
+    let mut x = b.to_vec();
     factor.solve(&mut x);
     stats.solve_seconds += t.elapsed().as_secs_f64();
     x
@@ -634,10 +623,6 @@ fn system_rhs(
     scale: f64,
     bc: &[f64],
 ) -> Vec<f64> {
-    let mut unknown = vec![false; problem.mesh.n_vertices()];
-    for &a in &system.vertices {
-        unknown[a] = true;
-    }
     system
         .vertices
         .iter()
@@ -645,7 +630,7 @@ fn system_rhs(
             let lift: f64 = problem
                 .stiffness
                 .row(a)
-                .filter(|(b, _)| !unknown[*b])
+                .filter(|(b, _)| system.unknown[*b] == usize::MAX)
                 .map(|(b, v)| v * bc[b])
                 .sum();
             load(a) / scale - lift

@@ -23,6 +23,8 @@ use faer::{Conj, MatMut, Par, Side};
 pub struct InteriorSystem {
     /// Interior vertex of each unknown.
     pub vertices: Vec<usize>,
+    /// Unknown of each vertex (`usize::MAX` where the value is fixed).
+    pub unknown: Vec<usize>,
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
     k_val: Vec<f64>,
@@ -70,6 +72,7 @@ impl InteriorSystem {
         .expect("symbolic Cholesky of a valid pattern");
         InteriorSystem {
             vertices,
+            unknown,
             col_ptr,
             row_idx,
             k_val,
