@@ -36,17 +36,17 @@ cargo-test: deps
 	cargo test --release
 
 validate: build
-	$(PY) reference/validate.py --bin $(BIN) --out validation
+	$(PY) -m reference.validate --bin $(BIN) --out validation
 
 bench: deps
 	cargo build --release --benches
 	@for n in $(BENCH_SIZES); do for r in $$(seq $(BENCH_REPEAT)); do \
 		cargo bench -q --bench phases -- poisson $$n | grep '^poisson' ; \
 		cargo bench -q --bench phases -- contact $$n | grep '^contact' ; \
-	done; done | tee target/bench.log | $(PY) reference/bench_table.py
+	done; done | tee target/bench.log | $(PY) -m reference.bench_table
 
 bench-reference: build
-	$(PY) reference/bench_reference.py --bin $(BIN)
+	$(PY) -m reference.bench_reference --bin $(BIN)
 
 # Convergence studies of the shipped exact cases (tables and plots under study/).
 study: build
@@ -63,7 +63,7 @@ fuzz: deps
 
 lint:
 	cargo fmt --all -- --check
-	cargo clippy --all-targets -- -D warnings
+	cargo clippy --all-targets -- -D warnings -W clippy::too_many_lines
 
 clean:
 	cargo clean

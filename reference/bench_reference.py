@@ -5,6 +5,9 @@ started from the previous solution, interpolated); its time is SNES plus the fin
 without mesh set-up, form compilation and assembly of the bounds.
 
 Target: Rust >= 30x faster than the best reference run at 512^2.
+
+Usage (from the repository root):
+    /usr/bin/python3 -m reference.bench_reference --bin target/release/membrane-contact [--sizes 128 256 512]
 """
 import argparse
 import os
@@ -13,31 +16,28 @@ import sys
 import tempfile
 import time
 
-import h5py
 import numpy as np
 from matplotlib.tri import LinearTriInterpolator, Triangulation
 
-HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
-import solve_reference as ref  # noqa: E402
+from . import common
+from .solve_reference import Reference
 
 
 def rust(binary, n, out):
+    """Solves the default case on n x n cells into the result directory `out`."""
     t = time.perf_counter()
     subprocess.run([binary, "solve", "--n", str(n), "-o", out], check=True, capture_output=True)
     wall = time.perf_counter() - t
-    with h5py.File(out, "r") as f:
-        a = f.attrs
-        solve = float(a["seconds_contact_solve"])
-        return {"solve": solve, "wall": wall, "iterations": int(a["iterations"])}
+    a = common.read_result(out)["attrs"]
+    return {"solve": float(a["seconds_contact_solve"]), "wall": wall, "iterations": int(a["iterations"])}
 
 
 def reference(path, guess_from=None):
-    data = ref.read_rust(path)
-    r = ref.Reference(data["points"], data["cells"], data["case"])
+    data = common.read_result(path)
+    r = Reference(data["points"], data["cells"], data["case"])
     guess = None
     if guess_from is not None:
-        coords = r.Vw.tabulate_dof_coordinates()
+        coords = r.V.tabulate_dof_coordinates()
         tri = Triangulation(guess_from["points"][:, 0], guess_from["points"][:, 1], guess_from["cells"])
         guess = [np.asarray(LinearTriInterpolator(tri, guess_from[k])(coords[:, 0], coords[:, 1]).filled(0.0))
                  for k in ("w", "s")]
@@ -58,15 +58,13 @@ def main():
     tmp = tempfile.mkdtemp()
     rows = []
     nested_total, previous, n = 0.0, None, 8
-    cold_cache = {}
     while n <= max(args.sizes):
-        path = os.path.join(tmp, "rust-%d.h5" % n)
+        path = os.path.join(tmp, "rust-%d" % n)
         rs = rust(binary, n, path)
         seconds, its, previous = reference(path, previous)
         nested_total += seconds
         if n in args.sizes:
             cold_seconds, cold_its, _ = reference(path)
-            cold_cache[n] = (cold_seconds, cold_its)
             best = min(cold_seconds, nested_total)
             rows.append((n, rs["solve"], rs["iterations"], cold_seconds, cold_its, nested_total, its,
                          best / rs["solve"]))

@@ -4,7 +4,10 @@ phases of the contact solve beside one Poisson factorization + solve on the same
 
 Each size is run several times, alternating the two; timings on a shared machine vary by tens of
 per cent from run to run, so the table shows the fastest run of each (its phases) and the median,
-and the ratio of both."""
+and the ratio of both.
+
+Usage (from the repository root): ... | /usr/bin/python3 -m reference.bench_table
+"""
 import statistics
 import sys
 
@@ -21,7 +24,8 @@ def main():
             kind, n, values = parse(line)
             runs.setdefault(n, {}).setdefault(kind, []).append(values)
     cols = ("cells", "vertices", "runs", "mesh", "assembly", "coarse", "symbolic", "numeric", "solve",
-            "postprocess", "write", "contact solve", "iterations", "Poisson", "ratio", "median ratio", "peak MB", "Poisson MB")
+            "postprocess", "write", "contact solve", "iterations", "Poisson", "ratio", "median ratio", "peak MB",
+            "Poisson MB")
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
     for n in sorted(runs):
@@ -35,9 +39,9 @@ def main():
         print("| %d² | %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s (median %.3f) | %s + %s local (coarse %s) "
               "| %s (median %.3f) | **%.2f** | %.2f | %s | %s |" % (
                   n, c["vertices"], len(cs), c["mesh"], c["assembly"], c["coarse"], c["symbolic"], c["numeric"],
-                  c["solve"], c["postprocess"], c["write"], c["contact_solve"], c_med, c["iterations"], c["local_iterations"],
-                  c["coarse_iterations"], p["total"], p_med, float(c["contact_solve"]) / float(p["total"]),
-                  c_med / p_med, max(r["peak_mb"] for r in cs), p["peak_mb"]))
+                  c["solve"], c["postprocess"], c["write"], c["contact_solve"], c_med, c["iterations"],
+                  c["local_iterations"], c["coarse_iterations"], p["total"], p_med,
+                  float(c["contact_solve"]) / float(p["total"]), c_med / p_med, max(r["peak_mb"] for r in cs), p["peak_mb"]))
     print("\nseconds; fastest run of each (median in brackets); ratio = contact solve / Poisson (symbolic + "
           "numeric + solve, one thread). The contact solve is wall clock: symbolic analysis, the v solve, "
           "the coarse levels of nested iteration and the active-set iterations for w on two threads. "

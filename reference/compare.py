@@ -1,63 +1,48 @@
-"""Field-by-field comparison of two result files (Rust solver and reference), matched by vertex
-coordinates: max-norm and L2 differences of u1, u2, gap and lambda, relative to the size of the
-displacements (for u1, u2, gap) or of the action (for lambda: max |lambda|, or max |f1|, |f2| at the
-vertices when there is no contact), so that a field that vanishes is compared at its natural scale.
+"""Field-by-field comparison of a Rust result with a reference file, matched by vertex coordinates:
+max-norm and L2 differences of u1, u2, gap, lambda (membrane 1's action) and lambda2 (membrane
+2's), relative to the size of the displacements (for u1, u2, gap) or of the action (for lambda,
+lambda2: max |lambda|, |lambda2|, or max |f1|, |f2| at the vertices when there is no contact), so
+that a field that vanishes is compared at its natural scale.
 
-Usage: /usr/bin/python3 reference/compare.py A.h5 B.h5 [--tol 1e-8]
+Usage (from the repository root):
+    /usr/bin/python3 -m reference.compare RESULT_DIR REFERENCE.h5 [--tol 1e-8]
 """
 import argparse
-import os
 import sys
 
-import tomllib
-
-import h5py
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import expr  # noqa: E402
-from solve_reference import match_points  # noqa: E402
+from . import common
 
-FIELDS = ("u1", "u2", "gap", "lambda")
-
-
-def lumped_mass(points, cells):
-    p = points[cells]
-    area = 0.5 * np.abs(
-        (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
-    )
-    m = np.zeros(len(points))
-    np.add.at(m, cells.ravel(), np.repeat(area / 3.0, 3))
-    return m
+FIELDS = ("u1", "u2", "gap", "lambda", "lambda2")
+ACTIONS = ("lambda", "lambda2")
 
 
-def compare(path_a, path_b):
-    """{field: (relative max difference, relative L2 difference)} and the contact mismatch count."""
-    with h5py.File(path_a, "r") as a, h5py.File(path_b, "r") as b:
-        pa, pb = a["mesh/geometry"][...], b["mesh/geometry"][...]
-        perm = match_points(pa, pb)
-        m = lumped_mass(pa, a["mesh/topology"][...])
-        fields = {k: (a["mesh/" + k][...], b["mesh/" + k][...][perm]) for k in FIELDS}
-        case = tomllib.loads(a.attrs["case_text"])
-        loads = [np.abs(expr.to_numpy(expr.parse(case[f]), pa[:, 0], pa[:, 1])).max() for f in ("f1", "f2")]
-        u_scale = max(np.abs(v).max() for k in ("u1", "u2") for v in fields[k])
-        lam_scale = max(np.abs(fields["lambda"][0]).max(), np.abs(fields["lambda"][1]).max(), *loads)
-        out = {}
-        for k in FIELDS:
-            x, y = fields[k]
-            size = max(lam_scale if k == "lambda" else u_scale, 1e-300)
-            out[k] = (np.abs(x - y).max() / size, np.sqrt(np.sum(m * (x - y) ** 2) / np.sum(m)) / size)
-        mismatch = int(np.sum(a["mesh/contact"][...] != b["mesh/contact"][...][perm]))
+def compare(rust, ref):
+    """{field: (relative max difference, relative L2 difference)} and the contact mismatch count,
+    for a Rust result (common.read_result) and a reference (common.read_reference)."""
+    pa = rust["points"]
+    perm = common.match_points(pa, ref["points"])
+    m = common.lumped_mass(pa, rust["cells"])
+    fields = {k: (rust[k], ref[k][perm]) for k in FIELDS}
+    loads = [np.abs(common.at_points(rust["case"][f], pa)).max() for f in ("f1", "f2")]
+    u_scale = max(np.abs(v).max() for k in ("u1", "u2") for v in fields[k])
+    lam_scale = max(*(np.abs(v).max() for k in ACTIONS for v in fields[k]), *loads)
+    out = {}
+    for k, (x, y) in fields.items():
+        size = max(lam_scale if k in ACTIONS else u_scale, 1e-300)
+        out[k] = (np.abs(x - y).max() / size, np.sqrt(np.sum(m * (x - y) ** 2) / np.sum(m)) / size)
+    mismatch = int(np.sum(rust["contact"] != ref["contact"][perm]))
     return out, mismatch
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("a")
-    ap.add_argument("b")
+    ap.add_argument("rust", help="a result directory of membrane-contact solve")
+    ap.add_argument("reference", help="a file of reference.solve_reference or reference.solve_mixed")
     ap.add_argument("--tol", type=float, default=1e-8)
     args = ap.parse_args()
-    diffs, mismatch = compare(args.a, args.b)
+    diffs, mismatch = compare(common.read_result(args.rust), common.read_reference(args.reference))
     ok = mismatch == 0
     for k, (mx, l2) in diffs.items():
         good = mx <= args.tol

@@ -3,7 +3,8 @@
 The same grammar as the Rust parser (see data/cases/README.md): numbers, x, y, pi, + - * / ^,
 parentheses, sqrt, exp, log, sin, cos, abs, min, max, atan2, if(cond, a, b) with cond built from
 < <= > >= && ||. `parse` returns a tree; `to_numpy` and `to_ufl` turn it into a NumPy value at
-points or a UFL expression of the spatial coordinate.
+points or a UFL expression of the spatial coordinate. (The SymPy check of exact solutions does not
+use this parser: exact_cases.py reads the expressions with SymPy's own.)
 """
 import math
 import re
@@ -219,27 +220,3 @@ def to_ufl(tree, mesh):
         "if": ufl.conditional,
     }
     return _build(tree, X[0], X[1], lib)
-
-
-def to_sympy(tree):
-    """The expression as SymPy of the symbols x, y (returned with them)."""
-    import sympy as sp
-
-    x, y = sp.symbols("x y", real=True)
-    lib = {
-        "const": lambda v: sp.pi if v == math.pi else sp.nsimplify(v, rational=True),
-        "cmp": lambda op, a, c: {"<": sp.Lt, "<=": sp.Le, ">": sp.Gt, ">=": sp.Ge}[op](a, c),
-        "and": sp.And,
-        "or": sp.Or,
-        "sqrt": sp.sqrt,
-        "exp": sp.exp,
-        "log": sp.log,
-        "sin": sp.sin,
-        "cos": sp.cos,
-        "abs": sp.Abs,
-        "min": sp.Min,
-        "max": sp.Max,
-        "atan2": sp.atan2,
-        "if": lambda c, a, b: sp.Piecewise((a, c), (b, True)),
-    }
-    return _build(tree, x, y, lib), x, y

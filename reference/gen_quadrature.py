@@ -1,8 +1,16 @@
 """Writes src/quadrature_tables.rs: basix's default triangle rules (the ones dolfinx uses for
-`ufl.dx(metadata={"quadrature_degree": q})`), so both codes integrate the loads at the same points."""
+`ufl.dx(metadata={"quadrature_degree": q})`), so both codes integrate the loads at the same points.
+
+Usage (from the repository root):
+    /usr/bin/python3 -m reference.gen_quadrature [OUT.rs]   (default: src/quadrature_tables.rs)
+then `cargo fmt` (the committed file is formatted by rustfmt).
+"""
+import os
 import sys
 
 import basix
+
+from .common import ROOT
 
 MAX_DEGREE = 20
 
@@ -27,4 +35,4 @@ def main(path):
 
 
 if __name__ == "__main__":
-    main(sys.argv[1])
+    main(sys.argv[1] if len(sys.argv) > 1 else os.path.join(ROOT, "src", "quadrature_tables.rs"))

@@ -1,7 +1,9 @@
-"""Opens result files with ParaView's own XDMF reader (headless) and checks that every field is
-there, with the right size and in double precision.
+"""Opens Rust result directories with ParaView's own XDMF reader (headless) and checks that every
+field is there, with the right size and in double precision: DIR/solution.xdmf (the mesh, vertex
+fields) and DIR/dual.xdmf (the dual submesh S_h, cell fields), given to ParaView as absolute paths.
 
-Usage: /usr/bin/python3 reference/paraview_check.py RESULT.xdmf [...]   (RESULT-dual.xdmf is read too)
+Usage (from the repository root):
+    /usr/bin/python3 -m reference.paraview_check RESULT_DIR [...]
 """
 import os
 import sys
@@ -24,16 +26,17 @@ def read(path):
 
 
 def check(path):
-    """Checks NAME.xdmf (the mesh) and NAME-dual.xdmf (the dual submesh)."""
-    mesh = read(path)
-    dual = read(path[: -len(".xdmf")] + "-dual.xdmf")
+    """Checks DIR/solution.xdmf (the mesh) and DIR/dual.xdmf (the dual submesh)."""
+    mesh = read(os.path.join(path, "solution.xdmf"))
+    dual = read(os.path.join(path, "dual.xdmf"))
     problems = []
     for name in POINT_FIELDS:
         arr = mesh.GetPointData().GetArray(name)
         if arr is None:
             problems.append("point field %s missing" % name)
         elif arr.GetDataType() != VTK_DOUBLE or arr.GetNumberOfTuples() != mesh.GetNumberOfPoints():
-            problems.append("point field %s: type %s, %d values" % (name, arr.GetDataTypeAsString(), arr.GetNumberOfTuples()))
+            problems.append("point field %s: type %s, %d values"
+                            % (name, arr.GetDataTypeAsString(), arr.GetNumberOfTuples()))
     cells = dual.GetCellData()
     if cells.GetArray("lambda") is None:
         problems.append("dual cell field lambda missing")

@@ -1,140 +1,223 @@
-//! The discrete action λ_h by local postprocessing (4.5), and the dual mesh D_h it lives on.
+//! The discrete action λ_h by local postprocessing (4.5), and the checks the paper proves of it.
 //!
 //! At each interior vertex a, with m_a = ∫φ_a = meas(D_a) (Remark 11, Section 4.2):
 //!   λ1_a m_a =  μ1 ∫∇u1h·∇φ_a − ∫f1 φ_a,
 //!   λ2_a m_a = −μ2 ∫∇u2h·∇φ_a + ∫f2 φ_a,
-//! which coincide (Proposition 12); λ_a ≥ 0 and λ_a (u1h − u2h)(a) = 0 (4.8). λ_h = Σ λ_a χ_{D_a} is
-//! piecewise constant on the barycentric dual cells D_a.
+//! which coincide (Proposition 12); λ_a ≥ 0 and λ_a (u1h − u2h)(a) = 0 (4.8). λ_h = Σ_a λ_a χ_{D_a}
+//! over the interior vertices is piecewise constant on the barycentric dual cells D_a, and 0 on
+//! the cells of the boundary vertices.
+//!
+//! The right-hand sides of (4.5) are differences of terms that cancel down to O(h²), so the
+//! checks are measured relative to the size of those terms at each vertex, and a solution that
+//! misses them by more than [`TOLERANCE`] is not a solution of (3.4): the run fails.
 
-use crate::contact::{DiscreteProblem, Solution};
-use crate::mesh::Mesh;
+use crate::contact::Solution;
+use crate::mesh::DualMesh;
+use crate::problem::DiscreteProblem;
+use crate::result::{Attribute, Describe, Field, Place};
+use std::fmt;
 
-/// λ_h from each membrane and the checks of Proposition 12 and (4.8).
+/// The largest relative defect of Prop. 12, of λ_a ≥ 0 and of (4.8) a run accepts: round-off
+/// of the factorizations leaves about 1e-15.
+pub const TOLERANCE: f64 = 1e-10;
+
+/// The largest round-off of λ_h a run accepts, relative to the size of the loads.
+pub const RESOLUTION: f64 = 1e-3;
+
+/// Round-off of a sum of the terms of (4.5), relative to the sum of their sizes: a few units of
+/// f64's precision for the rows of K, and as much again for the Cholesky solve behind u_ih.
+const ROUNDOFF: f64 = 8.0 * f64::EPSILON;
+
+/// λ_h from each membrane, the total force, the contact area and the checks.
 #[derive(Debug, Clone)]
 pub struct Action {
-    /// λ_a from membrane 1 at each vertex (0 on ∂ω, where no D_a is defined).
+    /// λ_a from membrane 1 at each vertex (0 on ∂ω): λ_h of (4.5).
     pub lambda: Vec<f64>,
     /// λ_a from membrane 2.
     pub lambda2: Vec<f64>,
-    /// max_a |λ1_a − λ2_a| (Proposition 12).
-    pub membrane_difference: f64,
-    /// min_a λ_a (≥ 0 up to round-off).
-    pub min_lambda: f64,
-    /// max_a |λ_a (u1h − u2h)(a)| (4.8).
-    pub complementarity: f64,
     /// ∫_ω λ_h = Σ_a λ_a meas(D_a): the total contact force.
     pub total: f64,
     /// Σ_{a in contact} meas(D_a): the measure of the contact region on the dual mesh.
     pub contact_area: f64,
+    /// Prop. 12, λ ≥ 0, (4.8) and w ≥ 0, relative to the terms that cancel.
+    pub checks: Checks,
+}
+
+/// The checks of a discrete solution, each relative to the size of the terms that cancel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Checks {
+    /// Prop. 12: max_a |λ1_a − λ2_a| m_a / s_a, with s_a = Σ_b |μ1 K_ab u1_b| + |(f1, φ_a)| +
+    /// Σ_b |μ2 K_ab u2_b| + |(f2, φ_a)| the size of the terms of (4.5) at a.
+    pub prop12: f64,
+    /// max_a max(0, −λ_a m_a) / s_a: how negative λ_h is.
+    pub negative_lambda: f64,
+    /// (4.8): max_a |λ_a m_a| |w_a| / (s_a max_b |w_b|).
+    pub complementarity: f64,
+    /// max(0, −min_a w_a) / max_b |w_b|: how far u1h − u2h ≥ 0 is missed.
+    pub negative_gap: f64,
+    /// The round-off λ_h can carry, max_a ε s_a / m_a, relative to the size of the loads
+    /// max_a (|(f1, φ_a)| + |(f2, φ_a)|)/m_a (0 without loads, where λ = 0): large when the data
+    /// span too many orders of magnitude for double precision.
+    pub resolution: f64,
+    /// max_a ε s_a / m_a.
+    pub noise: f64,
+    /// max_a (|(f1, φ_a)| + |(f2, φ_a)|)/m_a.
+    pub loads: f64,
+}
+
+/// A discrete solution that fails its own checks.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CheckError {
+    /// A value overflowed or is NaN.
+    NotFinite,
+    /// λ_h is below the round-off of (4.5).
+    Unresolved {
+        /// The round-off λ_h can carry.
+        noise: f64,
+        /// The size of the loads.
+        loads: f64,
+    },
+    /// A check exceeds [`TOLERANCE`].
+    Failed {
+        /// What is checked.
+        what: &'static str,
+        /// Its relative defect.
+        value: f64,
+    },
+}
+
+impl fmt::Display for CheckError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CheckError::NotFinite => write!(
+                f,
+                "the discrete solution has non-finite values (overflow): the data are too large for \
+                 double precision; nothing is written"
+            ),
+            CheckError::Unresolved { noise, loads } => write!(
+                f,
+                "λ_h is not resolved in double precision: the round-off of (4.5) reaches {noise:.1e}, \
+                 against loads of size {loads:.1e} (the data span too many orders of magnitude: rescale \
+                 them); nothing is written"
+            ),
+            CheckError::Failed { what, value } => write!(
+                f,
+                "the discrete solution fails {what}: relative defect {value:.2e} > {TOLERANCE:.0e} \
+                 (relative to the terms of (4.5) that cancel); nothing is written"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for CheckError {}
+
+impl Checks {
+    /// Fails when a check exceeds [`TOLERANCE`] or is not a number.
+    pub fn verify(&self) -> Result<(), CheckError> {
+        let all = [
+            ("Proposition 12 (λ1 = λ2)", self.prop12),
+            ("λ_h ≥ 0", self.negative_lambda),
+            ("the complementarity (4.8)", self.complementarity),
+            ("u1h − u2h ≥ 0", self.negative_gap),
+        ];
+        if all.iter().any(|(_, v)| !v.is_finite()) || !self.resolution.is_finite() {
+            return Err(CheckError::NotFinite);
+        }
+        if self.resolution > RESOLUTION {
+            return Err(CheckError::Unresolved {
+                noise: self.noise,
+                loads: self.loads,
+            });
+        }
+        match all.iter().find(|(_, v)| *v > TOLERANCE) {
+            Some(&(what, value)) => Err(CheckError::Failed { what, value }),
+            None => Ok(()),
+        }
+    }
 }
 
 impl Action {
-    /// Computes (4.5) from both membranes.
+    /// Computes (4.5) from both membranes, with the checks.
     pub fn compute(problem: &DiscreteProblem, solution: &Solution) -> Action {
-        let mesh = &problem.mesh;
-        let k = &problem.stiffness;
+        let (mesh, k) = (&problem.mesh, &problem.stiffness);
+        let (mu1, mu2) = (problem.data.mu1, problem.data.mu2);
+        let (u1, u2, gap) = (&solution.u1, &solution.u2, &solution.obstacle.gap);
         let n = mesh.n_vertices();
         let (mut lambda, mut lambda2) = (vec![0.0; n], vec![0.0; n]);
-        let (mut diff, mut min_lambda, mut compl, mut total, mut area) =
-            (0.0f64, f64::INFINITY, 0.0f64, 0.0, 0.0);
-        for a in 0..n {
-            if mesh.on_boundary[a] {
-                continue;
-            }
+        let gap_scale = gap.iter().fold(f64::MIN_POSITIVE, |m, w| m.max(w.abs()));
+        let mut checks = Checks {
+            prop12: 0.0,
+            negative_lambda: 0.0,
+            complementarity: 0.0,
+            negative_gap: gap.iter().fold(0.0_f64, |m, &w| m.max(-w)) / gap_scale,
+            resolution: 0.0,
+            noise: 0.0,
+            loads: 0.0,
+        };
+        let (mut total, mut contact_area) = (0.0, 0.0);
+        for a in (0..n).filter(|&a| !mesh.on_boundary[a]) {
             let m = problem.mass[a];
-            let l1 = (problem.mu1 * k.row_dot(a, &solution.u1) - problem.load1[a]) / m;
-            let l2 = (-problem.mu2 * k.row_dot(a, &solution.u2) + problem.load2[a]) / m;
-            lambda[a] = l1;
-            lambda2[a] = l2;
-            diff = diff.max((l1 - l2).abs());
-            min_lambda = min_lambda.min(l1);
-            compl = compl.max((l1 * solution.obstacle.gap[a]).abs());
+            let (k1, k2) = (mu1 * k.row_dot(a, u1), mu2 * k.row_dot(a, u2));
+            let (l1, l2) = ((k1 - problem.load1[a]) / m, (-k2 + problem.load2[a]) / m);
+            let size: f64 = k
+                .row(a)
+                .map(|(b, v)| (mu1 * v * u1[b]).abs() + (mu2 * v * u2[b]).abs())
+                .sum::<f64>()
+                + problem.load1[a].abs()
+                + problem.load2[a].abs();
+            let s = size.max(f64::MIN_POSITIVE);
+            checks.noise = checks.noise.max(ROUNDOFF * size / m);
+            checks.loads = checks
+                .loads
+                .max((problem.load1[a].abs() + problem.load2[a].abs()) / m);
+            (lambda[a], lambda2[a]) = (l1, l2);
+            checks.prop12 = checks.prop12.max((l1 - l2).abs() * m / s);
+            checks.negative_lambda = checks.negative_lambda.max(-l1 * m / s);
+            checks.complementarity = checks
+                .complementarity
+                .max((l1 * m / s).abs() * gap[a].abs() / gap_scale);
             total += l1 * m;
             if solution.obstacle.contact[a] {
-                area += m;
+                contact_area += m;
             }
+        }
+        if checks.loads > 0.0 {
+            checks.resolution = checks.noise / checks.loads;
         }
         Action {
             lambda,
             lambda2,
-            membrane_difference: diff,
-            min_lambda,
-            complementarity: compl,
             total,
-            contact_area: area,
-        }
-    }
-}
-
-/// The submesh S_h: each triangle cut into six by its medians; the two sub-triangles at vertex a
-/// form D_a ∩ K, so a field constant on each D_a is cell data here.
-#[derive(Debug, Clone)]
-pub struct DualMesh {
-    /// Vertices of T_h, then edge midpoints, then barycentres.
-    pub points: Vec<[f64; 2]>,
-    pub triangles: Vec<[usize; 3]>,
-    /// The vertex a of T_h whose cell D_a contains each sub-triangle.
-    pub owner: Vec<usize>,
-}
-
-impl DualMesh {
-    pub fn new(mesh: &Mesh) -> Self {
-        let edges = mesh.edges();
-        let n = mesh.n_vertices();
-        let mut points = mesh.points.clone();
-        points.extend(edges.iter().map(|&(a, b)| {
-            let (p, q) = (mesh.points[a], mesh.points[b]);
-            [0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])]
-        }));
-        let midpoint = |a: usize, b: usize| n + edges.binary_search(&(a.min(b), a.max(b))).unwrap();
-        let mut triangles = Vec::with_capacity(6 * mesh.triangles.len());
-        let mut owner = Vec::with_capacity(6 * mesh.triangles.len());
-        for (t, tri) in mesh.triangles.iter().enumerate() {
-            let [p, q, r] = mesh.corners(t);
-            let centre = points.len();
-            points.push([(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0]);
-            for k in 0..3 {
-                let (a, b, c) = (tri[k], tri[(k + 1) % 3], tri[(k + 2) % 3]);
-                triangles.push([a, midpoint(a, b), centre]);
-                triangles.push([a, centre, midpoint(c, a)]);
-                owner.extend([a, a]);
-            }
-        }
-        DualMesh {
-            points,
-            triangles,
-            owner,
+            contact_area,
+            checks,
         }
     }
 
-    /// A vertex field of T_h as cell data on S_h (NaN on the cells of boundary vertices).
-    pub fn cell_field(&self, mesh: &Mesh, values: &[f64]) -> Vec<f64> {
-        self.owner
-            .iter()
-            .map(|&a| if mesh.on_boundary[a] { f64::NAN } else { values[a] })
-            .collect()
+    /// λ_h = Σ_a λ_a χ_{D_a} as cell data of S_h (0 on the cells of boundary vertices).
+    pub fn on_dual_cells(&self, dual: &DualMesh) -> Vec<f64> {
+        dual.cell_field(&self.lambda)
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::mesh::{orient, Diagonal};
+impl Describe for Action {
+    fn fields(&self) -> Vec<Field<'_>> {
+        vec![
+            Field::new("lambda", Place::Vertices, &self.lambda),
+            Field::new("lambda2", Place::Vertices, &self.lambda2),
+        ]
+    }
 
-    #[test]
-    fn dual_cells_have_the_lumped_masses() {
-        let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 3, 5, Diagonal::Right).unwrap();
-        let dual = DualMesh::new(&mesh);
-        assert_eq!(dual.triangles.len(), 6 * mesh.triangles.len());
-        let mass = crate::assembly::lumped_mass(&mesh);
-        let mut area = vec![0.0; mesh.n_vertices()];
-        for (t, &a) in dual.triangles.iter().zip(&dual.owner) {
-            let s = 0.5 * orient(dual.points[t[0]], dual.points[t[1]], dual.points[t[2]]);
-            assert!(s > 0.0, "sub-triangles are counter-clockwise");
-            area[a] += s;
-        }
-        for (a, m) in area.iter().zip(mass) {
-            assert!((a - m).abs() < 1e-15);
-        }
+    fn attributes(&self) -> Vec<Attribute> {
+        let c = &self.checks;
+        vec![
+            ("total_force", self.total.into()),
+            ("contact_area", self.contact_area.into()),
+            ("check_prop12", c.prop12.into()),
+            ("check_negative_lambda", c.negative_lambda.into()),
+            ("check_complementarity", c.complementarity.into()),
+            ("check_negative_gap", c.negative_gap.into()),
+            ("check_resolution", c.resolution.into()),
+            ("check_tolerance", TOLERANCE.into()),
+        ]
     }
 }

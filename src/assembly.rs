@@ -8,8 +8,11 @@ use crate::quadrature_tables::TRIANGLE_RULES;
 /// A symmetric sparse matrix on all vertices, stored by rows (= by columns), rows sorted.
 #[derive(Debug, Clone)]
 pub struct Stiffness {
+    /// Where each row starts in `col` and `val`.
     pub row_ptr: Vec<usize>,
+    /// The column of each entry.
     pub col: Vec<usize>,
+    /// The value of each entry.
     pub val: Vec<f64>,
 }
 
@@ -78,6 +81,7 @@ impl Stiffness {
         k
     }
 
+    /// The number of rows.
     pub fn n(&self) -> usize {
         self.row_ptr.len() - 1
     }
@@ -153,10 +157,12 @@ pub fn lumped_mass(mesh: &Mesh) -> Vec<f64> {
 /// (`ufl.dx(metadata={"quadrature_degree": q})`) integrates at the very same points.
 #[derive(Debug, Clone, Copy)]
 pub struct Quadrature {
+    /// Polynomials up to this degree are integrated exactly.
     pub degree: usize,
 }
 
 impl Quadrature {
+    /// The highest degree available.
     pub const MAX_DEGREE: usize = TRIANGLE_RULES.len() - 1;
 
     /// Reference points (ξ, η, weight), weights summing to 1/2.
@@ -220,8 +226,11 @@ impl Quadrature {
 /// A physical quadrature point: its position, weight × |J| and barycentric coordinates.
 #[derive(Debug, Clone, Copy)]
 pub struct QuadraturePoint {
+    /// Its position.
     pub x: [f64; 2],
+    /// Its weight times |J|.
     pub weight: f64,
+    /// Its barycentric coordinates in the triangle.
     pub barycentric: [f64; 3],
 }
 
@@ -231,7 +240,9 @@ const TRIANGLES_PER_BLOCK: usize = 16;
 /// A non-finite value of an expression at a point.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NotFinite {
+    /// Where.
     pub point: [f64; 2],
+    /// The value there.
     pub value: f64,
 }
 

@@ -1,135 +1,147 @@
 //! Case files (TOML): the data of (1.1), the mesh, the quadrature and the solver settings.
-//! The format is documented in `data/cases/README.md`.
+//! The format is documented in `data/cases/README.md`. Every error names the file and the key.
 
 use crate::assembly::Quadrature;
-use crate::contact::{Data, SolverOptions};
+use crate::contact::SolverOptions;
 use crate::expr::Expr;
-use crate::mesh::{Diagonal, Mesh};
-use serde::{Deserialize, Serialize};
+use crate::mesh::{self, Diagonal, Mesh};
+use crate::norms::Exact;
+use crate::problem::{self, Data};
+use crate::result::{Attr, Attribute, Describe};
+use serde::Deserialize;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
 /// The built-in default case (`membrane-contact solve` without a case file).
 pub const DEFAULT_CASE: &str = include_str!("../data/cases/default.toml");
 
+/// The largest case file read.
+const MAX_CASE_BYTES: u64 = 1 << 20;
+
+/// Coarsest level of nested iteration on built-in meshes, in cells per side.
+pub const COARSEST: usize = 8;
+
 /// A case as written in the file (expressions still as text).
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct CaseFile {
+struct CaseFile {
     #[serde(default)]
-    pub title: String,
-    pub mu1: f64,
-    pub mu2: f64,
-    pub f1: Expression,
-    pub f2: Expression,
-    pub g: Expression,
+    title: String,
+    mu1: f64,
+    mu2: f64,
+    f1: Expression,
+    f2: Expression,
+    g: Expression,
     #[serde(default)]
-    pub exact: Option<ExactFile>,
-    pub mesh: MeshSpec,
+    exact: Option<ExactFile>,
+    mesh: MeshTable,
     #[serde(default)]
-    pub quadrature: QuadratureSpec,
+    quadrature: QuadratureTable,
     #[serde(default)]
-    pub solver: SolverSpec,
+    solver: SolverTable,
     #[serde(default)]
-    pub validation: Option<ValidationSpec>,
+    validation: Option<ValidationTable>,
 }
 
 /// An expression: a string in the case language, or a plain number.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(untagged)]
-pub enum Expression {
+enum Expression {
     Number(f64),
     Text(String),
 }
 
-impl Expression {
-    fn text(&self) -> String {
-        match self {
-            Expression::Number(v) => format!("{v:?}"),
-            Expression::Text(s) => s.clone(),
-        }
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ExactFile {
+    u1: Expression,
+    u2: Expression,
+    lambda: Expression,
+    #[serde(default)]
+    grad_u1: Option<[Expression; 2]>,
+    #[serde(default)]
+    grad_u2: Option<[Expression; 2]>,
+}
+
+/// The `[mesh]` table: every key of every kind, so that errors point at the key; which keys a
+/// kind takes is checked after.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeshTable {
+    kind: String,
+    corners: Option<[[f64; 2]; 2]>,
+    n: Option<Cells>,
+    diagonal: Option<Diagonal>,
+    grading: Option<f64>,
+    path: Option<PathBuf>,
+}
+
+/// `n = 8` or `n = [8, 4]`.
+#[derive(Debug, Clone, Copy, Deserialize)]
+#[serde(untagged)]
+enum Cells {
+    Square(usize),
+    Sides([usize; 2]),
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct QuadratureTable {
+    degree: usize,
+}
+
+impl Default for QuadratureTable {
+    fn default() -> Self {
+        QuadratureTable { degree: 4 }
     }
 }
 
-/// Exact solution, for error norms.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ExactFile {
-    pub u1: Expression,
-    pub u2: Expression,
-    pub lambda: Expression,
-    /// ∇u1 and ∇u2 as [∂x, ∂y], for the H¹ error.
-    #[serde(default)]
-    pub grad_u1: Option<[Expression; 2]>,
-    #[serde(default)]
-    pub grad_u2: Option<[Expression; 2]>,
+struct SolverTable {
+    max_iterations: usize,
 }
 
-/// The mesh: built in, or read from a file.
-#[derive(Debug, Clone, Deserialize, Serialize)]
-#[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
-pub enum MeshSpec {
-    /// [x0, x1] × [y0, y1] with n = [nx, ny] cells.
-    Rectangle {
-        #[serde(default = "unit_square")]
-        corners: [[f64; 2]; 2],
-        n: [usize; 2],
-        #[serde(default = "right")]
-        diagonal: Diagonal,
-    },
-    /// (−1, 1)² \ [0, 1] × [−1, 0] with n × n cells on the square, graded by `grading` ≥ 1.
-    Lshape {
-        n: usize,
-        #[serde(default = "right")]
-        diagonal: Diagonal,
-        #[serde(default = "one")]
-        grading: f64,
-    },
-    /// A triangle mesh in XDMF/HDF5 as written by meshio or dolfinx (path relative to the case).
-    File { path: PathBuf },
-}
-
-fn unit_square() -> [[f64; 2]; 2] {
-    [[0.0, 0.0], [1.0, 1.0]]
-}
-fn right() -> Diagonal {
-    Diagonal::Right
-}
-fn one() -> f64 {
-    1.0
-}
-
-#[derive(Debug, Clone, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct QuadratureSpec {
-    pub degree: usize,
-}
-
-impl Default for QuadratureSpec {
+impl Default for SolverTable {
     fn default() -> Self {
-        QuadratureSpec { degree: 4 }
-    }
-}
-
-#[derive(Debug, Clone, Deserialize, Serialize)]
-#[serde(deny_unknown_fields)]
-pub struct SolverSpec {
-    pub max_iterations: usize,
-}
-
-impl Default for SolverSpec {
-    fn default() -> Self {
-        SolverSpec {
+        SolverTable {
             max_iterations: SolverOptions::default().max_iterations,
         }
     }
 }
 
-/// Mesh sizes (cells per side) used by `make validate` and convergence studies.
-#[derive(Debug, Clone, Deserialize, Serialize)]
+#[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
-pub struct ValidationSpec {
-    pub sizes: Vec<usize>,
+struct ValidationTable {
+    sizes: Vec<usize>,
+}
+
+/// The mesh of a case.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MeshSpec {
+    /// [x0, x1] × [y0, y1] with nx × ny cells.
+    Rectangle {
+        /// [[x0, y0], [x1, y1]].
+        corners: [[f64; 2]; 2],
+        /// [nx, ny].
+        n: [usize; 2],
+        /// The diagonal of each cell.
+        diagonal: Diagonal,
+    },
+    /// (−1, 1)² \ [0, 1] × [−1, 0] with n × n cells on the square, graded by `grading` ≥ 1.
+    Lshape {
+        /// Cells per side of the square.
+        n: usize,
+        /// The diagonal of each cell.
+        diagonal: Diagonal,
+        /// The grading exponent (Remark 10).
+        grading: f64,
+    },
+    /// A triangle mesh file (the path as given, relative to the case file).
+    File {
+        /// The path.
+        path: PathBuf,
+    },
 }
 
 /// A case error, naming the file and the key.
@@ -144,16 +156,6 @@ impl fmt::Display for CaseError {
 
 impl std::error::Error for CaseError {}
 
-/// Exact solution as parsed expressions.
-#[derive(Debug, Clone)]
-pub struct Exact {
-    pub u1: Expr,
-    pub u2: Expr,
-    pub lambda: Expr,
-    pub grad_u1: Option<[Expr; 2]>,
-    pub grad_u2: Option<[Expr; 2]>,
-}
-
 /// A checked case: parsed expressions and settings.
 #[derive(Debug, Clone)]
 pub struct Case {
@@ -161,20 +163,46 @@ pub struct Case {
     pub origin: String,
     /// The case text, stored in every result file.
     pub text: String,
-    pub file: CaseFile,
+    /// The title, free text.
+    pub title: String,
+    /// The data of (1.1).
     pub data: Data,
+    /// The exact solution, when known.
     pub exact: Option<Exact>,
-    pub options: SolverOptions,
+    /// The mesh.
+    pub mesh: MeshSpec,
+    /// The settings of the active-set method.
+    pub solver: SolverOptions,
+    /// Mesh sizes (cells per side) for `make validate` and studies.
+    pub validation_sizes: Option<Vec<usize>>,
+    /// The case file, when read from one.
+    path: Option<PathBuf>,
     base_dir: PathBuf,
 }
 
 impl Case {
     /// Reads and checks a case file.
+    ///
+    /// ```
+    /// let case = membrane_contact::case::Case::read(std::path::Path::new("data/cases/disk_jump.toml")).unwrap();
+    /// assert!(case.exact.is_some());
+    /// ```
     pub fn read(path: &Path) -> Result<Case, CaseError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| CaseError(format!("{}: cannot read the case file: {e}", path.display())))?;
+        let err = |m: String| CaseError(format!("{}: {m}", path.display()));
+        let size = std::fs::metadata(path)
+            .map_err(|e| err(format!("cannot read the case file: {e}")))?
+            .len();
+        if size > MAX_CASE_BYTES {
+            return Err(err(format!(
+                "the case file has {size} bytes; at most {MAX_CASE_BYTES} are read"
+            )));
+        }
+        let text =
+            std::fs::read_to_string(path).map_err(|e| err(format!("cannot read the case file: {e}")))?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        Case::parse(&text, &path.display().to_string(), base)
+        let mut case = Case::parse(&text, &path.display().to_string(), base)?;
+        case.path = Some(path.to_path_buf());
+        Ok(case)
     }
 
     /// The built-in default case.
@@ -182,70 +210,29 @@ impl Case {
         Case::parse(DEFAULT_CASE, "built-in default case", PathBuf::new()).expect("the default case is valid")
     }
 
-    /// Parses and checks case text; `origin` names it in errors.
+    /// Parses and checks case text; `origin` names it in errors, `base_dir` resolves mesh paths.
     pub fn parse(text: &str, origin: &str, base_dir: PathBuf) -> Result<Case, CaseError> {
-        let file: CaseFile =
-            toml::from_str(text).map_err(|e| CaseError(format!("{origin}: {}", e.to_string().trim_end())))?;
-        let expr = |key: &str, e: &Expression| {
-            let source = e.text();
-            Expr::parse(&source)
-                .map_err(|err| CaseError(format!("{origin}: key '{key}' = \"{source}\": {err}")))
-        };
-        for (key, value) in [("mu1", file.mu1), ("mu2", file.mu2)] {
-            if !(value > 0.0 && value.is_finite()) {
-                return Err(CaseError(format!(
-                    "{origin}: key '{key}' = {value}: the tension must be a positive number"
-                )));
-            }
-        }
+        let err = |m: String| CaseError(format!("{origin}: {m}"));
+        let file: CaseFile = toml::from_str(text).map_err(|e| err(toml_error(text, &e)))?;
+        let expr = |key: &str, e: &Expression| parse_expression(key, e).map_err(err);
         let degree = file.quadrature.degree;
         if degree > Quadrature::MAX_DEGREE {
-            return Err(CaseError(format!(
-                "{origin}: key 'quadrature.degree' = {degree}: at most {} is available",
+            return Err(err(format!(
+                "key 'quadrature.degree' = {degree}: at most {} is available",
                 Quadrature::MAX_DEGREE
             )));
         }
         if file.solver.max_iterations == 0 {
-            return Err(CaseError(format!(
-                "{origin}: key 'solver.max_iterations' must be at least 1"
-            )));
+            return Err(err("key 'solver.max_iterations' must be at least 1".into()));
         }
-        match &file.mesh {
-            MeshSpec::Rectangle { corners, n, .. } => {
-                if n[0] == 0 || n[1] == 0 {
-                    return Err(CaseError(format!(
-                        "{origin}: key 'mesh.n' = {n:?}: need at least one cell each way"
-                    )));
-                }
-                let [c0, c1] = corners;
-                if !(c1[0] > c0[0] && c1[1] > c0[1]) || corners.iter().flatten().any(|v| !v.is_finite()) {
-                    return Err(CaseError(format!(
-                        "{origin}: key 'mesh.corners' = {corners:?}: need [[x0, y0], [x1, y1]] with x0 < x1, y0 < y1"
-                    )));
-                }
-            }
-            MeshSpec::Lshape { n, grading, .. } => {
-                if *n < 2 {
-                    return Err(CaseError(format!(
-                        "{origin}: key 'mesh.n' = {n}: need at least 2"
-                    )));
-                }
-                if !(*grading >= 1.0 && grading.is_finite()) {
-                    return Err(CaseError(format!(
-                        "{origin}: key 'mesh.grading' = {grading}: need a number ≥ 1"
-                    )));
-                }
-            }
-            MeshSpec::File { .. } => {}
-        }
-        let data = Data {
-            mu1: file.mu1,
-            mu2: file.mu2,
-            f1: expr("f1", &file.f1)?,
-            f2: expr("f2", &file.f2)?,
-            g: expr("g", &file.g)?,
-            quadrature: Quadrature { degree },
-        };
+        let data = Data::new(
+            [file.mu1, file.mu2],
+            expr("f1", &file.f1)?,
+            expr("f2", &file.f2)?,
+            expr("g", &file.g)?,
+            Quadrature { degree },
+        )
+        .map_err(|e| err(e.to_string()))?;
         let exact = match &file.exact {
             None => None,
             Some(e) => {
@@ -263,32 +250,44 @@ impl Case {
                 })
             }
         };
-        let options = SolverOptions {
-            max_iterations: file.solver.max_iterations,
-        };
         Ok(Case {
             origin: origin.to_string(),
             text: text.to_string(),
-            file,
+            title: file.title,
             data,
             exact,
-            options,
+            mesh: mesh_spec(&file.mesh).map_err(err)?,
+            solver: SolverOptions {
+                max_iterations: file.solver.max_iterations,
+            },
+            validation_sizes: file.validation.map(|v| v.sizes),
+            path: None,
             base_dir,
         })
     }
 
-    /// Overrides the number of cells per side of a built-in mesh.
-    pub fn set_cells(&mut self, cells: usize) {
-        match &mut self.file.mesh {
-            MeshSpec::Rectangle { n, .. } => *n = [cells, cells],
-            MeshSpec::Lshape { n, .. } => *n = cells,
-            MeshSpec::File { .. } => {}
+    /// Sets the cells per side of a built-in mesh; an error for a mesh file.
+    pub fn set_cells(&mut self, cells: usize) -> Result<(), CaseError> {
+        match &mut self.mesh {
+            _ if cells == 0 => Err(CaseError("the cells per side must be at least 1".into())),
+            MeshSpec::Rectangle { n, .. } => {
+                *n = [cells, cells];
+                Ok(())
+            }
+            MeshSpec::Lshape { n, .. } => {
+                *n = cells.max(2);
+                Ok(())
+            }
+            MeshSpec::File { .. } => Err(CaseError(format!(
+                "{}: the mesh is read from a file: its cells per side cannot be set",
+                self.origin
+            ))),
         }
     }
 
     /// Sets the grading exponent of an L-shaped mesh.
     pub fn set_grading(&mut self, g: f64) -> Result<(), CaseError> {
-        match &mut self.file.mesh {
+        match &mut self.mesh {
             MeshSpec::Lshape { grading, .. } if g >= 1.0 && g.is_finite() => {
                 *grading = g;
                 Ok(())
@@ -303,16 +302,89 @@ impl Case {
 
     /// Cells per side of a built-in mesh.
     pub fn cells(&self) -> Option<usize> {
-        match &self.file.mesh {
+        match &self.mesh {
             MeshSpec::Rectangle { n, .. } => Some(n[0].max(n[1])),
             MeshSpec::Lshape { n, .. } => Some(*n),
             MeshSpec::File { .. } => None,
         }
     }
 
-    /// Fails early when a built-in mesh would not fit in the available memory.
-    pub fn check_memory(&self) -> Result<(), CaseError> {
-        let vertices = match &self.file.mesh {
+    /// The files the case reads: the case file, a mesh file and its heavy data.
+    pub fn inputs(&self) -> Vec<PathBuf> {
+        let mut files: Vec<PathBuf> = self.path.iter().cloned().collect();
+        if let MeshSpec::File { path } = &self.mesh {
+            files.extend(mesh::file::inputs(&self.base_dir.join(path)));
+        }
+        files
+    }
+
+    /// Builds or reads the mesh, after checking that a built-in one fits in memory.
+    pub fn mesh(&self) -> Result<Mesh, CaseError> {
+        let err = |m: String| CaseError(format!("{}: {m}", self.origin));
+        let keys = match &self.mesh {
+            MeshSpec::Rectangle { corners, n, .. } => format!("[mesh] corners = {corners:?}, n = {n:?}"),
+            MeshSpec::Lshape { n, grading, .. } => format!("[mesh] n = {n}, grading = {grading}"),
+            MeshSpec::File { path } => {
+                return mesh::file::read(&self.base_dir.join(path)).map_err(|e| CaseError(e.to_string()))
+            }
+        };
+        mesh::check_memory(self.vertices()).map_err(|e| err(format!("mesh: {e}")))?;
+        let built = match &self.mesh {
+            MeshSpec::Rectangle { corners, n, diagonal } => {
+                Mesh::rectangle(corners[0], corners[1], n[0], n[1], *diagonal)
+            }
+            MeshSpec::Lshape { n, diagonal, grading } => Mesh::l_shape(*n, *diagonal, *grading),
+            MeshSpec::File { .. } => unreachable!("read above"),
+        };
+        built.map_err(|e| err(format!("{keys}: the mesh is not valid in double precision: {e}")))
+    }
+
+    /// The meshes of nested iteration below a built-in mesh of n cells per side: ⌈n/2⌉, ⌈n/4⌉, …
+    /// cells, down to [`COARSEST`]; none for a mesh file.
+    pub fn coarser_meshes(&self) -> Result<Vec<Mesh>, CaseError> {
+        let Some(n) = self.cells() else {
+            return Ok(Vec::new());
+        };
+        let mut meshes = Vec::new();
+        let mut cells = n.div_ceil(2);
+        while cells >= COARSEST {
+            let mut coarse = self.clone();
+            coarse.set_cells(cells)?;
+            meshes.push(coarse.mesh()?);
+            cells = cells.div_ceil(2);
+        }
+        Ok(meshes)
+    }
+
+    /// Checks the data on `mesh`: g_h ≥ 0 and finite at its boundary vertices (only they enter
+    /// (3.4)), and finite exact u1, u2, λ at every vertex.
+    pub fn check_on(&self, mesh: &Mesh) -> Result<(), CaseError> {
+        let err = |m: String| CaseError(format!("{}: {m}", self.origin));
+        problem::boundary_values(mesh, &self.data).map_err(|e| err(e.to_string()))?;
+        let Some(exact) = &self.exact else {
+            return Ok(());
+        };
+        // Gradients may be singular at a vertex (a re-entrant corner): they are only integrated.
+        for (key, e) in [
+            ("exact.u1", &exact.u1),
+            ("exact.u2", &exact.u2),
+            ("exact.lambda", &exact.lambda),
+        ] {
+            if let Some(p) = mesh.points.iter().find(|p| !e.eval(p[0], p[1]).is_finite()) {
+                return Err(err(format!(
+                    "key '{key}' is {} at the vertex ({}, {}): an exact solution must be finite",
+                    e.eval(p[0], p[1]),
+                    p[0],
+                    p[1]
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Vertices of a built-in mesh (saturating), for the memory guard.
+    fn vertices(&self) -> usize {
+        match &self.mesh {
             MeshSpec::Rectangle { n, diagonal, .. } => {
                 let crossed = usize::from(*diagonal == Diagonal::Crossed);
                 (n[0].saturating_add(1))
@@ -320,28 +392,127 @@ impl Case {
                     .saturating_add(crossed.saturating_mul(n[0].saturating_mul(n[1])))
             }
             MeshSpec::Lshape { n, .. } => n.saturating_add(2).saturating_mul(n.saturating_add(2)),
-            MeshSpec::File { .. } => return Ok(()),
-        };
-        crate::mesh::check_memory(vertices).map_err(|e| CaseError(format!("{}: mesh: {e}", self.origin)))
-    }
-
-    /// Builds or reads the mesh.
-    pub fn mesh(&self) -> Result<Mesh, CaseError> {
-        let named = |e: crate::mesh::MeshError| CaseError(format!("{}: mesh: {e}", self.origin));
-        match &self.file.mesh {
-            MeshSpec::Rectangle { corners, n, diagonal } => {
-                self.check_memory()?;
-                Mesh::rectangle(corners[0], corners[1], n[0], n[1], *diagonal).map_err(named)
-            }
-            MeshSpec::Lshape { n, diagonal, grading } => {
-                self.check_memory()?;
-                Mesh::l_shape(*n, *diagonal, *grading).map_err(named)
-            }
-            MeshSpec::File { path } => {
-                let path = self.base_dir.join(path);
-                crate::io::read_mesh(&path).map_err(|e| CaseError(e.to_string()))
-            }
+            MeshSpec::File { .. } => 0,
         }
+    }
+}
+
+impl Describe for Case {
+    fn attributes(&self) -> Vec<Attribute> {
+        vec![
+            (
+                "program",
+                Attr::Text(format!("membrane-contact {}", env!("CARGO_PKG_VERSION"))),
+            ),
+            ("case_origin", Attr::Text(self.origin.clone())),
+            ("case_text", Attr::Text(self.text.clone())),
+            ("title", Attr::Text(self.title.clone())),
+            ("mu1", self.data.mu1.into()),
+            ("mu2", self.data.mu2.into()),
+            ("quadrature_degree", self.data.quadrature.degree.into()),
+        ]
+    }
+}
+
+/// A TOML error on one line, with the line and column of the key or value it is about.
+fn toml_error(text: &str, e: &toml::de::Error) -> String {
+    let message = e.message().trim_end().replace('\n', " ");
+    match e.span() {
+        Some(span) => {
+            let before = &text[..span.start.min(text.len())];
+            let line = before.matches('\n').count() + 1;
+            let start = before.rfind('\n').map_or(0, |i| i + 1);
+            let column = before.len() - start + 1;
+            let source: String = text[start..]
+                .lines()
+                .next()
+                .unwrap_or("")
+                .chars()
+                .take(60)
+                .collect();
+            format!("line {line}, column {column} («{}»): {message}", source.trim())
+        }
+        None => message,
+    }
+}
+
+/// An expression of the case language; errors quote at most the first 60 characters.
+fn parse_expression(key: &str, e: &Expression) -> Result<Expr, String> {
+    let source = match e {
+        Expression::Number(v) => format!("{v:?}"),
+        Expression::Text(s) => s.clone(),
+    };
+    Expr::parse(&source).map_err(|error| {
+        let shown = match source.char_indices().nth(60) {
+            Some((i, _)) => format!("{}… ({} characters)", &source[..i], source.chars().count()),
+            None => source.clone(),
+        };
+        format!("key '{key}' = \"{shown}\": {error}")
+    })
+}
+
+/// The typed mesh of a `[mesh]` table: the keys its kind takes, checked.
+fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
+    let given = [
+        ("corners", t.corners.is_some()),
+        ("n", t.n.is_some()),
+        ("diagonal", t.diagonal.is_some()),
+        ("grading", t.grading.is_some()),
+        ("path", t.path.is_some()),
+    ];
+    let takes: &[&str] = match t.kind.as_str() {
+        "rectangle" => &["corners", "n", "diagonal"],
+        "lshape" => &["n", "diagonal", "grading"],
+        "file" => &["path"],
+        other => {
+            return Err(format!(
+                "key 'mesh.kind' = \"{other}\": the kinds are \"rectangle\", \"lshape\" and \"file\""
+            ))
+        }
+    };
+    if let Some((key, _)) = given.iter().find(|(k, set)| *set && !takes.contains(k)) {
+        return Err(format!(
+            "key 'mesh.{key}' does not apply to kind = \"{}\" (its keys: {})",
+            t.kind,
+            takes.join(", ")
+        ));
+    }
+    let diagonal = t.diagonal.unwrap_or(Diagonal::Right);
+    let need = |key: &str| format!("key 'mesh.{key}' is missing (kind = \"{}\")", t.kind);
+    match t.kind.as_str() {
+        "rectangle" => {
+            let n = match t.n.ok_or_else(|| need("n"))? {
+                Cells::Square(n) => [n, n],
+                Cells::Sides(n) => n,
+            };
+            if n[0] == 0 || n[1] == 0 {
+                return Err(format!("key 'mesh.n' = {n:?}: need at least one cell each way"));
+            }
+            let corners = t.corners.unwrap_or([[0.0, 0.0], [1.0, 1.0]]);
+            let [c0, c1] = corners;
+            let extent = [c1[0] - c0[0], c1[1] - c0[1]];
+            if !(extent.iter().all(|e| *e > 0.0 && e.is_finite())) {
+                return Err(format!(
+                    "key 'mesh.corners' = {corners:?}: need [[x0, y0], [x1, y1]] with x0 < x1, y0 < y1 and a finite extent"
+                ));
+            }
+            Ok(MeshSpec::Rectangle { corners, n, diagonal })
+        }
+        "lshape" => {
+            let n = match t.n.ok_or_else(|| need("n"))? {
+                Cells::Square(n) if n >= 2 => n,
+                Cells::Square(n) => return Err(format!("key 'mesh.n' = {n}: need at least 2")),
+                Cells::Sides(n) => return Err(format!("key 'mesh.n' = {n:?}: the L-shape takes one number")),
+            };
+            let grading = t.grading.unwrap_or(1.0);
+            if !(grading >= 1.0 && grading.is_finite()) {
+                return Err(format!("key 'mesh.grading' = {grading}: need a number ≥ 1"));
+            }
+            Ok(MeshSpec::Lshape { n, diagonal, grading })
+        }
+        _ => Ok(MeshSpec::File {
+            path: t.path.clone().ok_or_else(|| need("path"))?,
+        }),
     }
 }
 
@@ -368,5 +539,14 @@ mod tests {
         assert!(err(&base.replace("f1 = \"1\"", "f1 = \"1 +\"")).contains("key 'f1'"));
         assert!(err(&base.replace("g = 0\n", "")).contains("missing field `g`"));
         assert!(err(&base.replace("rectangle", "circle")).contains("circle"));
+        // Inside [mesh], errors point at the key's line, and keys of other kinds are refused.
+        let typo = err(&format!("{base}gradin = 2\n"));
+        assert!(
+            typo.contains("line 9, column 1 («gradin = 2»): unknown field `gradin`"),
+            "{typo}"
+        );
+        assert!(err(&format!("{base}grading = 2\n")).contains("'mesh.grading' does not apply"));
+        let long = err(&base.replace("f1 = \"1\"", &format!("f1 = \"{}+\"", "x+".repeat(10_000))));
+        assert!(long.len() < 300 && long.contains("20001 characters"), "{long}");
     }
 }

@@ -13,64 +13,33 @@
 //! for min(w_a, λ_a) = 0): A = {a : λ_a − c_a w_a > 0}, w = 0 on A, the equation off A, repeated
 //! until A no longer changes, which is then the exact solution of (3.4) up to round-off.
 
-use crate::assembly::{self, Quadrature, Stiffness};
-use crate::expr::Expr;
 use crate::linear::{Factorization, InteriorSystem};
 use crate::mesh::{Mesh, Prolongation};
+use crate::problem::{DataError, DiscreteProblem};
+use crate::result::{Attr, Attribute, Describe, Field, Place};
 use std::fmt;
 use std::sync::{Mutex, MutexGuard, OnceLock};
 use std::time::Instant;
 
-/// The data of problem (1.1): tensions, loads and the boundary height of membrane 1.
-#[derive(Debug, Clone)]
-pub struct Data {
-    pub mu1: f64,
-    pub mu2: f64,
-    pub f1: Expr,
-    pub f2: Expr,
-    pub g: Expr,
-    pub quadrature: Quadrature,
-}
-
-/// Why a discrete problem could not be set up or solved.
+/// Why the discrete problem could not be solved.
 #[derive(Debug, Clone, PartialEq)]
 pub enum SolveError {
-    Tension {
-        name: &'static str,
-        value: f64,
-    },
-    NotFinite {
-        name: &'static str,
-        point: [f64; 2],
-        value: f64,
-    },
-    NegativeBoundaryHeight {
-        point: [f64; 2],
-        value: f64,
-    },
+    /// The active-set method did not converge within the cap.
     IterationCap {
+        /// Iterations done.
         iterations: usize,
+        /// Vertices that changed in the last one.
         changed: usize,
     },
+    /// A factorization failed (cannot happen for a valid mesh; reported, not panicked).
     NotPositiveDefinite,
+    /// The data fail on a coarser mesh of nested iteration.
+    CoarseData(DataError),
 }
 
 impl fmt::Display for SolveError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            SolveError::Tension { name, value } => {
-                write!(f, "{name} = {value} must be a positive number")
-            }
-            SolveError::NotFinite { name, point, value } => write!(
-                f,
-                "{name} is {value} at ({}, {}): every datum must be finite in ω",
-                point[0], point[1]
-            ),
-            SolveError::NegativeBoundaryHeight { point, value } => write!(
-                f,
-                "g = {value} < 0 at the boundary vertex ({}, {}): the paper requires g ≥ 0 on ∂ω",
-                point[0], point[1]
-            ),
             SolveError::IterationCap { iterations, changed } => write!(
                 f,
                 "the active-set method did not converge in {iterations} iterations \
@@ -79,112 +48,35 @@ impl fmt::Display for SolveError {
             SolveError::NotPositiveDefinite => {
                 write!(f, "the stiffness matrix is not positive definite")
             }
+            SolveError::CoarseData(e) => write!(f, "on a coarser mesh of nested iteration: {e}"),
         }
     }
 }
 
 impl std::error::Error for SolveError {}
 
-/// The discrete problem (3.4) on one mesh: K, m_a, the loads and g_h.
-pub struct DiscreteProblem {
-    pub mesh: Mesh,
-    pub stiffness: Stiffness,
-    /// m_a = ∫φ_a.
-    pub mass: Vec<f64>,
-    /// (f1, φ_a) and (f2, φ_a) at every vertex.
-    pub load1: Vec<f64>,
-    pub load2: Vec<f64>,
-    /// g_h: g at the boundary vertices, 0 inside.
-    pub g_h: Vec<f64>,
-    pub mu1: f64,
-    pub mu2: f64,
-    pub setup_seconds: f64,
-}
-
-impl DiscreteProblem {
-    pub fn new(mesh: Mesh, data: &Data) -> Result<Self, SolveError> {
-        let start = Instant::now();
-        let g_h = boundary_values(&mesh, data)?;
-        let load = |name, f: &Expr| {
-            assembly::load(&mesh, f, data.quadrature).map_err(|e| SolveError::NotFinite {
-                name,
-                point: e.point,
-                value: e.value,
-            })
-        };
-        let load1 = load("f1", &data.f1)?;
-        let load2 = load("f2", &data.f2)?;
-        Ok(Self::with_loads(mesh, data, g_h, [load1, load2], start))
-    }
-
-    /// The problem on a coarser mesh with the loads restricted from a finer problem by Pᵀ: exactly
-    /// its own loads (with the finer quadrature) when the meshes are nested, and no quadrature to
-    /// evaluate. For the coarse levels of nested iteration, whose solutions are only guesses.
-    pub fn restricted(
-        mesh: Mesh,
-        data: &Data,
-        finer: &DiscreteProblem,
-        p: &Prolongation,
-    ) -> Result<Self, SolveError> {
-        let start = Instant::now();
-        let g_h = boundary_values(&mesh, data)?;
-        let loads = [p.restrict(&finer.load1), p.restrict(&finer.load2)];
-        Ok(Self::with_loads(mesh, data, g_h, loads, start))
-    }
-
-    fn with_loads(
-        mesh: Mesh,
-        data: &Data,
-        g_h: Vec<f64>,
-        [load1, load2]: [Vec<f64>; 2],
-        start: Instant,
-    ) -> Self {
-        let stiffness = Stiffness::assemble(&mesh);
-        let mass = assembly::lumped_mass(&mesh);
-        DiscreteProblem {
-            mesh,
-            stiffness,
-            mass,
-            load1,
-            load2,
-            g_h,
-            mu1: data.mu1,
-            mu2: data.mu2,
-            setup_seconds: start.elapsed().as_secs_f64(),
-        }
-    }
-}
-
-/// Checks μ1, μ2 > 0 and returns g_h: g at the boundary vertices (finite, ≥ 0), 0 inside.
-fn boundary_values(mesh: &Mesh, data: &Data) -> Result<Vec<f64>, SolveError> {
-    for (name, value) in [("mu1", data.mu1), ("mu2", data.mu2)] {
-        if !(value > 0.0 && value.is_finite()) {
-            return Err(SolveError::Tension { name, value });
-        }
-    }
-    let mut g_h = vec![0.0; mesh.n_vertices()];
-    for (a, p) in mesh.points.iter().enumerate() {
-        if mesh.on_boundary[a] {
-            let value = data.g.eval(p[0], p[1]);
-            if !value.is_finite() {
-                return Err(SolveError::NotFinite {
-                    name: "g",
-                    point: *p,
-                    value,
-                });
-            }
-            if value < 0.0 {
-                return Err(SolveError::NegativeBoundaryHeight { point: *p, value });
-            }
-            g_h[a] = value;
-        }
-    }
-    Ok(g_h)
+/// How the active-set method starts.
+#[derive(Debug, Clone, Copy)]
+pub enum Start<'a> {
+    /// From no contact.
+    Cold,
+    /// Nested iteration (grid sequencing): the obstacle problem on the coarser meshes passed to
+    /// [`solve`] first, each warm-starting the next, the last one prolonged onto this mesh.
+    Nested,
+    /// From the solution on another mesh of the same domain, interpolated (e.g. the previous
+    /// level of a study).
+    From {
+        /// The other mesh.
+        mesh: &'a Mesh,
+        /// Its obstacle solution.
+        obstacle: &'a Obstacle,
+    },
 }
 
 /// Options of the active-set method.
 #[derive(Debug, Clone, Copy)]
 pub struct SolverOptions {
+    /// Active-set iterations before giving up.
     pub max_iterations: usize,
 }
 
@@ -209,15 +101,24 @@ pub struct SolverStats {
     pub analyses: usize,
     /// Seconds in numeric factorizations and in triangular solves, summed over threads.
     pub numeric_seconds: f64,
+    /// Seconds in triangular solves, summed over threads.
     pub solve_seconds: f64,
     /// Wall-clock seconds of the whole solve (symbolic analysis included).
     pub wall_seconds: f64,
+    /// Numeric factorizations.
     pub factorizations: usize,
-    /// Active-set iterations of the local corrections, and their seconds.
+    /// Active-set iterations of the local corrections.
     pub local_iterations: usize,
+    /// Seconds of the local corrections.
     pub local_seconds: f64,
+    /// Interior unknowns of the obstacle problem.
     pub unknowns: usize,
+    /// Nonzeros of the Cholesky factor of K_II.
     pub factor_nnz: usize,
+    /// Active-set iterations on each coarser level of nested iteration, coarsest first.
+    pub coarse_iterations: Vec<usize>,
+    /// Wall-clock seconds of the coarser levels (all their phases), part of the solve.
+    pub coarse_seconds: f64,
 }
 
 /// The solution w of the obstacle problem, with its multiplier and contact set.
@@ -229,6 +130,7 @@ pub struct Obstacle {
     pub multiplier: Vec<f64>,
     /// Interior vertices where the membranes touch (the final active set).
     pub contact: Vec<bool>,
+    /// What the solver did.
     pub stats: SolverStats,
 }
 
@@ -236,45 +138,44 @@ pub struct Obstacle {
 /// the contact set and the solver statistics.
 #[derive(Debug, Clone)]
 pub struct Solution {
+    /// u1h at every vertex.
     pub u1: Vec<f64>,
+    /// u2h at every vertex.
     pub u2: Vec<f64>,
+    /// The obstacle problem's solution w = u1h − u2h, with its multiplier and contact set.
     pub obstacle: Obstacle,
 }
 
 /// An initial guess of the gap w and the multiplier λ at every vertex, e.g. a coarser mesh's
 /// solution interpolated here (nested iteration).
-#[derive(Debug, Clone)]
-pub struct Guess {
-    pub gap: Vec<f64>,
-    pub multiplier: Vec<f64>,
+struct Guess {
+    gap: Vec<f64>,
+    multiplier: Vec<f64>,
 }
 
 impl Guess {
-    /// The gap and multiplier on `coarse`, interpolated onto `fine`.
-    pub fn interpolate(fine: &Mesh, coarse: &Mesh, gap: &[f64], multiplier: &[f64]) -> Guess {
-        Guess::prolong(&Prolongation::new(fine, coarse), gap, multiplier)
-    }
-
-    /// The gap and multiplier of a coarser mesh, prolonged by `p`.
-    pub fn prolong(p: &Prolongation, gap: &[f64], multiplier: &[f64]) -> Guess {
+    /// The gap and multiplier of another mesh's solution, transferred by `p`.
+    fn prolong(p: &Prolongation, o: &Obstacle) -> Guess {
         Guess {
-            gap: p.apply(gap),
-            multiplier: p.apply(multiplier),
+            gap: p.apply(&o.gap),
+            multiplier: p.apply(&o.multiplier),
         }
     }
 }
 
 /// Solves (3.4): the Poisson problem for v on one thread while the obstacle problem for w runs on
 /// the other (they share the symbolic analysis), then u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w.
-/// `warm` gives the obstacle problem's initial guess; it runs on the w thread, so that e.g. the
-/// coarse levels of nested iteration overlap the symbolic analysis and the v solve.
-pub fn solve<E: From<SolveError>>(
+/// The guess of `start` is computed on the w thread, so that the coarser levels of nested
+/// iteration (on `coarser`, from fine to coarse; used by [`Start::Nested`] only) overlap the
+/// symbolic analysis and the v solve.
+pub fn solve(
     problem: &DiscreteProblem,
-    warm: impl FnOnce() -> Result<Option<Guess>, E>,
+    start: Start,
+    coarser: Vec<Mesh>,
     options: SolverOptions,
-) -> Result<Solution, E> {
-    let start = Instant::now();
-    let (mu1, mu2) = (problem.mu1, problem.mu2);
+) -> Result<Solution, SolveError> {
+    let clock = Instant::now();
+    let (mu1, mu2) = (problem.data.mu1, problem.data.mu2);
     let system = OnceLock::new();
     let turn = Mutex::new(());
     let analyse = || {
@@ -286,13 +187,8 @@ pub fn solve<E: From<SolveError>>(
         let (system, _) = system.get_or_init(analyse);
         // v: (μ1+μ2) K v = F1 + F2 inside, v = μ1 g_h/(μ1+μ2) on ∂ω.
         let bc: Vec<f64> = problem.g_h.iter().map(|g| mu1 * g / (mu1 + mu2)).collect();
-        let rhs = system_rhs(
-            system,
-            problem,
-            &|a| problem.load1[a] + problem.load2[a],
-            mu1 + mu2,
-            &bc,
-        );
+        let load = |a: usize| problem.load1[a] + problem.load2[a];
+        let rhs = system.lifted_rhs(&problem.stiffness, load, mu1 + mu2, &bc);
         let mut stats = SolverStats::default();
         let mut factor = system.factorization();
         let x = {
@@ -300,13 +196,24 @@ pub fn solve<E: From<SolveError>>(
             factorize(&mut factor, &vec![false; system.n()], &mut stats)?;
             solve_with(&mut factor, &rhs, &mut stats)
         };
-        Ok::<_, SolveError>((scatter(system, &x, &bc), stats))
+        Ok::<_, SolveError>((system.scatter(&x, &bc), stats))
     };
     let w_job = || {
-        warm().and_then(|guess| {
-            let (system, _) = system.get_or_init(analyse);
-            Ok(obstacle(problem, system, guess.as_ref(), options, Some(&turn))?)
-        })
+        let t = Instant::now();
+        let (guess, coarse_iterations) = match start {
+            Start::Cold => (None, Vec::new()),
+            Start::Nested => nested_guess(problem, coarser, options)?,
+            Start::From { mesh, obstacle } => {
+                let p = Prolongation::new(&problem.mesh, mesh);
+                (Some(Guess::prolong(&p, obstacle)), Vec::new())
+            }
+        };
+        let coarse_seconds = t.elapsed().as_secs_f64();
+        let (system, _) = system.get_or_init(analyse);
+        let mut w = obstacle(problem, system, guess.as_ref(), options, Some(&turn))?;
+        w.stats.coarse_iterations = coarse_iterations;
+        w.stats.coarse_seconds = coarse_seconds;
+        Ok::<_, SolveError>(w)
     };
     // With one core the two run one after the other: time-sliced, they share its cache (at 1024²
     // cells on one core, 7.3–8.7 s side by side against 6.2 s in turn).
@@ -327,7 +234,7 @@ pub fn solve<E: From<SolveError>>(
     stats.numeric_seconds += v_stats.numeric_seconds;
     stats.solve_seconds += v_stats.solve_seconds;
     stats.factorizations += v_stats.factorizations;
-    stats.wall_seconds = start.elapsed().as_secs_f64();
+    stats.wall_seconds = clock.elapsed().as_secs_f64();
     let (c1, c2) = (mu2 / (mu1 + mu2), mu1 / (mu1 + mu2));
     let w = &obstacle.gap;
     let u1 = v.iter().zip(w).map(|(v, w)| v + c1 * w).collect();
@@ -335,22 +242,31 @@ pub fn solve<E: From<SolveError>>(
     Ok(Solution { u1, u2, obstacle })
 }
 
-/// Solves the obstacle problem alone: μ* K w ≥ f_w, w ≥ 0 at interior vertices, w = g_h on ∂ω,
-/// with complementarity, by primal–dual active sets. With a `warm` guess the first active set is
-/// {λ_a − c_a w_a > 0} of the guess; without, the method starts from no contact. This is all a
-/// coarse level of nested iteration needs.
-pub fn solve_obstacle(
+/// Nested iteration: the obstacle problem on the `coarser` meshes (from fine to coarse), each
+/// level's loads restricted from the one above, solved from the coarsest up, each warm-started
+/// from the one below; the last one prolonged onto `problem`'s mesh is the guess. Returns it with
+/// the iterations of each level, coarsest first.
+fn nested_guess(
     problem: &DiscreteProblem,
-    warm: Option<&Guess>,
+    coarser: Vec<Mesh>,
     options: SolverOptions,
-) -> Result<Obstacle, SolveError> {
-    let start = Instant::now();
-    let system = InteriorSystem::new(&problem.stiffness, &problem.mesh.on_boundary);
-    let symbolic_seconds = start.elapsed().as_secs_f64();
-    let mut obstacle = obstacle(problem, &system, warm, options, None)?;
-    obstacle.stats.symbolic_seconds += symbolic_seconds;
-    obstacle.stats.wall_seconds = start.elapsed().as_secs_f64();
-    Ok(obstacle)
+) -> Result<(Option<Guess>, Vec<usize>), SolveError> {
+    // levels[k] and the prolongation from it to the next finer level (levels[k-1], or `problem`).
+    let mut levels: Vec<(DiscreteProblem, Prolongation)> = Vec::new();
+    for mesh in coarser {
+        let finer = levels.last().map_or(problem, |(p, _)| p);
+        let p = Prolongation::new(&finer.mesh, &mesh);
+        let coarse = finer.coarsened(mesh, &p).map_err(SolveError::CoarseData)?;
+        levels.push((coarse, p));
+    }
+    let (mut guess, mut iterations) = (None, Vec::new());
+    for (level, p) in levels.iter().rev() {
+        let system = InteriorSystem::new(&level.stiffness, &level.mesh.on_boundary);
+        let o = obstacle(level, &system, guess.as_ref(), options, None)?;
+        iterations.push(o.stats.iterations);
+        guess = Some(Guess::prolong(p, &o));
+    }
+    Ok((guess, iterations))
 }
 
 fn obstacle(
@@ -458,14 +374,15 @@ impl<'p> WProblem<'p> {
     fn new(problem: &'p DiscreteProblem) -> Self {
         WProblem {
             problem,
-            mu_star: problem.mu1 * problem.mu2 / (problem.mu1 + problem.mu2),
+            mu_star: problem.data.mu1 * problem.data.mu2 / (problem.data.mu1 + problem.data.mu2),
         }
     }
 
     /// (f_w, φ_a) = (μ2 (f1, φ_a) − μ1 (f2, φ_a))/(μ1+μ2).
     fn load(&self, a: usize) -> f64 {
         let p = self.problem;
-        (p.mu2 * p.load1[a] - p.mu1 * p.load2[a]) / (p.mu1 + p.mu2)
+        let (mu1, mu2) = (p.data.mu1, p.data.mu2);
+        (mu2 * p.load1[a] - mu1 * p.load2[a]) / (mu1 + mu2)
     }
 
     /// The active-set rule at vertex a: λ_a m_a − μ* K_aa w_a > 0 (i.e. λ_a > c_a w_a with
@@ -476,7 +393,7 @@ impl<'p> WProblem<'p> {
 
     /// The right-hand side of `system` with the values `bc` off its unknowns.
     fn rhs(&self, system: &InteriorSystem, bc: &[f64]) -> Vec<f64> {
-        system_rhs(system, self.problem, &|a| self.load(a), self.mu_star, bc)
+        system.lifted_rhs(&self.problem.stiffness, |a| self.load(a), self.mu_star, bc)
     }
 
     fn step(
@@ -488,7 +405,7 @@ impl<'p> WProblem<'p> {
         stats: &mut SolverStats,
     ) -> Step {
         let w_int = solve_with(factor, rhs, stats);
-        let w = scatter(system, &w_int, bc);
+        let w = system.scatter(&w_int, bc);
         let k = &self.problem.stiffness;
         let residual: Vec<f64> = (system.vertices.iter())
             .map(|&a| self.mu_star * k.row_dot(a, &w) - self.load(a))
@@ -615,34 +532,39 @@ fn solve_with(factor: &mut Factorization, b: &[f64], stats: &mut SolverStats) ->
     x
 }
 
-/// b/scale − K_{I,fixed} x_fixed for the unknowns I of `system`, x = `bc` off them.
-fn system_rhs(
-    system: &InteriorSystem,
-    problem: &DiscreteProblem,
-    load: &dyn Fn(usize) -> f64,
-    scale: f64,
-    bc: &[f64],
-) -> Vec<f64> {
-    system
-        .vertices
-        .iter()
-        .map(|&a| {
-            let lift: f64 = problem
-                .stiffness
-                .row(a)
-                .filter(|(b, _)| system.unknown[*b] == usize::MAX)
-                .map(|(b, v)| v * bc[b])
-                .sum();
-            load(a) / scale - lift
-        })
-        .collect()
-}
-
-/// The vertex field with interior values `x` and boundary values `bc`.
-fn scatter(system: &InteriorSystem, x: &[f64], bc: &[f64]) -> Vec<f64> {
-    let mut u = bc.to_vec();
-    for (i, &a) in system.vertices.iter().enumerate() {
-        u[a] = x[i];
+impl Describe for Solution {
+    fn fields(&self) -> Vec<Field<'_>> {
+        let contact = self
+            .obstacle
+            .contact
+            .iter()
+            .map(|&c| f64::from(u8::from(c)))
+            .collect();
+        vec![
+            Field::new("u1", Place::Vertices, &self.u1),
+            Field::new("u2", Place::Vertices, &self.u2),
+            Field::new("gap", Place::Vertices, &self.obstacle.gap),
+            Field::owned("contact", Place::Vertices, contact),
+        ]
     }
-    u
+
+    fn attributes(&self) -> Vec<Attribute> {
+        let st = &self.obstacle.stats;
+        let floats = |v: &[usize]| Attr::Floats(v.iter().map(|&i| i as f64).collect());
+        vec![
+            ("iterations", st.iterations.into()),
+            ("coarse_iterations", floats(&st.coarse_iterations)),
+            ("active_set_sizes", floats(&st.active_sizes)),
+            ("factorizations", st.factorizations.into()),
+            ("local_iterations", st.local_iterations.into()),
+            ("symbolic_analyses", st.analyses.into()),
+            ("factor_nnz", st.factor_nnz.into()),
+            ("seconds_local", st.local_seconds.into()),
+            ("seconds_coarse_levels", st.coarse_seconds.into()),
+            ("seconds_symbolic", st.symbolic_seconds.into()),
+            ("seconds_numeric", st.numeric_seconds.into()),
+            ("seconds_solve", st.solve_seconds.into()),
+            ("seconds_contact_solve", st.wall_seconds.into()),
+        ]
+    }
 }

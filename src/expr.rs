@@ -26,7 +26,9 @@ use std::fmt;
 /// A parse or type error, with the byte offset where it was found.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExprError {
+    /// The character where it was found.
     pub position: usize,
+    /// What is wrong.
     pub message: String,
 }
 

@@ -8,21 +8,44 @@
 //! u1 = g ≥ 0 and u2 = 0 on ∂ω.
 //! ```
 //!
-//! The data flow one way: [`case`] → [`mesh`] → [`assembly`] → [`contact`] (the reduced
-//! variational inequality (3.4)) → [`action`] (λ_h by the local postprocessing (4.5)) →
-//! [`flux`] (the H(div) reconstruction (4.13)) → [`norms`] → [`io`]. [`run`] strings them together;
-//! [`study`] repeats a run over refined meshes.
+//! The data flow one way: [`case`] → [`mesh`] → [`problem`] (the discrete problem (3.4), assembled
+//! by [`assembly`]) → [`contact`] (its solution, by [`linear`] solves) → [`action`] (λ_h by the local
+//! postprocessing (4.5)) → [`norms`] and [`flux`] (the H(div) reconstruction (4.13)) → [`result`],
+//! put in place whole by [`atomic`]. [`run`] strings them together; [`study`] repeats a run over
+//! refined meshes.
+//!
+//! ## Glossary: the paper's symbols and their names here
+//!
+//! | paper | here |
+//! |---|---|
+//! | μ1, μ2, f1, f2, g | `Data::{mu1, mu2, f1, f2, g}` |
+//! | T_h, ∂ω | `Mesh`, `Mesh::on_boundary` |
+//! | S_h, D_a (Section 4.2) | `DualMesh`, its cells with `DualMesh::owner` = a |
+//! | K_ab = ∫∇φ_b·∇φ_a | `DiscreteProblem::stiffness` |
+//! | m_a = ∫φ_a = meas(D_a) | `DiscreteProblem::mass` |
+//! | (f_i, φ_a) | `DiscreteProblem::{load1, load2}` |
+//! | g_h | `DiscreteProblem::g_h` |
+//! | u1h, u2h | `Solution::{u1, u2}` |
+//! | w = u1h − u2h | `gap` |
+//! | λ_a, λ_h (4.5) from membrane 1 (2) | `Action::lambda` (`lambda2`), the field `lambda` |
+//! | the contact set | `contact` |
+//! | t_ih (4.13) | `Flux`, the fields `t1_x`, `t1_y`, `div_t1`, … |
+//! | ‖λ − λ_h‖_H⁻¹ | `hminus1_lambda` (`--hminus1`) |
+
+#![warn(missing_docs)]
 
 pub mod action;
 pub mod assembly;
+pub mod atomic;
 pub mod case;
 pub mod contact;
 pub mod expr;
 pub mod flux;
-pub mod io;
 pub mod linear;
 pub mod mesh;
 pub mod norms;
+pub mod problem;
 mod quadrature_tables;
+pub mod result;
 pub mod run;
 pub mod study;

@@ -21,7 +21,7 @@ use faer::{Conj, MatMut, Par, Side};
 
 /// The interior block K_II (lower triangle, CSC in interior numbering) and its symbolic analysis.
 pub struct InteriorSystem {
-    /// Interior vertex of each unknown.
+    /// The vertex of each unknown, increasing.
     pub vertices: Vec<usize>,
     /// Unknown of each vertex (`usize::MAX` where the value is fixed).
     pub unknown: Vec<usize>,
@@ -80,8 +80,32 @@ impl InteriorSystem {
         }
     }
 
+    /// The number of unknowns.
     pub fn n(&self) -> usize {
         self.vertices.len()
+    }
+
+    /// The right-hand side of the Dirichlet problem scale·K u = load inside, u = bc off the
+    /// unknowns: load_a/scale − Σ_{b fixed} K_ab bc_b at each unknown a (the lift of bc).
+    pub fn lifted_rhs(&self, k: &Stiffness, load: impl Fn(usize) -> f64, scale: f64, bc: &[f64]) -> Vec<f64> {
+        (self.vertices.iter())
+            .map(|&a| {
+                let lift: f64 = (k.row(a))
+                    .filter(|(b, _)| self.unknown[*b] == usize::MAX)
+                    .map(|(b, v)| v * bc[b])
+                    .sum();
+                load(a) / scale - lift
+            })
+            .collect()
+    }
+
+    /// The vertex field with the values `x` at the unknowns and `bc` elsewhere.
+    pub fn scatter(&self, x: &[f64], bc: &[f64]) -> Vec<f64> {
+        let mut u = bc.to_vec();
+        for (i, &a) in self.vertices.iter().enumerate() {
+            u[a] = x[i];
+        }
+        u
     }
 
     /// Number of nonzeros in the Cholesky factor.
@@ -175,6 +199,19 @@ impl InteriorSystem {
             symbolic,
         })
     }
+}
+
+/// One Poisson solve with a Dirichlet lift: scale·K u = load at the vertices not `fixed`, u = bc
+/// at the fixed ones.
+pub fn dirichlet_solve(k: &Stiffness, fixed: &[bool], load: &[f64], scale: f64, bc: &[f64]) -> Vec<f64> {
+    let system = InteriorSystem::new(k, fixed);
+    let mut factor = system.factorization();
+    factor
+        .factorize(&vec![false; system.n()])
+        .expect("the stiffness matrix of a valid mesh is positive definite");
+    let mut x = system.lifted_rhs(k, |a| load[a], scale, bc);
+    factor.solve(&mut x);
+    system.scatter(&x, bc)
 }
 
 /// Graph steps between the free unknowns and those left out of the pattern of K_FF.

@@ -1,8 +1,10 @@
 //! The `membrane-contact` command line.
 
 use clap::{Parser, Subcommand};
-use membrane_contact::case::Case;
-use membrane_contact::run::{self, Start};
+use membrane_contact::case::{Case, CaseError};
+use membrane_contact::contact::Start;
+use membrane_contact::run;
+use membrane_contact::study::{self, StudyOptions};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -18,14 +20,16 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Solve one case and write NAME.h5 + NAME.xdmf (open the .xdmf in ParaView).
+    /// Solve one case and write its result directory (solution.h5, and solution.xdmf and dual.xdmf
+    /// for ParaView).
     Solve {
         /// Case file (TOML); the built-in default case when omitted.
         case: Option<PathBuf>,
-        /// Result file (.h5); default results/<case name>.h5.
+        /// The result directory; default results/<case name>. An existing one is replaced only by a
+        /// complete new result, and only if it is a result of this program.
         #[arg(short, long)]
         output: Option<PathBuf>,
-        /// Cells per side of a built-in mesh (overrides the case).
+        /// Cells per side of a built-in mesh (overrides the case; an error with a mesh file).
         #[arg(long)]
         n: Option<usize>,
         /// Start the active-set method from no contact instead of nested iteration.
@@ -59,15 +63,14 @@ enum Command {
         /// Largest level on which ‖λ − λh‖_H⁻¹ is computed.
         #[arg(long, default_value_t = 512)]
         hminus1_max: usize,
-        /// Output directory; default study/<case name>.
+        /// The study's result directory; default study/<case name>.
         #[arg(short, long)]
         output: Option<PathBuf>,
     },
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let result = match cli.command {
+    let result = match Cli::parse().command {
         Command::Solve {
             print_default: true, ..
         } => {
@@ -101,17 +104,30 @@ fn main() -> ExitCode {
     }
 }
 
-fn read_case(path: &Option<PathBuf>) -> Result<Case, Box<dyn std::error::Error>> {
+type Failure = Box<dyn std::error::Error>;
+
+fn read_case(path: &Option<PathBuf>) -> Result<(Case, String), Failure> {
     Ok(match path {
-        Some(p) => Case::read(p)?,
-        None => Case::default_case(),
+        Some(p) => {
+            let name = p
+                .file_stem()
+                .map_or("case".into(), |s| s.to_string_lossy().to_string());
+            (Case::read(p)?, name)
+        }
+        None => (Case::default_case(), "default".into()),
     })
 }
 
-fn case_name(path: &Option<PathBuf>) -> String {
-    path.as_ref()
-        .and_then(|p| p.file_stem())
-        .map_or("default".to_string(), |s| s.to_string_lossy().to_string())
+/// The given output directory, or `default/name` (creating `default`).
+fn output_dir(output: Option<PathBuf>, default: &str, name: &str) -> Result<PathBuf, Failure> {
+    match output {
+        Some(o) => Ok(o),
+        None => {
+            std::fs::create_dir_all(default)
+                .map_err(|e| format!("{default}: cannot create the directory: {e}"))?;
+            Ok(PathBuf::from(default).join(name))
+        }
+    }
 }
 
 fn solve(
@@ -121,40 +137,32 @@ fn solve(
     cold: bool,
     hminus1: bool,
     flux: bool,
-) -> Result<(), Box<dyn std::error::Error>> {
-    let mut case = read_case(&case_path)?;
+) -> Result<(), Failure> {
+    let (mut case, name) = read_case(&case_path)?;
     if let Some(n) = n {
-        if n == 0 {
-            return Err("--n must be at least 1".into());
-        }
-        case.set_cells(n);
+        case.set_cells(n)
+            .map_err(|e| CaseError(format!("--n {n}: {e}")))?;
     }
-    let output = match output {
-        Some(o) => o,
-        None => {
-            std::fs::create_dir_all("results")?;
-            PathBuf::from("results").join(format!("{}.h5", case_name(&case_path)))
-        }
-    };
-    match case.file.title.as_str() {
+    let output = output_dir(output, "results", &name)?;
+    if let Some(ext) = output.extension().filter(|e| *e == "h5" || *e == "xdmf") {
+        return Err(format!(
+            "{}: a result is a directory (solution.h5, solution.xdmf, dual.xdmf), not a .{} file: \
+             give a directory name",
+            output.display(),
+            ext.to_string_lossy()
+        )
+        .into());
+    }
+    match case.title.as_str() {
         "" => println!("case        {}", case.origin),
         title => println!("case        {} — {title}", case.origin),
     }
     let start = if cold { Start::Cold } else { Start::Nested };
-    let mut result = run::solve(&case, start, None)?;
-    if hminus1 {
-        result.compute_h_minus_1(&case);
-    }
-    if flux {
-        result.compute_flux();
-    }
-    let xdmf = result.write(&case, &output)?;
-    print!("{}", result.summary());
-    let sidecars: Vec<String> = xdmf.iter().map(|p| p.display().to_string()).collect();
+    let r = run::solve(&case, &run::Options { start, hminus1, flux }, &output)?;
+    print!("{}", r.summary());
     println!(
-        "result      {} — open {} in ParaView (Xdmf3 reader)",
-        output.display(),
-        sidecars.join(" and ")
+        "result      {0} — open {0}/solution.xdmf and {0}/dual.xdmf in ParaView (Xdmf3 reader)",
+        output.display()
     );
     Ok(())
 }
@@ -166,116 +174,22 @@ fn study(
     grading: Option<Vec<f64>>,
     hminus1_max: usize,
     output: Option<PathBuf>,
-) -> Result<(), Box<dyn std::error::Error>> {
-    use membrane_contact::io::write_atomic;
-    use membrane_contact::study::{self, StudyOptions};
-    let case = read_case(&case_path)?;
-    let name = case_name(&case_path);
+) -> Result<(), Failure> {
+    let (case, name) = read_case(&case_path)?;
     let levels = levels
-        .or_else(|| case.file.validation.as_ref().map(|v| v.sizes.clone()))
+        .or_else(|| case.validation_sizes.clone())
         .unwrap_or_else(|| vec![8, 16, 32, 64]);
-    if levels.is_empty() || levels.contains(&0) || levels.windows(2).any(|w| w[1] <= w[0]) {
-        return Err(format!("--levels must be increasing positive sizes, got {levels:?}").into());
-    }
-    if case.cells().is_none() {
-        return Err("a study needs a built-in mesh (rectangle or lshape), not a mesh file".into());
-    }
-    let dir = output.unwrap_or_else(|| PathBuf::from("study").join(&name));
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| format!("{}: cannot create the directory: {e}", dir.display()))?;
+    let dir = output_dir(output, "study", &name)?;
     let options = StudyOptions {
-        levels: levels.clone(),
+        levels,
         cold,
-        h_minus_1_max: hminus1_max,
+        hminus1_max,
+        grading,
     };
-    let variants: Vec<(String, Case)> = match grading {
-        None => vec![(String::new(), case.clone())],
-        Some(gs) => gs
-            .iter()
-            .map(|&g| {
-                let mut c = case.clone();
-                c.set_grading(g)?;
-                Ok((format!("grading {g}"), c))
-            })
-            .collect::<Result<_, membrane_contact::case::CaseError>>()?,
-    };
-    let mut markdown = format!("# Convergence study: {} ({})\n\n", case.file.title, case.origin);
-    let mut results = Vec::new();
-    for (label, c) in &variants {
-        let suffix = label
-            .strip_prefix("grading ")
-            .map_or(String::new(), |g| format!("-g{g}"));
-        let bar = indicatif::ProgressBar::new(levels.len() as u64);
-        bar.set_style(
-            indicatif::ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} levels {msg}")
-                .expect("a valid template"),
-        );
-        bar.set_prefix(format!("study {name} {label}"));
-        let result = study::run(c, &options, |_, l| {
-            bar.set_message(format!("{}²: {} iterations", l.cells, l.iterations));
-            bar.inc(1);
-        })?;
-        bar.finish_and_clear();
-        let title = if label.is_empty() {
-            name.clone()
-        } else {
-            format!("{name}, {label}")
-        };
-        let table = study::markdown(&title, &result);
-        println!("{table}");
-        markdown += &table;
-        markdown += "\n";
-        write_atomic(
-            &dir.join(format!("study{suffix}.csv")),
-            study::csv(&result).as_bytes(),
-        )?;
-        write_atomic(
-            &dir.join(format!("study{suffix}.json")),
-            serde_json::to_string_pretty(&result)?.as_bytes(),
-        )?;
-        write_drawn(&dir.join(format!("iterations{suffix}.png")), |p| {
-            study::plot_iterations(p, &format!("{title}: active-set iterations"), &result)
-        })?;
-        results.push((
-            if label.is_empty() {
-                name.clone()
-            } else {
-                label.clone()
-            },
-            result,
-        ));
-    }
-    let series: Vec<(String, &[study::Level])> =
-        results.iter().map(|(l, r)| (l.clone(), r.as_slice())).collect();
-    write_drawn(&dir.join("errors.png"), |p| {
-        study::plot_errors(p, &format!("{name}: errors"), &series)
-    })?;
-    markdown += "EOCs against h, and in parentheses against N^(−1/2) (N vertices). ‖λ−λh‖_H⁻¹ is the dual \
-                 norm over P1 functions on the dual submesh S_h (a lower bound converging to the true norm).\n\n\
-                 ![errors](errors.png)\n";
-    write_atomic(&dir.join("study.md"), markdown.as_bytes())?;
+    study::study(&case, &name, &options, &dir)?;
     println!(
         "study       {} (study.md, .csv, .json, errors.png, iterations*.png)",
         dir.display()
     );
-    Ok(())
-}
-
-/// Draws a file through a temporary path with the same extension, then renames it.
-fn write_drawn(
-    path: &std::path::Path,
-    draw: impl FnOnce(&std::path::Path) -> Result<(), String>,
-) -> Result<(), Box<dyn std::error::Error>> {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_string())
-        .unwrap_or_default();
-    let tmp = path.with_file_name(format!(".tmp-{}-{name}", std::process::id()));
-    let result =
-        draw(&tmp).and_then(|_| std::fs::rename(&tmp, path).map_err(|e| format!("{}: {e}", path.display())));
-    if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e.into());
-    }
     Ok(())
 }

@@ -2,63 +2,83 @@
 //! energy norm, ‖λ − λ_h‖_L² with λ_h piecewise constant on the dual cells (Remark 22), and a
 //! computable approximation of ‖λ − λ_h‖_H⁻¹ (Theorem 21).
 
-use crate::action::{Action, DualMesh};
+use crate::action::Action;
 use crate::assembly::{gradients, in_two_halves, Quadrature, Stiffness};
-use crate::case::Exact;
-use crate::contact::{DiscreteProblem, Solution};
+use crate::contact::Solution;
 use crate::expr::Expr;
-use crate::linear::InteriorSystem;
-use crate::mesh::Mesh;
+use crate::linear::dirichlet_solve;
+use crate::mesh::{DualMesh, Mesh};
+use crate::problem::DiscreteProblem;
+use crate::result::{Attribute, Describe, Field, Place};
 
 /// Degree of the rule used for error integrals (well above the P1 error's).
 const ERROR_QUADRATURE: Quadrature = Quadrature { degree: 10 };
 
+/// The exact solution of a case, for error norms.
+#[derive(Debug, Clone)]
+pub struct Exact {
+    /// u1.
+    pub u1: Expr,
+    /// u2.
+    pub u2: Expr,
+    /// λ.
+    pub lambda: Expr,
+    /// ∇u1 as [∂x, ∂y], for the H¹ error.
+    pub grad_u1: Option<[Expr; 2]>,
+    /// ∇u2 as [∂x, ∂y].
+    pub grad_u2: Option<[Expr; 2]>,
+}
+
+impl Exact {
+    /// u1, u2 and λ interpolated at the vertices, for comparison in ParaView.
+    pub fn fields(&self, mesh: &Mesh) -> Vec<Field<'static>> {
+        let at = |e: &Expr| mesh.points.iter().map(|p| e.eval(p[0], p[1])).collect();
+        vec![
+            Field::owned("u1_exact", Place::Vertices, at(&self.u1)),
+            Field::owned("u2_exact", Place::Vertices, at(&self.u2)),
+            Field::owned("lambda_exact", Place::Vertices, at(&self.lambda)),
+        ]
+    }
+}
+
 /// Errors of one discrete solution.
 #[derive(Debug, Clone, Default, serde::Serialize)]
 pub struct Errors {
+    /// ‖u1 − u1h‖_L².
     pub l2_u1: f64,
+    /// ‖u2 − u2h‖_L².
     pub l2_u2: f64,
-    /// |u1 − u1h|_H¹ and |u2 − u2h|_H¹ (NaN without exact gradients).
-    pub h1_u1: f64,
-    pub h1_u2: f64,
+    /// |u1 − u1h|_H¹ (without exact gradients: none).
+    pub h1_u1: Option<f64>,
+    /// |u2 − u2h|_H¹.
+    pub h1_u2: Option<f64>,
     /// (Σ μ_i |u_i − u_ih|²_H¹)^½.
-    pub energy: f64,
-    /// max over vertices of |u_i(a) − u_ih(a)|.
-    pub max_nodal_u: f64,
+    pub energy: Option<f64>,
     /// ‖λ − λ_h‖_L²(ω), λ_h = Σ_a λ_a χ_{D_a} (zero near ∂ω).
     pub l2_lambda: f64,
-    /// ‖λ − λ_h‖_H⁻¹(ω) by [`h_minus_1_lambda`] (NaN unless asked for: it costs a solve on S_h).
-    pub h_minus_1_lambda: f64,
+    /// ‖λ − λ_h‖_H⁻¹(ω) by [`hminus1_lambda`], when asked for (it costs a solve on S_h).
+    pub hminus1_lambda: Option<f64>,
 }
 
 impl Errors {
-    pub fn compute(problem: &DiscreteProblem, solution: &Solution, action: &Action, exact: &Exact) -> Errors {
+    /// The errors of `solution` and `action` against `exact`; with `hminus1`, the H⁻¹ norm too.
+    pub fn compute(
+        problem: &DiscreteProblem,
+        dual: &DualMesh,
+        solution: &Solution,
+        action: &Action,
+        exact: &Exact,
+        hminus1: bool,
+    ) -> Errors {
         let mesh = &problem.mesh;
         let (l2_u1, h1_u1) = p1_errors(mesh, &solution.u1, &exact.u1, exact.grad_u1.as_ref());
         let (l2_u2, h1_u2) = p1_errors(mesh, &solution.u2, &exact.u2, exact.grad_u2.as_ref());
-        let max_nodal_u = mesh
-            .points
-            .iter()
-            .enumerate()
-            .map(|(a, p)| {
-                let e1 = (exact.u1.eval(p[0], p[1]) - solution.u1[a]).abs();
-                let e2 = (exact.u2.eval(p[0], p[1]) - solution.u2[a]).abs();
-                e1.max(e2)
-            })
-            .fold(0.0, f64::max);
-        let dual = DualMesh::new(mesh);
-        let lambda_h = |a: usize| {
-            if mesh.on_boundary[a] {
-                0.0
-            } else {
-                action.lambda[a]
-            }
-        };
+        let lambda_h = action.on_dual_cells(dual);
         let l2_lambda: f64 = in_two_halves(dual.triangles.len(), |range| {
             let mut sum = 0.0;
             let corners = |t: usize| dual.triangles[t].map(|v| dual.points[v]);
             ERROR_QUADRATURE.visit(corners, range, [&exact.lambda], |t, points, [lambda]| {
-                let l = lambda_h(dual.owner[t]);
+                let l = lambda_h[t];
                 sum += points
                     .iter()
                     .zip(lambda)
@@ -69,26 +89,61 @@ impl Errors {
         })
         .iter()
         .sum();
+        let energy = h1_u1
+            .zip(h1_u2)
+            .map(|(e1, e2)| (problem.data.mu1 * e1 * e1 + problem.data.mu2 * e2 * e2).sqrt());
         Errors {
             l2_u1,
             l2_u2,
             h1_u1,
             h1_u2,
-            energy: (problem.mu1 * h1_u1 * h1_u1 + problem.mu2 * h1_u2 * h1_u2).sqrt(),
-            max_nodal_u,
+            energy,
             l2_lambda: l2_lambda.sqrt(),
-            h_minus_1_lambda: f64::NAN,
+            hminus1_lambda: hminus1.then(|| hminus1_lambda(dual, &lambda_h, &exact.lambda)),
         }
     }
 }
 
+impl Errors {
+    /// Whether every norm computed is a finite number.
+    pub fn all_finite(&self) -> bool {
+        [self.l2_u1, self.l2_u2, self.l2_lambda]
+            .into_iter()
+            .chain(
+                [self.h1_u1, self.h1_u2, self.energy, self.hminus1_lambda]
+                    .into_iter()
+                    .flatten(),
+            )
+            .all(f64::is_finite)
+    }
+}
+
+impl Describe for Errors {
+    fn attributes(&self) -> Vec<Attribute> {
+        let mut attrs = vec![
+            ("error_l2_u1", self.l2_u1.into()),
+            ("error_l2_u2", self.l2_u2.into()),
+            ("error_l2_lambda", self.l2_lambda.into()),
+        ];
+        for (name, value) in [
+            ("error_h1_u1", self.h1_u1),
+            ("error_h1_u2", self.h1_u2),
+            ("error_energy", self.energy),
+            ("error_hminus1_lambda", self.hminus1_lambda),
+        ] {
+            attrs.extend(value.map(|v| (name, v.into())));
+        }
+        attrs
+    }
+}
+
 /// (‖u − u_h‖_L², |u − u_h|_H¹) for a P1 field u_h.
-fn p1_errors(mesh: &Mesh, uh: &[f64], u: &Expr, grad: Option<&[Expr; 2]>) -> (f64, f64) {
+fn p1_errors(mesh: &Mesh, uh: &[f64], u: &Expr, grad: Option<&[Expr; 2]>) -> (f64, Option<f64>) {
     let [first, second] = in_two_halves(mesh.triangles.len(), |range| {
         p1_error_sums(mesh, uh, u, grad, range)
     });
     let (l2, h1) = (first.0 + second.0, first.1 + second.1);
-    (l2.sqrt(), if grad.is_some() { h1.sqrt() } else { f64::NAN })
+    (l2.sqrt(), grad.map(|_| h1.sqrt()))
 }
 
 /// ∫ (u − u_h)² and ∫ |∇(u − u_h)|² over the triangles in `range`.
@@ -124,26 +179,16 @@ fn p1_error_sums(
 /// ‖λ − λ_h‖_H⁻¹(ω), approximated by the dual norm over P1 functions on the dual submesh S_h
 /// (mesh size about h/2): sup_{v ∈ P1_0(S_h)} (λ − λ_h, v)/|v|_H¹ = |z|_H¹ with z ∈ P1_0(S_h),
 /// (∇z, ∇v) = (λ − λ_h, v). A lower bound of the true norm that converges to it; λ_h is constant on
-/// each sub-triangle, so the integrals are exact up to the quadrature of λ.
-pub fn h_minus_1_lambda(mesh: &Mesh, action: &Action, lambda: &Expr) -> f64 {
-    let dual = DualMesh::new(mesh);
-    let lambda_h: Vec<f64> = dual
-        .owner
-        .iter()
-        .map(|&a| {
-            if mesh.on_boundary[a] {
-                0.0
-            } else {
-                action.lambda[a]
-            }
-        })
-        .collect();
-    let sub = Mesh::new(dual.points, dual.triangles).expect("the dual submesh of a valid mesh is valid");
+/// each sub-triangle (`lambda_h` by cell of S_h), so the integrals are exact up to the quadrature of
+/// λ.
+pub fn hminus1_lambda(dual: &DualMesh, lambda_h: &[f64], lambda: &Expr) -> f64 {
+    let sub = Mesh::new(dual.points.clone(), dual.triangles.clone())
+        .expect("the dual submesh of a valid mesh is valid");
     dual_norm(&sub, lambda, |t| lambda_h[t])
 }
 
 /// sup over v ∈ P1_0(mesh) of (r, v)/|v|_H¹ for r = f − c_t on each triangle t.
-pub fn dual_norm(mesh: &Mesh, f: &Expr, c: impl Fn(usize) -> f64) -> f64 {
+pub(crate) fn dual_norm(mesh: &Mesh, f: &Expr, c: impl Fn(usize) -> f64) -> f64 {
     let k = Stiffness::assemble(mesh);
     let mut b = vec![0.0; mesh.n_vertices()];
     let corners = |t| mesh.corners(t);
@@ -155,20 +200,10 @@ pub fn dual_norm(mesh: &Mesh, f: &Expr, c: impl Fn(usize) -> f64) -> f64 {
             }
         }
     });
-    let system = InteriorSystem::new(&k, &mesh.on_boundary);
-    let mut factor = system.factorization();
-    factor
-        .factorize(&vec![false; system.n()])
-        .expect("the stiffness matrix of a valid mesh is positive definite");
-    let rhs: Vec<f64> = system.vertices.iter().map(|&a| b[a]).collect();
-    let mut z = rhs.clone();
-    factor.solve(&mut z);
-    rhs.iter()
-        .zip(&z)
-        .map(|(b, z)| b * z)
-        .sum::<f64>()
-        .max(0.0)
-        .sqrt()
+    let zero = vec![0.0; mesh.n_vertices()];
+    let z = dirichlet_solve(&k, &mesh.on_boundary, &b, 1.0, &zero);
+    // |z|²_H¹ = (r, z): z vanishes on ∂ω, where b is not an equation.
+    b.iter().zip(&z).map(|(b, z)| b * z).sum::<f64>().max(0.0).sqrt()
 }
 
 #[cfg(test)]

@@ -21,18 +21,24 @@ const GOOD: &str = "mu1 = 1.0\nmu2 = 2.0\nf1 = -5\nf2 = 5\ng = \"0.1*x\"\n";
 const SQUARE: &str = "[mesh]\nkind = \"rectangle\"\nn = [6, 6]\n";
 const EARLIER: &[u8] = b"an earlier result";
 
+/// An earlier result directory `out` in `dir`, as the program marks its results.
+fn earlier_result(dir: &Path) -> PathBuf {
+    let out = dir.join("out");
+    std::fs::create_dir(&out).unwrap();
+    std::fs::write(out.join(".membrane-contact"), "membrane-contact solution\n").unwrap();
+    std::fs::write(out.join("solution.h5"), EARLIER).unwrap();
+    out
+}
+
 /// Runs `solve` on `case_text` (with mesh files written by `setup`) into a directory holding an
-/// earlier `out.h5`; checks the failure and returns stderr.
+/// earlier result `out`; checks the failure and returns stderr.
 fn fails(case_text: &str, setup: impl Fn(&Path), extra: &[&str], output: Option<PathBuf>) -> String {
     let dir = tempfile::tempdir().unwrap();
     setup(dir.path());
     let case = dir.path().join("case.toml");
     std::fs::write(&case, case_text).unwrap();
-    let out = output.unwrap_or_else(|| dir.path().join("out.h5"));
-    let ours = out.parent() == Some(dir.path());
-    if ours {
-        std::fs::write(&out, EARLIER).unwrap();
-    }
+    let earlier = earlier_result(dir.path());
+    let out = output.unwrap_or_else(|| earlier.clone());
     let before = listing(dir.path());
     let run = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
         .arg("solve")
@@ -42,16 +48,18 @@ fn fails(case_text: &str, setup: impl Fn(&Path), extra: &[&str], output: Option<
         .args(extra));
     let stderr = String::from_utf8_lossy(&run.stderr).to_string();
     assert_eq!(run.status.code(), Some(1), "exit status; stderr: {stderr}");
-    assert!(stderr.starts_with("error: "), "{stderr}");
+    assert!(
+        stderr.starts_with("error: ") && stderr.lines().count() == 1,
+        "{stderr}"
+    );
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert_eq!(listing(dir.path()), before, "files were left behind or removed");
-    if ours {
-        assert_eq!(
-            std::fs::read(&out).unwrap(),
-            EARLIER,
-            "the earlier result was touched"
-        );
-    }
+    assert_eq!(listing(&earlier), [".membrane-contact", "solution.h5"]);
+    assert_eq!(
+        std::fs::read(earlier.join("solution.h5")).unwrap(),
+        EARLIER,
+        "the earlier result was touched"
+    );
     stderr
 }
 
@@ -114,7 +122,7 @@ fn the_good_case_runs_and_file_meshes_work() {
     write_mesh(&dir.path().join("mesh.h5"), &p, &c);
     for mesh in [SQUARE, "[mesh]\nkind = \"file\"\npath = \"mesh.h5\"\n"] {
         std::fs::write(dir.path().join("case.toml"), format!("{GOOD}{mesh}")).unwrap();
-        let out = dir.path().join("good.h5");
+        let out = dir.path().join("good");
         let run = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact")).args([
             "solve",
             dir.path().join("case.toml").to_str().unwrap(),
@@ -122,10 +130,9 @@ fn the_good_case_runs_and_file_meshes_work() {
             out.to_str().unwrap(),
         ]));
         assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-        assert!(
-            out.exists()
-                && dir.path().join("good.xdmf").exists()
-                && dir.path().join("good-dual.xdmf").exists()
+        assert_eq!(
+            listing(&out),
+            [".membrane-contact", "dual.xdmf", "solution.h5", "solution.xdmf"]
         );
     }
 }
@@ -155,14 +162,18 @@ fn wrong_type() {
 
 #[test]
 fn invalid_toml() {
-    contains(&case_fails("mu1 = = 1\n"), "TOML parse error");
+    contains(&case_fails("mu1 = = 1\n"), "line 1, column 7 («mu1 = = 1»): ");
 }
 
 #[test]
 fn missing_case_file() {
     let dir = tempfile::tempdir().unwrap();
-    let run = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
-        .args(["solve", dir.path().join("nope.toml").to_str().unwrap()]));
+    let run = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact")).args([
+        "solve",
+        dir.path().join("nope.toml").to_str().unwrap(),
+        "-o",
+        dir.path().join("out").to_str().unwrap(),
+    ]));
     assert_eq!(run.status.code(), Some(1));
     contains(&String::from_utf8_lossy(&run.stderr), "cannot read the case file");
 }
@@ -187,6 +198,10 @@ fn negative_tension() {
 fn negative_boundary_height() {
     let e = case_fails(&format!("{}{SQUARE}", GOOD.replace("0.1*x", "0.1*x - 0.05")));
     contains(&e, "g = -0.05 < 0 at the boundary vertex (0, 0)");
+    contains(
+        &e,
+        "g_h, the interpolant of g, which must be ≥ 0 at every boundary vertex of the mesh",
+    );
 }
 
 #[test]
@@ -369,7 +384,7 @@ fn vertex_index_out_of_range() {
 #[test]
 fn output_directory_missing() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("absent").join("out.h5");
+    let out = dir.path().join("absent").join("out");
     let e = fails(&format!("{GOOD}{SQUARE}"), |_| {}, &[], Some(out));
     contains(&e, "does not exist");
 }
@@ -381,9 +396,9 @@ fn output_not_writable() {
         &format!("{GOOD}{SQUARE}"),
         |_| {},
         &[],
-        Some(PathBuf::from("/proc/membrane-contact.h5")),
+        Some(PathBuf::from("/proc/membrane-contact")),
     );
-    contains(&e, "/proc/membrane-contact.h5");
+    contains(&e, "/proc/membrane-contact");
 }
 
 #[test]
@@ -392,13 +407,13 @@ fn two_runs_write_identical_datasets() {
     let dir = tempfile::tempdir().unwrap();
     let mut files = Vec::new();
     let bin = env!("CARGO_BIN_EXE_membrane-contact");
-    for (name, pin) in [("a.h5", &[][..]), ("b.h5", &["taskset", "-c", "0"][..])] {
+    for (name, pin) in [("a", &[][..]), ("b", &["taskset", "-c", "0"][..])] {
         let out = dir.path().join(name);
         let args = [bin, "solve", "--n", "24", "-o", out.to_str().unwrap()];
         let command: Vec<&str> = pin.iter().chain(&args).copied().collect();
         let run = run(Command::new(command[0]).args(&command[1..]));
         assert!(run.status.success());
-        files.push(hdf5::File::open(&out).unwrap());
+        files.push(hdf5::File::open(out.join("solution.h5")).unwrap());
     }
     let mut compared = 0;
     for group in ["mesh", "dual"] {
@@ -416,4 +431,221 @@ fn two_runs_write_identical_datasets() {
         }
     }
     assert!(compared >= 12);
+}
+
+// Reproductions of issue 10: each a clear error or a correct result.
+
+#[test]
+fn output_named_like_a_file_is_refused() {
+    let e = fails(
+        &format!("{GOOD}{SQUARE}"),
+        |_| {},
+        &[],
+        Some(PathBuf::from("out.xdmf")),
+    );
+    contains(&e, "a result is a directory");
+}
+
+#[test]
+fn an_input_is_never_an_output() {
+    // The case file itself: it exists and is not a result.
+    let dir = tempfile::tempdir().unwrap();
+    let case = dir.path().join("case.toml");
+    std::fs::write(&case, format!("{GOOD}{SQUARE}")).unwrap();
+    let e = fails(&format!("{GOOD}{SQUARE}"), |_| {}, &[], Some(case.clone()));
+    contains(&e, "is not a result of membrane-contact");
+    // A mesh file inside the earlier result the run would replace.
+    let e = fails(
+        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"out/solution.h5\"\n"),
+        |_| {},
+        &[],
+        None,
+    );
+    assert!(
+        e.contains("an input of this run") || e.contains("not a readable HDF5"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_case_inside_the_result_it_would_replace_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = earlier_result(dir.path());
+    let case = out.join("case.toml");
+    std::fs::write(&case, format!("{GOOD}{SQUARE}")).unwrap();
+    let run = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .arg("solve")
+        .arg(&case)
+        .arg("-o")
+        .arg(&out));
+    assert_eq!(run.status.code(), Some(1));
+    contains(&String::from_utf8_lossy(&run.stderr), "an input of this run");
+    assert!(case.exists() && std::fs::read(out.join("solution.h5")).unwrap() == EARLIER);
+}
+
+#[test]
+fn data_beyond_double_precision_fail() {
+    for data in [
+        GOOD.replace("mu1 = 1.0", "mu1 = 1e300"),
+        GOOD.replace("\"0.1*x\"", "1e300"),
+    ] {
+        contains(
+            &case_fails(&format!("{data}{SQUARE}")),
+            "not resolved in double precision",
+        );
+    }
+}
+
+#[test]
+fn a_mesh_covering_its_domain_twice_is_refused() {
+    // Sixteen triangles around vertex 0 winding 4π: the second turn at radius 2.
+    let mut p = vec![[0.0, 0.0]];
+    for k in 0..16 {
+        let (r, t) = (
+            if k < 8 { 1.0 } else { 2.0 },
+            k as f64 * std::f64::consts::FRAC_PI_4,
+        );
+        p.push([r * t.cos(), r * t.sin()]);
+    }
+    let c: Vec<[i64; 3]> = (0..16).map(|k| [0, 1 + k, 1 + (k + 1) % 16]).collect();
+    contains(
+        &mesh_fails(&p, &c),
+        "turn 2.000 times around it: the mesh overlaps itself",
+    );
+}
+
+#[test]
+fn crossing_boundaries_are_refused() {
+    // A spiral strip of three rings of vertices, turning 2.2π: every vertex turns once, but the
+    // end of the strip lies over its start, so its boundary edges cross.
+    let (rings, steps) = (3, 14);
+    let mut p = Vec::new();
+    for k in 0..=steps {
+        let t = k as f64 * std::f64::consts::PI / 6.3;
+        for j in 0..rings {
+            let r = (1.0 + 0.5 * j as f64) * (1.0 + 0.02 * t);
+            p.push([r * t.cos(), r * t.sin()]);
+        }
+    }
+    let mut c = Vec::new();
+    for k in 0..steps as i64 {
+        for j in 0..rings as i64 - 1 {
+            let (a, b) = (k * 3 + j, (k + 1) * 3 + j);
+            c.extend([[a, b, b + 1], [a, b + 1, a + 1]]);
+        }
+    }
+    contains(
+        &mesh_fails(&p, &c),
+        "meet away from a shared vertex: the mesh overlaps itself",
+    );
+}
+
+#[test]
+fn g_is_checked_where_it_enters_the_problem() {
+    // cos(16πx) ≥ 0 at the boundary vertices of 8 × 8 cells, not of 12 × 12: the message says that
+    // the vertex values of g_h are what is checked.
+    let case = format!("{}{SQUARE}", GOOD.replace("\"0.1*x\"", "\"cos(16*pi*x)\""));
+    let e = fails(&case, |_| {}, &["--n", "12"], None);
+    contains(&e, "at the boundary vertex");
+    contains(&e, "g_h, the interpolant of g");
+}
+
+#[test]
+fn fractional_vertex_indices_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let (p, c) = fan();
+    let _guard = FILES.lock().unwrap_or_else(|e| e.into_inner());
+    let f = hdf5::File::create(dir.path().join("mesh.h5")).unwrap();
+    let pa = ndarray::Array2::from_shape_fn((p.len(), 2), |(i, k)| p[i][k]);
+    let mut ca = ndarray::Array2::from_shape_fn((c.len(), 3), |(i, k)| c[i][k] as f64);
+    ca[[0, 2]] = 4.7;
+    f.new_dataset_builder()
+        .with_data(&pa)
+        .create("/mesh/geometry")
+        .unwrap();
+    f.new_dataset_builder()
+        .with_data(&ca)
+        .create("/mesh/topology")
+        .unwrap();
+    drop(f);
+    drop(_guard);
+    let bytes = std::fs::read(dir.path().join("mesh.h5")).unwrap();
+    let e = fails(
+        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"mesh.h5\"\n"),
+        move |d| std::fs::write(d.join("mesh.h5"), &bytes).unwrap(),
+        &[],
+        None,
+    );
+    contains(&e, "cell 0 has the vertex index 4.7");
+}
+
+#[test]
+fn xdmf_dimensions_must_match_the_data() {
+    let e = fails(
+        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"mesh.xdmf\"\n"),
+        |d| {
+            let (p, c) = fan();
+            write_mesh(&d.join("mesh.h5"), &p, &c);
+            let xdmf = "<Xdmf><Domain><Grid><Topology TopologyType=\"Triangle\"><DataItem Dimensions=\"4 3\" Format=\"HDF\">mesh.h5:/mesh/topology</DataItem></Topology><Geometry GeometryType=\"XY\"><DataItem Dimensions=\"9 2\" Format=\"HDF\">mesh.h5:/mesh/geometry</DataItem></Geometry></Grid></Domain></Xdmf>";
+            std::fs::write(d.join("mesh.xdmf"), xdmf).unwrap();
+        },
+        &[],
+        None,
+    );
+    contains(&e, "declares Dimensions [9, 2], but the dataset has 5 rows");
+}
+
+#[test]
+fn unknown_mesh_file_extension_names_the_accepted_ones() {
+    let e = fails(
+        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"mesh.msh\"\n"),
+        |d| std::fs::write(d.join("mesh.msh"), "$MeshFormat\n").unwrap(),
+        &[],
+        None,
+    );
+    contains(&e, "unknown mesh file extension 'msh'");
+    contains(&e, ".xdmf");
+}
+
+#[test]
+fn cells_per_side_do_not_apply_to_a_mesh_file() {
+    let (p, c) = fan();
+    let e = fails(
+        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"mesh.h5\"\n"),
+        move |d| write_mesh(&d.join("mesh.h5"), &p, &c),
+        &["--n", "8"],
+        None,
+    );
+    contains(&e, "--n 8:");
+    contains(&e, "read from a file");
+}
+
+#[test]
+fn a_nan_exact_solution_is_refused() {
+    let exact = "[exact]\nu1 = \"sqrt(x - 0.5)\"\nu2 = 0\nlambda = 0\n";
+    contains(
+        &case_fails(&format!("{GOOD}{exact}{SQUARE}")),
+        "key 'exact.u1' is NaN at the vertex",
+    );
+}
+
+#[test]
+fn extreme_mesh_keys_are_named() {
+    let e = case_fails(&format!(
+        "{GOOD}[mesh]\nkind = \"rectangle\"\nn = [6, 6]\ncorners = [[0.0, 0.0], [1e-300, 1e-300]]\n"
+    ));
+    contains(&e, "[mesh] corners = ");
+    let e = case_fails(&format!(
+        "{GOOD}[mesh]\nkind = \"lshape\"\nn = 8\ngrading = 2000\n"
+    ));
+    contains(&e, "grading = 2000");
+}
+
+#[test]
+fn oversized_case_files_are_refused() {
+    let title = "x".repeat(2 << 20);
+    contains(
+        &case_fails(&format!("title = \"{title}\"\n{GOOD}{SQUARE}")),
+        "at most 1048576 are read",
+    );
 }

@@ -6,7 +6,7 @@ use membrane_contact::case::Case;
 fuzz_target!(|data: &[u8]| {
     if let Ok(text) = std::str::from_utf8(data) {
         if let Ok(case) = Case::parse(text, "fuzz", std::path::PathBuf::new()) {
-            let _ = case.check_memory();
+            let _ = case.inputs();
         }
     }
 });

@@ -2,8 +2,8 @@
 //! reason, never a panic; an accepted mesh supports interpolation and the dual submesh.
 #![no_main]
 use libfuzzer_sys::fuzz_target;
-use membrane_contact::action::DualMesh;
-use membrane_contact::mesh::Mesh;
+use membrane_contact::mesh::DualMesh;
+use membrane_contact::mesh::{Mesh, Prolongation};
 
 fuzz_target!(|data: &[u8]| {
     let Some((&count, rest)) = data.split_first() else { return };
@@ -22,7 +22,7 @@ fuzz_target!(|data: &[u8]| {
         .collect();
     if let Ok(mesh) = Mesh::new(points, triangles) {
         let ones = vec![1.0; mesh.n_vertices()];
-        let back = mesh.interpolate_from(&mesh, &ones);
+        let back = Prolongation::new(&mesh, &mesh).apply(&ones);
         assert!(back.iter().all(|v| (v - 1.0).abs() < 1e-9));
         let dual = DualMesh::new(&mesh);
         assert_eq!(dual.triangles.len(), 6 * mesh.triangles.len());

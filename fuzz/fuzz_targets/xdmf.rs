@@ -22,5 +22,5 @@ fn dir() -> &'static std::path::Path {
 fuzz_target!(|data: &[u8]| {
     let path = dir().join("m.xdmf");
     std::fs::write(&path, data).unwrap();
-    let _ = membrane_contact::io::read_mesh(&path);
+    let _ = membrane_contact::mesh::file::read(&path);
 });

@@ -1,0 +1,177 @@
+"""What every part of the reference shares: result files, vertex matching, lumped masses, case data.
+
+A Rust result is the directory written by `membrane-contact solve ... -o DIR`: DIR/solution.h5
+(read here), DIR/solution.xdmf and DIR/dual.xdmf (read by ParaView in paraview_check). The
+reference's own files (reference-N.h5, mixed-N.h5) hold /mesh/{geometry, topology} and vertex
+fields under /mesh in the Rust vertex order, the case text and a summary as attributes of `/`.
+"""
+import os
+import tomllib
+
+import h5py
+import numpy as np
+
+from . import expr
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+VERTEX_FIELDS = ("u1", "u2", "gap", "lambda", "lambda2", "contact")
+EXACT_FIELDS = ("u1_exact", "u2_exact", "lambda_exact")
+FLUX_FIELDS = ("t1_x", "t1_y", "div_t1", "t2_x", "t2_y", "div_t2")
+# Error norms: the attribute `error_<key>` of a Rust result and of a reference file.
+ERROR_KEYS = ("l2_u1", "l2_u2", "h1_u1", "h1_u2", "energy", "l2_lambda", "hminus1_lambda")
+
+
+def read_result(path):
+    """Everything of a Rust result directory (or its solution.h5) that the reference uses:
+    mesh and vertex fields, the dual submesh S_h with its cell fields, the case and the attributes."""
+    h5 = os.path.join(path, "solution.h5") if os.path.isdir(path) else path
+    with h5py.File(h5, "r") as f:
+        mesh, dual = f["mesh"], f["dual"]
+        out = {
+            "path": path,
+            "points": mesh["geometry"][...],
+            "cells": mesh["topology"][...].astype(np.int64),
+            "dual_points": dual["geometry"][...],
+            "dual_cells": dual["topology"][...].astype(np.int64),
+            "dual_owner": dual["vertex"][...].astype(np.int64),
+            "dual_lambda": dual["lambda"][...],
+            "attrs": {k: f.attrs[k] for k in f.attrs},
+        }
+        out.update({k: mesh[k][...] for k in VERTEX_FIELDS + EXACT_FIELDS if k in mesh})
+        out.update({k: dual[k][...] for k in FLUX_FIELDS if k in dual})
+    out["case_text"] = str(out["attrs"]["case_text"])
+    out["case"] = tomllib.loads(out["case_text"])
+    return out
+
+
+def rust_errors(result):
+    """{key: value} of the error norms a Rust result holds (NaN where not computed)."""
+    return {k: float(result["attrs"]["error_" + k]) for k in ERROR_KEYS if "error_" + k in result["attrs"]}
+
+
+def write_reference(path, result, fields, attrs):
+    """Writes vertex fields on the mesh of a Rust result through a temporary file renamed at the end."""
+    tmp = path + ".tmp"
+    with h5py.File(tmp, "w") as f:
+        f["mesh/geometry"] = result["points"]
+        f["mesh/topology"] = result["cells"]
+        for k, v in fields.items():
+            f["mesh/" + k] = v
+        f.attrs["case_text"] = result["case_text"]
+        for k, v in attrs.items():
+            f.attrs[k] = v
+    os.replace(tmp, path)
+
+
+def read_reference(path):
+    """A file written by `write_reference`: {"points", "cells", "attrs", field: values}."""
+    with h5py.File(path, "r") as f:
+        out = {k: f["mesh/" + k][...] for k in f["mesh"]}
+        out["points"], out["cells"] = out.pop("geometry"), out.pop("topology")
+        out["attrs"] = {k: f.attrs[k] for k in f.attrs}
+    return out
+
+
+def match_points(a, b):
+    """perm with b[perm[i]] == a[i] (to round-off): rows of a found among rows of b (x, y only)."""
+    scale = max(np.abs(a).max(), np.abs(b).max(), 1.0)
+    ka = np.round(a[:, :2] / scale, 9)
+    kb = np.round(b[:, :2] / scale, 9)
+    lookup = {tuple(r): i for i, r in enumerate(kb)}
+    try:
+        return np.array([lookup[tuple(r)] for r in ka])
+    except KeyError as e:
+        raise RuntimeError("point %s not found in the other mesh" % (e,)) from None
+
+
+def areas(points, cells):
+    """Areas of triangles."""
+    p = points[cells]
+    return 0.5 * np.abs((p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1])
+                        - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0]))
+
+
+def lumped_mass(points, cells):
+    """m_a = int phi_a = |D_a| at every vertex."""
+    m = np.zeros(len(points))
+    np.add.at(m, cells.ravel(), np.repeat(areas(points, cells) / 3.0, 3))
+    return m
+
+
+def quadrature_degree(case):
+    """The degree of the load rule (case key quadrature.degree, default 4 as in the Rust code)."""
+    return int(case.get("quadrature", {}).get("degree", 4))
+
+
+def at_points(source, points):
+    """A case expression (string or number) at points (N x >= 2), as a NumPy array."""
+    return expr.to_numpy(expr.parse(source), points[:, 0], points[:, 1])
+
+
+def as_ufl(source, domain):
+    """A case expression (string or number) as UFL of the spatial coordinate of `domain`."""
+    return expr.to_ufl(expr.parse(source), domain)
+
+
+def shipped_cases(only_validation=False):
+    """The case files of data/cases/ (those with a [validation] table if asked)."""
+    import glob
+
+    paths = sorted(glob.glob(os.path.join(ROOT, "data", "cases", "*.toml")))
+    return [p for p in paths if not only_validation or "validation" in load_case(p)]
+
+
+def load_case(path):
+    with open(path, "rb") as f:
+        return tomllib.load(f)
+
+
+def make_mesh(points, cells):
+    """A dolfinx mesh of P1 triangles (serial) from vertex coordinates and cells."""
+    import ufl
+    from dolfinx import mesh as dmesh
+    from mpi4py import MPI
+
+    element = ufl.Mesh(ufl.VectorElement("Lagrange", ufl.triangle, 1))
+    return dmesh.create_mesh(MPI.COMM_SELF, cells.astype(np.int64), points[:, :2].copy(), element)
+
+
+def lu_solver(A=None, ksp=None):
+    """A PETSc KSP (new, or `ksp`) that solves by LU with MUMPS (serial)."""
+    from mpi4py import MPI
+    from petsc4py import PETSc
+
+    ksp = ksp or PETSc.KSP().create(MPI.COMM_SELF)
+    ksp.setType("preonly")
+    ksp.getPC().setType("lu")
+    ksp.getPC().setFactorSolverType("mumps")
+    if A is not None:
+        ksp.setOperators(A)
+    return ksp
+
+
+def dirichlet(W, spaces, case):
+    """Boundary conditions on the mixed space W whose collapsed subspaces are `spaces`: the first
+    component = g_h (the P1 interpolant of the case's g on the boundary), the others = 0. Returns
+    the bcs, the mask of boundary dofs (dofs of spaces[0]) and g_h."""
+    from dolfinx import fem
+    from dolfinx import mesh as dmesh
+
+    domain = W.mesh
+    domain.topology.create_connectivity(1, 2)
+    facets = dmesh.exterior_facet_indices(domain.topology)
+    dofs = [fem.locate_dofs_topological((W.sub(i), V), 1, facets) for i, V in enumerate(spaces)]
+    coords = spaces[0].tabulate_dof_coordinates()
+    boundary = np.zeros(len(coords), bool)
+    boundary[dofs[0][1]] = True
+    g = fem.Function(spaces[0])
+    g.x.array[:] = np.where(boundary, at_points(case["g"], coords), 0.0)
+    bcs = [fem.dirichletbc(g, dofs[0], W.sub(0))]
+    bcs += [fem.dirichletbc(fem.Function(V), dofs[i], W.sub(i)) for i, V in enumerate(spaces) if i > 0]
+    return bcs, boundary, g
+
+
+def dolfinx_version():
+    import dolfinx
+
+    return dolfinx.__version__

@@ -1,0 +1,102 @@
+"""The Rust code's error norms (src/norms.rs), computed with UFL by the same quadrature rule.
+
+On T_h, for u_h in P1 and an exact u with gradient G (expressions of the case file):
+
+    ||u - u_h||_L2 = ( int (u - u_h)^2 dx )^1/2,    |u - u_h|_H1 = ( int |G - grad u_h|^2 dx )^1/2;
+
+on the dual submesh S_h, for lambda_h constant on each dual cell D_a (zero near the boundary):
+
+    ||lambda - lambda_h||_L2,   ||lambda - lambda_h||_H-1 ~ |z|_H1 = (lambda - lambda_h, z)^1/2,
+    z in P1_0(S_h):  (grad z, grad v) = (lambda - lambda_h, v)  for all v in P1_0(S_h),
+
+every integral of an exact expression by basix's degree-10 rule (dx with quadrature_degree 10).
+The same functions give the norms of the difference of two discrete fields (exact = 0), which
+bound the difference of two codes' error values by the triangle inequality.
+"""
+import numpy as np
+import ufl
+from dolfinx import fem
+from dolfinx import mesh as dmesh
+from petsc4py import PETSc
+
+import dolfinx.fem.petsc  # noqa: F401  (registers fem.petsc)
+
+from . import common
+
+ERROR_DEGREE = 10  # the Rust code's error rule (ERROR_QUADRATURE in src/norms.rs)
+
+
+def scalar(form):
+    return float(fem.assemble_scalar(fem.form(form)))
+
+
+def p1_errors(V, values, exact, grad):
+    """(||u - u_h||_L2, |u - u_h|_H1 or None) for u_h in V with dof values `values`; exact and
+    grad are case expressions (grad a pair, or None)."""
+    domain = V.mesh
+    dxe = ufl.dx(domain=domain, metadata={"quadrature_degree": ERROR_DEGREE})
+    uh = fem.Function(V)
+    uh.x.array[:] = values
+    u = common.as_ufl(exact, domain)
+    # ‖u − u_h‖²_L² = ∫ (u − u_h)² dx
+    l2 = np.sqrt(max(scalar((u - uh) ** 2 * dxe), 0.0))
+    if grad is None:
+        return l2, None
+    G = ufl.as_vector([common.as_ufl(c, domain) for c in grad])
+    # |u − u_h|²_H¹ = ∫ |G − ∇u_h|² dx
+    return l2, np.sqrt(max(scalar(ufl.inner(G - ufl.grad(uh), G - ufl.grad(uh)) * dxe), 0.0))
+
+
+class DualSubmesh:
+    """S_h as a dolfinx mesh, with lambda_h (one value per dual cell, in the Rust cell order) as DG0."""
+
+    def __init__(self, dual_points, dual_cells):
+        self.mesh = common.make_mesh(dual_points, dual_cells)
+        self.V0 = fem.FunctionSpace(self.mesh, ("DG", 0))
+        self.V1 = fem.FunctionSpace(self.mesh, ("Lagrange", 1))
+        x = self.mesh.geometry.x
+        cells = self.mesh.geometry.dofmap.array.reshape(-1, 3)
+        # dolfinx cell i is the Rust cell perm[i]
+        self.perm = common.match_points(x[cells].mean(axis=1), dual_points[dual_cells].mean(axis=1))
+        self.mesh.topology.create_connectivity(1, 2)
+        dofs = fem.locate_dofs_topological(self.V1, 1, dmesh.exterior_facet_indices(self.mesh.topology))
+        self.bc = fem.dirichletbc(PETSc.ScalarType(0.0), dofs, self.V1)
+        z, v = ufl.TrialFunction(self.V1), ufl.TestFunction(self.V1)
+        # the H⁻¹ problem's operator: (∇z, ∇v)
+        self.a = ufl.inner(ufl.grad(z), ufl.grad(v)) * ufl.dx(domain=self.mesh)
+
+    def errors(self, cell_values, exact):
+        """(||lambda - lambda_h||_L2, ||lambda - lambda_h||_H-1) on S_h."""
+        lh = fem.Function(self.V0)
+        lh.x.array[:] = cell_values[self.perm]
+        lam = common.as_ufl(exact, self.mesh)
+        dxs = ufl.dx(domain=self.mesh, metadata={"quadrature_degree": ERROR_DEGREE})
+        l2 = np.sqrt(max(scalar((lam - lh) ** 2 * dxs), 0.0))
+        v = ufl.TestFunction(self.V1)
+        # z ∈ P1_0(S_h): (∇z, ∇v) = (λ − λ_h, v) for all v ∈ P1_0(S_h)
+        problem = fem.petsc.LinearProblem(
+            self.a, (lam - lh) * v * dxs, bcs=[self.bc],
+            petsc_options={"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps"})
+        zh = problem.solve()
+        # ‖λ − λ_h‖_H⁻¹ ≈ |z|_H¹ = (λ − λ_h, z)^½
+        return l2, np.sqrt(max(scalar((lam - lh) * zh * dxs), 0.0))
+
+
+def all_errors(V, u1, u2, lam_cells, dual, exact, mu):
+    """Every norm of the Rust code's `Errors` (keys of common.ERROR_KEYS) for u1, u2 (dof values on
+    V), lambda_h on the dual cells, an exact solution (the case's [exact]) and mu = (mu1, mu2)."""
+    out = {}
+    for name, values in (("u1", u1), ("u2", u2)):
+        out["l2_" + name], h1 = p1_errors(V, values, exact[name], exact.get("grad_" + name))
+        if h1 is not None:
+            out["h1_" + name] = h1
+    if "h1_u1" in out and "h1_u2" in out:
+        out["energy"] = np.sqrt(mu[0] * out["h1_u1"] ** 2 + mu[1] * out["h1_u2"] ** 2)
+    out["l2_lambda"], out["hminus1_lambda"] = dual.errors(lam_cells, exact["lambda"])
+    return out
+
+
+def difference_norms(V, du1, du2, dlam_cells, dual, mu):
+    """The same norms of the difference of two discrete solutions (|e_A - e_B| <= these)."""
+    zero = {"u1": 0, "u2": 0, "lambda": 0, "grad_u1": [0, 0], "grad_u2": [0, 0]}
+    return all_errors(V, du1, du2, dlam_cells, dual, zero, mu)

@@ -1,0 +1,272 @@
+//! Results written whole or not at all.
+//!
+//! A result is one directory: a solution's HDF5 file and its XDMF sidecars, or a study's tables
+//! and plots. It is written into a hidden temporary directory beside its final place and put
+//! there by one system call: `renameat2(RENAME_EXCHANGE)` swaps it with an earlier result, a plain
+//! `rename` puts it where there was none. Whatever instant the process is killed at, the path
+//! shows the complete earlier result or the complete new one, never a mix. SIGINT, SIGTERM and
+//! SIGHUP remove the temporaries of the run; after a SIGKILL, the next run for the same path
+//! recognises them by name and removes them.
+//!
+//! An existing path is replaced only when it is a result of this program (it holds the marker
+//! file [`MARKER`]) and holds none of the run's inputs; anything else is left alone with an error.
+
+use std::ffi::CString;
+use std::fmt;
+use std::os::unix::ffi::OsStrExt;
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard, Once};
+
+/// The file that marks a directory as a result of this program.
+pub const MARKER: &str = ".membrane-contact";
+
+/// Why a result could not be put in place, naming the path.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputError(pub String);
+
+impl fmt::Display for OutputError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for OutputError {}
+
+/// Temporary directories of this process, removed on SIGINT, SIGTERM or SIGHUP. Held while a
+/// result is swapped in, so that a signal waits for the swap to finish.
+static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+static HANDLER: Once = Once::new();
+
+fn pending() -> MutexGuard<'static, Vec<PathBuf>> {
+    PENDING.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// A result directory being written: files go into [`Staging::path`], and [`Staging::commit`]
+/// puts the directory in place. Dropped without a commit, it removes what was written.
+#[derive(Debug)]
+pub struct Staging {
+    temporary: PathBuf,
+    target: PathBuf,
+    committed: bool,
+}
+
+impl Staging {
+    /// Prepares the result directory `target`, whose `kind` ("solution" or "study") the marker
+    /// records. Refuses a `target` that exists and is not a result of this program, that holds
+    /// one of `inputs`, or whose parent directory does not exist; clears stale temporaries of
+    /// earlier runs for the same `target`.
+    pub fn new(target: &Path, inputs: &[PathBuf], kind: &str) -> Result<Staging, OutputError> {
+        let err = |m: String| OutputError(format!("{}: {m}", target.display()));
+        let name = target
+            .file_name()
+            .filter(|n| !n.is_empty() && *n != "." && *n != "..")
+            .ok_or_else(|| err("not a directory name".into()))?;
+        let parent = match target.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        if !parent.is_dir() {
+            return Err(err(format!(
+                "the directory {} that should hold the result does not exist",
+                parent.display()
+            )));
+        }
+        check_replaceable(target, inputs)?;
+        let prefix = format!(".{:016x}.", fnv1a(name.as_bytes()));
+        clear_stale(&parent, &prefix);
+        let temporary = parent.join(format!("{prefix}{}.mc-partial", std::process::id()));
+        HANDLER.call_once(|| {
+            // Installed once per process; if another handler is there, signals keep their effect.
+            let _ = ctrlc::set_handler(|| {
+                for dir in pending().iter() {
+                    let _ = std::fs::remove_dir_all(dir);
+                }
+                // No exit handlers: another thread may be inside the HDF5 library.
+                unsafe { libc::_exit(130) }
+            });
+        });
+        let mut list = pending();
+        std::fs::create_dir(&temporary)
+            .map_err(|e| err(format!("cannot create a directory beside it: {}", e)))?;
+        list.push(temporary.clone());
+        drop(list);
+        std::fs::write(temporary.join(MARKER), format!("membrane-contact {kind}\n"))
+            .map_err(|e| err(format!("cannot write: {}", e)))?;
+        Ok(Staging {
+            temporary,
+            target: target.to_path_buf(),
+            committed: false,
+        })
+    }
+
+    /// The directory to write the result's files into.
+    pub fn path(&self) -> &Path {
+        &self.temporary
+    }
+
+    /// The final place of the result.
+    pub fn target(&self) -> &Path {
+        &self.target
+    }
+
+    /// Puts the result in place, replacing an earlier one by one atomic exchange.
+    pub fn commit(mut self, inputs: &[PathBuf]) -> Result<(), OutputError> {
+        let err = |m: String| OutputError(format!("{}: {m}", self.target.display()));
+        // The target may have changed while the result was computed.
+        check_replaceable(&self.target, inputs)?;
+        let mut list = pending();
+        if self.target.symlink_metadata().is_ok() {
+            exchange(&self.temporary, &self.target)
+                .map_err(|e| err(format!("cannot replace the earlier result: {}", e)))?;
+            // The temporary name now holds the earlier result.
+            let _ = std::fs::remove_dir_all(&self.temporary);
+        } else {
+            std::fs::rename(&self.temporary, &self.target)
+                .map_err(|e| err(format!("cannot put the result in place: {}", e)))?;
+        }
+        list.retain(|d| *d != self.temporary);
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        if !self.committed {
+            let mut list = pending();
+            let _ = std::fs::remove_dir_all(&self.temporary);
+            list.retain(|d| *d != self.temporary);
+        }
+    }
+}
+
+/// `target` may be replaced: absent, or a result directory of this program holding no input.
+fn check_replaceable(target: &Path, inputs: &[PathBuf]) -> Result<(), OutputError> {
+    let err = |m: String| OutputError(format!("{}: {m}", target.display()));
+    let Ok(meta) = target.symlink_metadata() else {
+        return Ok(());
+    };
+    if !meta.is_dir() || !target.join(MARKER).is_file() {
+        return Err(err(
+            "exists and is not a result of membrane-contact; it is left alone: choose another name".into(),
+        ));
+    }
+    let real = target
+        .canonicalize()
+        .map_err(|e| err(format!("cannot resolve: {e}")))?;
+    for input in inputs {
+        if input.canonicalize().is_ok_and(|p| p.starts_with(&real)) {
+            return Err(err(format!(
+                "holds {}, an input of this run; replacing the result would delete it: choose another name",
+                input.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Swaps two paths atomically (Linux `renameat2` with `RENAME_EXCHANGE`).
+fn exchange(a: &Path, b: &Path) -> std::io::Result<()> {
+    let c = |p: &Path| CString::new(p.as_os_str().as_bytes()).map_err(std::io::Error::other);
+    let (a, b) = (c(a)?, c(b)?);
+    // SAFETY: two valid NUL-terminated paths; the call reads them only.
+    let r = unsafe {
+        libc::renameat2(
+            libc::AT_FDCWD,
+            a.as_ptr(),
+            libc::AT_FDCWD,
+            b.as_ptr(),
+            libc::RENAME_EXCHANGE,
+        )
+    };
+    if r == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
+/// Removes the temporaries `PREFIX<pid>.mc-partial` in `dir` whose process is gone.
+fn clear_stale(dir: &Path, prefix: &str) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(pid) = name
+            .to_str()
+            .and_then(|n| n.strip_prefix(prefix))
+            .and_then(|n| n.strip_suffix(".mc-partial"))
+            .and_then(|p| p.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_dir_all(entry.path());
+        }
+    }
+}
+
+/// The 64-bit FNV-1a hash: a short name for a temporary that is the same in every version.
+fn fnv1a(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_result_replaces_only_an_earlier_result() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out");
+        let write = |text: &str| {
+            let s = Staging::new(&target, &[], "solution").unwrap();
+            std::fs::write(s.path().join("data"), text).unwrap();
+            s.commit(&[]).unwrap();
+        };
+        write("first");
+        write("second");
+        assert_eq!(std::fs::read_to_string(target.join("data")).unwrap(), "second");
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name())
+            .collect();
+        assert_eq!(names, ["out"], "no temporary is left");
+        // A directory that is not a result, and a result holding an input, are left alone.
+        let other = dir.path().join("other");
+        std::fs::create_dir(&other).unwrap();
+        assert!(Staging::new(&other, &[], "solution")
+            .unwrap_err()
+            .0
+            .contains("not a result"));
+        let input = target.join("data");
+        assert!(Staging::new(&target, &[input], "solution")
+            .unwrap_err()
+            .0
+            .contains("an input"));
+        // Dropped without a commit, the staging leaves nothing.
+        drop(Staging::new(&dir.path().join("never"), &[], "solution").unwrap());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
+
+    #[test]
+    fn stale_temporaries_of_the_same_target_are_cleared() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out");
+        let prefix = format!(".{:016x}.", fnv1a(b"out"));
+        // pid 0 is never a user process; another target's temporary stays.
+        let stale = dir.path().join(format!("{prefix}0.mc-partial"));
+        let foreign = dir.path().join(format!(".{:016x}.0.mc-partial", fnv1a(b"else")));
+        std::fs::create_dir(&stale).unwrap();
+        std::fs::create_dir(&foreign).unwrap();
+        Staging::new(&target, &[], "solution")
+            .unwrap()
+            .commit(&[])
+            .unwrap();
+        assert!(!stale.exists() && foreign.exists() && target.join(MARKER).exists());
+    }
+}

@@ -1,0 +1,237 @@
+//! Triangle meshes read from files: XDMF with HDF5 heavy data (as meshio and dolfinx write it), or
+//! an HDF5 file with `/mesh/geometry` and `/mesh/topology` (a result of this program, or dolfinx's
+//! `/Mesh/mesh/…`). Every number is checked: coordinates finite and planar, vertex indices whole
+//! numbers in range, the sizes an XDMF file declares equal to the data.
+
+use super::Mesh;
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+/// Why a mesh file could not be read, naming the file (and the dataset).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FileError(pub String);
+
+impl fmt::Display for FileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for FileError {}
+
+/// The mesh file extensions read, for messages.
+const ACCEPTED: &str = ".xdmf (with HDF5 heavy data, as meshio or dolfinx write it) and .h5 \
+                        (a result of this program or a dolfinx mesh file)";
+
+/// Reads and checks the mesh in `path`, by its extension.
+pub fn read(path: &Path) -> Result<Mesh, FileError> {
+    let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    let (points, cells) = match extension {
+        "xdmf" => read_xdmf(path)?,
+        "h5" | "hdf5" => read_h5_mesh(path)?,
+        _ => {
+            return Err(FileError(format!(
+                "{}: unknown mesh file extension '{extension}': the mesh files read are {ACCEPTED}",
+                path.display()
+            )))
+        }
+    };
+    Mesh::new(points, cells).map_err(|e| FileError(format!("{}: {e}", path.display())))
+}
+
+/// The files a mesh file reads: itself and, for XDMF, the HDF5 files its data items name.
+pub fn inputs(path: &Path) -> Vec<PathBuf> {
+    let mut files = vec![path.to_path_buf()];
+    if path.extension().is_some_and(|e| e == "xdmf") {
+        let text = std::fs::read_to_string(path).unwrap_or_default();
+        let options = roxmltree::ParsingOptions {
+            allow_dtd: true,
+            ..Default::default()
+        };
+        if let Ok(doc) = roxmltree::Document::parse_with_options(&text, options) {
+            let items = doc.descendants().filter(|n| n.has_tag_name("DataItem"));
+            files.extend(items.filter_map(|n| Some(heavy(path, n.parent()?).ok()?.file)));
+        }
+    }
+    files
+}
+
+type RawMesh = (Vec<[f64; 2]>, Vec<[usize; 3]>);
+
+/// A heavy-data reference of an XDMF `DataItem`: the HDF5 file, the dataset and the declared
+/// dimensions.
+struct Heavy {
+    file: PathBuf,
+    dataset: String,
+    dimensions: Vec<usize>,
+}
+
+fn read_xdmf(path: &Path) -> Result<RawMesh, FileError> {
+    let err = |m: String| FileError(format!("{}: {m}", path.display()));
+    let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
+    let options = roxmltree::ParsingOptions {
+        allow_dtd: true,
+        ..Default::default()
+    };
+    let doc = roxmltree::Document::parse_with_options(&text, options)
+        .map_err(|e| err(format!("not valid XDMF (XML): {e}")))?;
+    let grid = doc
+        .descendants()
+        .find(|n| n.has_tag_name("Grid") && n.children().any(|c| c.has_tag_name("Topology")))
+        .ok_or_else(|| err("no <Grid> with a <Topology> in the XDMF file".into()))?;
+    let child = |tag: &str| {
+        grid.children()
+            .find(|c| c.has_tag_name(tag))
+            .ok_or_else(|| err(format!("no <{tag}> in the XDMF grid")))
+    };
+    let topology = child("Topology")?;
+    let kind = topology
+        .attribute("TopologyType")
+        .or(topology.attribute("Type"))
+        .unwrap_or("?");
+    if !kind.eq_ignore_ascii_case("triangle") {
+        return Err(err(format!(
+            "cell type '{kind}' is not supported: the mesh must be made of triangles"
+        )));
+    }
+    let geometry = heavy(path, child("Geometry")?)?;
+    let topology = heavy(path, topology)?;
+    let points = read_points(&geometry.file, &geometry.dataset)?;
+    let cells = read_cells(&topology.file, &topology.dataset)?;
+    for (item, rows, cols) in [(&geometry, points.len(), 2), (&topology, cells.len(), 3)] {
+        let declared = &item.dimensions;
+        if declared.first() != Some(&rows) || (declared.len() > 1 && declared[1] != cols && declared[1] != 3)
+        {
+            return Err(err(format!(
+                "the DataItem of {} declares Dimensions {declared:?}, but the dataset has {rows} rows",
+                item.dataset
+            )));
+        }
+    }
+    Ok((points, cells))
+}
+
+/// The heavy-data reference `FILE:/PATH` of the `DataItem` of `node`, relative to the XDMF file.
+fn heavy(path: &Path, node: roxmltree::Node) -> Result<Heavy, FileError> {
+    let err = |m: String| FileError(format!("{}: {m}", path.display()));
+    let item = node
+        .children()
+        .find(|c| c.has_tag_name("DataItem"))
+        .ok_or_else(|| err(format!("<{}> has no <DataItem>", node.tag_name().name())))?;
+    if item.attribute("Format") != Some("HDF") {
+        return Err(err(
+            "only HDF heavy data is supported (DataItem Format=\"HDF\")".into()
+        ));
+    }
+    let location = item.text().unwrap_or("").trim();
+    // The dataset path starts at the last ':' followed by '/', so file names may hold colons.
+    let (file, dataset) = location
+        .rfind(":/")
+        .map(|i| (&location[..i], &location[i + 1..]))
+        .ok_or_else(|| err(format!("DataItem '{location}' is not FILE:/PATH")))?;
+    let dims = item.attribute("Dimensions").unwrap_or("");
+    let dimensions = dims
+        .split_whitespace()
+        .map(|d| d.parse::<usize>())
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(|_| err(format!("DataItem Dimensions \"{dims}\" are not whole numbers")))?;
+    let base = path.parent().unwrap_or(Path::new(""));
+    Ok(Heavy {
+        file: base.join(file),
+        dataset: dataset.to_string(),
+        dimensions,
+    })
+}
+
+fn read_h5_mesh(path: &Path) -> Result<RawMesh, FileError> {
+    let file = open_h5(path)?;
+    let (g, t) = if file.link_exists("/mesh/geometry") {
+        ("/mesh/geometry", "/mesh/topology")
+    } else {
+        ("/Mesh/mesh/geometry", "/Mesh/mesh/topology")
+    };
+    drop(file);
+    Ok((read_points(path, g)?, read_cells(path, t)?))
+}
+
+fn open_h5(path: &Path) -> Result<hdf5::File, FileError> {
+    if !path.exists() {
+        return Err(FileError(format!("{}: no such file", path.display())));
+    }
+    hdf5::File::open(path).map_err(|e| {
+        FileError(format!(
+            "{}: not a readable HDF5 file ({e}); the mesh files read are {ACCEPTED}",
+            path.display()
+        ))
+    })
+}
+
+/// A two-dimensional dataset, after the memory check on its number of rows.
+fn read_table<T: hdf5::H5Type>(
+    path: &Path,
+    dataset: &str,
+    what: &str,
+) -> Result<ndarray::Array2<T>, FileError> {
+    let err = |m: String| FileError(format!("{}:{dataset}: {m}", path.display()));
+    let file = open_h5(path)?;
+    let data = file
+        .dataset(dataset)
+        .map_err(|e| err(format!("no such dataset: {e}")))?;
+    super::check_memory(data.shape().first().copied().unwrap_or(0)).map_err(|e| err(e.to_string()))?;
+    data.read_2d::<T>()
+        .map_err(|e| err(format!("cannot read {what}: {e}")))
+}
+
+fn read_points(path: &Path, dataset: &str) -> Result<Vec<[f64; 2]>, FileError> {
+    let err = |m: String| FileError(format!("{}:{dataset}: {m}", path.display()));
+    let a = read_table::<f64>(path, dataset, "coordinates")?;
+    let dim = a.ncols();
+    if !(dim == 2 || dim == 3) {
+        return Err(err(format!(
+            "coordinates have {dim} columns, need 2 (or 3 with z = 0)"
+        )));
+    }
+    a.rows()
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            if dim == 3 && r[2] != 0.0 {
+                Err(err(format!(
+                    "vertex {i} has z = {}: the mesh must be planar",
+                    r[2]
+                )))
+            } else {
+                Ok([r[0], r[1]])
+            }
+        })
+        .collect()
+}
+
+/// The cells, read as numbers and checked to be whole and non-negative (a float dataset is
+/// accepted when every entry is a whole number).
+fn read_cells(path: &Path, dataset: &str) -> Result<Vec<[usize; 3]>, FileError> {
+    let err = |m: String| FileError(format!("{}:{dataset}: {m}", path.display()));
+    let a = read_table::<f64>(path, dataset, "cells")?;
+    if a.ncols() != 3 {
+        return Err(err(format!(
+            "cells have {} vertices, need 3 (triangles)",
+            a.ncols()
+        )));
+    }
+    a.rows()
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let v = [r[0], r[1], r[2]];
+            match v
+                .iter()
+                .find(|x| !(x.fract() == 0.0 && **x >= 0.0 && **x < 9.0e15))
+            {
+                Some(x) => Err(err(format!(
+                    "cell {i} has the vertex index {x}: indices are whole numbers from 0"
+                ))),
+                None => Ok(v.map(|x| x as usize)),
+            }
+        })
+        .collect()
+}

@@ -1,0 +1,600 @@
+//! Conforming triangulations T_h of a polygon ω: the checks that make a set of triangles one,
+//! the boundary ∂ω, built-in meshes ([`builtin`]), mesh files ([`file`]), the dual submesh S_h
+//! ([`dual`]) and P1 transfer between meshes ([`transfer`]).
+
+mod buckets;
+pub mod builtin;
+pub mod dual;
+pub mod file;
+pub mod transfer;
+
+pub use builtin::Diagonal;
+pub use dual::DualMesh;
+pub use transfer::Prolongation;
+
+use buckets::Buckets;
+use std::fmt;
+
+/// A triangle mesh with counter-clockwise triangles and its boundary vertices.
+#[derive(Debug, Clone)]
+pub struct Mesh {
+    /// The vertices.
+    pub points: Vec<[f64; 2]>,
+    /// The triangles, counter-clockwise.
+    pub triangles: Vec<[usize; 3]>,
+    /// `on_boundary[a]`: vertex a lies on ∂ω (an endpoint of an edge with one triangle).
+    pub on_boundary: Vec<bool>,
+}
+
+/// Why a set of points and triangles is not a valid mesh.
+#[allow(missing_docs)] // the variants are told by their messages
+#[derive(Debug, Clone, PartialEq)]
+pub enum MeshError {
+    Empty,
+    NotFinite {
+        vertex: usize,
+    },
+    VertexIndex {
+        triangle: usize,
+        index: usize,
+    },
+    Degenerate {
+        triangle: usize,
+        area: f64,
+    },
+    DuplicateVertex {
+        first: usize,
+        second: usize,
+    },
+    UnusedVertex {
+        vertex: usize,
+    },
+    NonManifoldEdge {
+        a: usize,
+        b: usize,
+        count: usize,
+    },
+    Inverted {
+        triangle: usize,
+        neighbour: usize,
+    },
+    HangingNode {
+        vertex: usize,
+    },
+    Overlap {
+        vertex: usize,
+        turns: f64,
+    },
+    BoundaryCrossing {
+        first: (usize, usize),
+        second: (usize, usize),
+    },
+    Disconnected {
+        components: usize,
+    },
+    NoInteriorVertex,
+    TooLarge {
+        vertices: usize,
+        needed_gb: f64,
+        available_gb: f64,
+    },
+}
+
+impl fmt::Display for MeshError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            MeshError::Empty => write!(f, "the mesh has no triangles"),
+            MeshError::NotFinite { vertex } => write!(f, "vertex {vertex} has a non-finite coordinate"),
+            MeshError::VertexIndex { triangle, index } => {
+                write!(f, "triangle {triangle} refers to vertex {index}, which does not exist")
+            }
+            MeshError::Degenerate { triangle, area } => {
+                write!(f, "triangle {triangle} has zero area ({area:e}) or repeats a vertex")
+            }
+            MeshError::DuplicateVertex { first, second } => {
+                write!(f, "vertices {first} and {second} have the same coordinates")
+            }
+            MeshError::UnusedVertex { vertex } => write!(f, "vertex {vertex} belongs to no triangle"),
+            MeshError::NonManifoldEdge { a, b, count } => {
+                write!(f, "edge ({a}, {b}) is shared by {count} triangles")
+            }
+            MeshError::Inverted { triangle, neighbour } => write!(
+                f,
+                "triangle {triangle} overlaps its neighbour {neighbour}: it is inverted (folded mesh)"
+            ),
+            MeshError::HangingNode { vertex } => write!(
+                f,
+                "vertex {vertex} lies inside an edge of another triangle: a hanging node (non-conforming mesh)"
+            ),
+            MeshError::Overlap { vertex, turns } => write!(
+                f,
+                "the triangles around vertex {vertex} turn {turns:.3} times around it: the mesh overlaps itself"
+            ),
+            MeshError::BoundaryCrossing { first, second } => write!(
+                f,
+                "boundary edges ({}, {}) and ({}, {}) meet away from a shared vertex: the mesh overlaps itself",
+                first.0, first.1, second.0, second.1
+            ),
+            MeshError::Disconnected { components } => {
+                write!(f, "the mesh has {components} separate components; ω must be connected")
+            }
+            MeshError::NoInteriorVertex => write!(f, "the mesh has no interior vertex: nothing to solve"),
+            MeshError::TooLarge {
+                vertices,
+                needed_gb,
+                available_gb,
+            } => write!(
+                f,
+                "{vertices} vertices need about {needed_gb:.1} GB of memory, but only {available_gb:.1} GB \
+                 are available: use a coarser mesh"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for MeshError {}
+
+/// Peak memory of a run per mesh vertex, with a margin: measured at 1.05M vertices, 1.9 GB for a
+/// solve with nested iteration and the written result, 2.6 GB with `--flux`.
+const BYTES_PER_VERTEX: f64 = 2700.0;
+
+/// Fails early, with an estimate, when a mesh of `vertices` vertices would not fit in the memory
+/// available now (`MemAvailable` of /proc/meminfo; no check where that cannot be read).
+pub fn check_memory(vertices: usize) -> Result<(), MeshError> {
+    let available = std::fs::read_to_string("/proc/meminfo").ok().and_then(|s| {
+        let line = s.lines().find(|l| l.starts_with("MemAvailable:"))?;
+        line.split_whitespace()
+            .nth(1)?
+            .parse::<f64>()
+            .ok()
+            .map(|kb| kb * 1024.0)
+    });
+    let needed = vertices as f64 * BYTES_PER_VERTEX;
+    match available {
+        Some(available) if needed > available => Err(MeshError::TooLarge {
+            vertices,
+            needed_gb: needed / 1e9,
+            available_gb: available / 1e9,
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// Twice the signed area of the triangle (p, q, r).
+#[inline]
+pub fn orient(p: [f64; 2], q: [f64; 2], r: [f64; 2]) -> f64 {
+    (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
+}
+
+impl Mesh {
+    /// Checks a mesh read or built from points and triangles and orients its triangles
+    /// counter-clockwise. Rejects everything that is not a conforming triangulation of a
+    /// connected polygon with at least one interior vertex: locally one-to-one (the triangles
+    /// around an interior vertex turn once around it, around a boundary vertex less than once)
+    /// and one-to-one on the boundary (no two boundary edges meet but at a shared vertex), which
+    /// together make the triangles cover ω exactly once.
+    pub fn new(points: Vec<[f64; 2]>, mut triangles: Vec<[usize; 3]>) -> Result<Self, MeshError> {
+        if triangles.is_empty() {
+            return Err(MeshError::Empty);
+        }
+        if let Some(vertex) = points.iter().position(|p| !p[0].is_finite() || !p[1].is_finite()) {
+            return Err(MeshError::NotFinite { vertex });
+        }
+        let diameter = bounding_diameter(&points);
+        let used = orient_triangles(&points, &mut triangles, diameter)?;
+        distinct_vertices(&points)?;
+        if let Some(vertex) = used.iter().position(|u| !u) {
+            return Err(MeshError::UnusedVertex { vertex });
+        }
+        let (on_boundary, boundary_edges, components) = match_edges(points.len(), &triangles)?;
+        // A hanging node is a vertex lying inside a boundary edge of the triangle set.
+        if let Some(vertex) = hanging_node(&points, &boundary_edges, diameter) {
+            return Err(MeshError::HangingNode { vertex });
+        }
+        if components > 1 {
+            return Err(MeshError::Disconnected { components });
+        }
+        turns_once(&points, &triangles, &on_boundary)?;
+        boundary_is_simple(&points, &boundary_edges)?;
+        if on_boundary.iter().all(|&b| b) {
+            return Err(MeshError::NoInteriorVertex);
+        }
+        Ok(Mesh {
+            points,
+            triangles,
+            on_boundary,
+        })
+    }
+
+    /// The number of vertices.
+    pub fn n_vertices(&self) -> usize {
+        self.points.len()
+    }
+
+    /// The vertices of triangle t.
+    #[inline]
+    pub fn corners(&self, t: usize) -> [[f64; 2]; 3] {
+        let [a, b, c] = self.triangles[t];
+        [self.points[a], self.points[b], self.points[c]]
+    }
+
+    /// The area of triangle t.
+    #[inline]
+    pub fn area(&self, t: usize) -> f64 {
+        let [p, q, r] = self.corners(t);
+        0.5 * orient(p, q, r)
+    }
+
+    /// The mesh size h: the largest triangle diameter.
+    pub fn h(&self) -> f64 {
+        (0..self.triangles.len())
+            .map(|t| {
+                let [p, q, r] = self.corners(t);
+                dist(p, q).max(dist(q, r)).max(dist(r, p))
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// |ω|.
+    #[cfg(test)]
+    pub fn measure(&self) -> f64 {
+        (0..self.triangles.len()).map(|t| self.area(t)).sum()
+    }
+
+    /// The interior vertices V_h, in increasing order.
+    #[cfg(test)]
+    pub fn interior(&self) -> Vec<usize> {
+        (0..self.n_vertices()).filter(|&a| !self.on_boundary[a]).collect()
+    }
+
+    /// The edges of the mesh as sorted vertex pairs, each once.
+    pub fn edges(&self) -> Vec<(usize, usize)> {
+        let mut e: Vec<(usize, usize)> = self
+            .triangles
+            .iter()
+            .flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]))))
+            .collect();
+        e.sort_unstable();
+        e.dedup();
+        e
+    }
+}
+
+/// Checks every triangle for valid indices and a non-zero area, and turns it counter-clockwise.
+/// Returns which vertices the triangles use.
+fn orient_triangles(
+    points: &[[f64; 2]],
+    triangles: &mut [[usize; 3]],
+    diameter: f64,
+) -> Result<Vec<bool>, MeshError> {
+    let n = points.len();
+    let mut used = vec![false; n];
+    for (t, tri) in triangles.iter_mut().enumerate() {
+        for &index in tri.iter() {
+            if index >= n {
+                return Err(MeshError::VertexIndex { triangle: t, index });
+            }
+            used[index] = true;
+        }
+        let area = orient(points[tri[0]], points[tri[1]], points[tri[2]]);
+        if area.abs() <= 1e-13 * diameter * diameter
+            || tri[0] == tri[1]
+            || tri[1] == tri[2]
+            || tri[0] == tri[2]
+        {
+            return Err(MeshError::Degenerate {
+                triangle: t,
+                area: 0.5 * area,
+            });
+        }
+        if area < 0.0 {
+            tri.swap(1, 2);
+        }
+    }
+    Ok(used)
+}
+
+/// No two vertices at the same place.
+fn distinct_vertices(points: &[[f64; 2]]) -> Result<(), MeshError> {
+    let mut sorted: Vec<usize> = (0..points.len()).collect();
+    sorted.sort_by(|&a, &b| points[a].partial_cmp(&points[b]).unwrap());
+    for w in sorted.windows(2) {
+        if points[w[0]] == points[w[1]] {
+            return Err(MeshError::DuplicateVertex {
+                first: w[0].min(w[1]),
+                second: w[0].max(w[1]),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The boundary vertices and edges of a triangle set, and its number of components.
+type Edges = (Vec<bool>, Vec<(usize, usize)>, usize);
+
+/// Matches the edges: each is shared by one (boundary) or two (interior) triangles, traversed in
+/// opposite directions. Half-edges are grouped by their smaller vertex (a counting sort), then
+/// matched by the larger one. Returns the boundary vertices and edges, and the number of
+/// components of triangles joined by edges.
+fn match_edges(n: usize, triangles: &[[usize; 3]]) -> Result<Edges, MeshError> {
+    let mut start = vec![0usize; n + 1];
+    for tri in triangles {
+        for k in 0..3 {
+            start[tri[k].min(tri[(k + 1) % 3]) + 1] += 1;
+        }
+    }
+    for a in 0..n {
+        start[a + 1] += start[a];
+    }
+    let mut fill = start.clone();
+    let mut half = vec![(0usize, 0usize); 3 * triangles.len()];
+    for (t, tri) in triangles.iter().enumerate() {
+        for k in 0..3 {
+            let (a, b) = (tri[k], tri[(k + 1) % 3]);
+            half[fill[a.min(b)]] = (a.max(b), t);
+            fill[a.min(b)] += 1;
+        }
+    }
+    let mut on_boundary = vec![false; n];
+    let mut boundary_edges = Vec::new();
+    let mut parent: Vec<usize> = (0..triangles.len()).collect();
+    for a in 0..n {
+        let group = &mut half[start[a]..start[a + 1]];
+        group.sort_unstable();
+        for edge in group.chunk_by(|x, y| x.0 == y.0) {
+            let b = edge[0].0;
+            match edge {
+                [_] => {
+                    on_boundary[a] = true;
+                    on_boundary[b] = true;
+                    boundary_edges.push((a, b));
+                }
+                [(_, t), (_, s)] => {
+                    // Counter-clockwise neighbours traverse a shared edge in opposite directions.
+                    if traverses(&triangles[*t], a, b) == traverses(&triangles[*s], a, b) {
+                        return Err(MeshError::Inverted {
+                            triangle: *s,
+                            neighbour: *t,
+                        });
+                    }
+                    union(&mut parent, *t, *s);
+                }
+                _ => {
+                    return Err(MeshError::NonManifoldEdge {
+                        a,
+                        b,
+                        count: edge.len(),
+                    })
+                }
+            }
+        }
+    }
+    let components = (0..triangles.len())
+        .filter(|&t| find(&mut parent, t) == t)
+        .count();
+    Ok((on_boundary, boundary_edges, components))
+}
+
+/// The angles of the triangles at each vertex sum to 2π at an interior vertex and to less at a
+/// boundary vertex: the triangles around a vertex do not wrap around it twice.
+fn turns_once(points: &[[f64; 2]], triangles: &[[usize; 3]], on_boundary: &[bool]) -> Result<(), MeshError> {
+    let mut angle = vec![0.0_f64; points.len()];
+    for tri in triangles {
+        for k in 0..3 {
+            let (p, q, r) = (points[tri[k]], points[tri[(k + 1) % 3]], points[tri[(k + 2) % 3]]);
+            let (u, v) = ([q[0] - p[0], q[1] - p[1]], [r[0] - p[0], r[1] - p[1]]);
+            angle[tri[k]] += (u[0] * v[1] - u[1] * v[0]).atan2(u[0] * v[0] + u[1] * v[1]);
+        }
+    }
+    let full = 2.0 * std::f64::consts::PI;
+    let bad = |(a, &s): &(usize, &f64)| {
+        if on_boundary[*a] {
+            s > full * (1.0 + 1e-9)
+        } else {
+            (s - full).abs() > 1e-9 * full
+        }
+    };
+    match angle.iter().enumerate().find(bad) {
+        Some((vertex, &s)) => Err(MeshError::Overlap {
+            vertex,
+            turns: s / full,
+        }),
+        None => Ok(()),
+    }
+}
+
+/// No two boundary edges meet, but at a vertex they share (checked with a bucket grid).
+fn boundary_is_simple(points: &[[f64; 2]], edges: &[(usize, usize)]) -> Result<(), MeshError> {
+    let boxes = edges
+        .iter()
+        .map(|&(a, b)| (min2(points[a], points[b]), max2(points[a], points[b])));
+    let grid = Buckets::from_boxes(boxes, edges.len());
+    for (i, &(a, b)) in edges.iter().enumerate() {
+        let (p, q) = (points[a], points[b]);
+        for j in grid.near_box(min2(p, q), max2(p, q)).filter(|&j| j > i) {
+            let (c, d) = edges[j];
+            let shared = [c, d].iter().filter(|&&v| v == a || v == b).count();
+            if shared == 0 && segments_meet(p, q, points[c], points[d]) {
+                return Err(MeshError::BoundaryCrossing {
+                    first: (a, b),
+                    second: (c, d),
+                });
+            }
+            // Two edges sharing a vertex overlap only when they run along each other.
+            if shared == 1 {
+                let (o, x) = if a == c || a == d { (a, b) } else { (b, a) };
+                let y = if c == o { d } else { c };
+                let (u, v) = (points[x], points[y]);
+                let (po, pu, pv) = (
+                    points[o],
+                    [u[0] - points[o][0], u[1] - points[o][1]],
+                    [v[0] - points[o][0], v[1] - points[o][1]],
+                );
+                if orient(po, u, v) == 0.0 && pu[0] * pv[0] + pu[1] * pv[1] > 0.0 {
+                    return Err(MeshError::BoundaryCrossing {
+                        first: (a, b),
+                        second: (c, d),
+                    });
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Whether the closed segments pq and rs have a point in common.
+fn segments_meet(p: [f64; 2], q: [f64; 2], r: [f64; 2], s: [f64; 2]) -> bool {
+    let (d1, d2) = (orient(p, q, r), orient(p, q, s));
+    let (d3, d4) = (orient(r, s, p), orient(r, s, q));
+    if d1 * d2 < 0.0 && d3 * d4 < 0.0 {
+        return true;
+    }
+    let on = |a: [f64; 2], b: [f64; 2], x: [f64; 2], d: f64| {
+        d == 0.0
+            && x[0] >= a[0].min(b[0])
+            && x[0] <= a[0].max(b[0])
+            && x[1] >= a[1].min(b[1])
+            && x[1] <= a[1].max(b[1])
+    };
+    on(p, q, r, d1) || on(p, q, s, d2) || on(r, s, p, d3) || on(r, s, q, d4)
+}
+
+pub(crate) fn dist(p: [f64; 2], q: [f64; 2]) -> f64 {
+    (p[0] - q[0]).hypot(p[1] - q[1])
+}
+
+fn bounding_diameter(points: &[[f64; 2]]) -> f64 {
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for p in points {
+        for k in 0..2 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+    }
+    dist(lo, hi)
+}
+
+/// Whether the counter-clockwise triangle visits a then b as consecutive vertices.
+fn traverses(tri: &[usize; 3], a: usize, b: usize) -> bool {
+    (0..3).any(|k| tri[k] == a && tri[(k + 1) % 3] == b)
+}
+
+fn find(parent: &mut [usize], mut i: usize) -> usize {
+    while parent[i] != i {
+        parent[i] = parent[parent[i]];
+        i = parent[i];
+    }
+    i
+}
+
+fn union(parent: &mut [usize], a: usize, b: usize) {
+    let (ra, rb) = (find(parent, a), find(parent, b));
+    if ra != rb {
+        parent[ra.max(rb)] = ra.min(rb);
+    }
+}
+
+/// A boundary vertex strictly inside another boundary edge (checked with a bucket grid).
+fn hanging_node(points: &[[f64; 2]], boundary_edges: &[(usize, usize)], diameter: f64) -> Option<usize> {
+    let mut vertices: Vec<usize> = boundary_edges.iter().flat_map(|&(a, b)| [a, b]).collect();
+    vertices.sort_unstable();
+    vertices.dedup();
+    let grid = Buckets::new(vertices.iter().map(|&v| points[v]), vertices.len());
+    for &(a, b) in boundary_edges {
+        let (p, q) = (points[a], points[b]);
+        let len = dist(p, q);
+        for i in grid.near_box(min2(p, q), max2(p, q)) {
+            let v = vertices[i];
+            if v == a || v == b {
+                continue;
+            }
+            let r = points[v];
+            let along = ((r[0] - p[0]) * (q[0] - p[0]) + (r[1] - p[1]) * (q[1] - p[1])) / (len * len);
+            if along > 0.0 && along < 1.0 && orient(p, q, r).abs() <= 1e-10 * len * diameter.max(len) {
+                return Some(v);
+            }
+        }
+    }
+    None
+}
+
+pub(crate) fn min2(p: [f64; 2], q: [f64; 2]) -> [f64; 2] {
+    [p[0].min(q[0]), p[1].min(q[1])]
+}
+
+pub(crate) fn max2(p: [f64; 2], q: [f64; 2]) -> [f64; 2] {
+    [p[0].max(q[0]), p[1].max(q[1])]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn checks_reject_bad_meshes() {
+        let sq = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5]];
+        let fan = vec![[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]];
+        assert!(Mesh::new(sq.clone(), fan.clone()).is_ok());
+        let mut flipped = fan.clone();
+        flipped[1] = [1, 4, 2];
+        assert!(
+            Mesh::new(sq.clone(), flipped).is_ok(),
+            "orientation alone is normalised"
+        );
+        let mut folded = sq.clone();
+        folded[4] = [1.2, 0.5];
+        assert!(matches!(
+            Mesh::new(folded, fan.clone()),
+            Err(MeshError::Inverted { .. })
+        ));
+        let mut dup = sq.clone();
+        dup.push([0.5, 0.5]);
+        assert!(matches!(
+            Mesh::new(dup, fan.clone()),
+            Err(MeshError::DuplicateVertex { first: 4, second: 5 })
+        ));
+        let mut flat = fan.clone();
+        flat[0] = [0, 1, 0];
+        assert!(matches!(
+            Mesh::new(sq.clone(), flat),
+            Err(MeshError::Degenerate { triangle: 0, .. })
+        ));
+        assert!(matches!(
+            Mesh::new(sq.clone(), vec![[0, 1, 4]]),
+            Err(MeshError::UnusedVertex { .. })
+        ));
+        let mut bad_index = fan.clone();
+        bad_index[0][2] = 9;
+        assert!(matches!(
+            Mesh::new(sq.clone(), bad_index),
+            Err(MeshError::VertexIndex { .. })
+        ));
+        // Two fans side by side sharing no edge: disconnected.
+        let mut two = sq.clone();
+        two.extend(sq.iter().map(|p| [p[0] + 3.0, p[1]]));
+        let mut tris = fan.clone();
+        tris.extend(fan.iter().map(|t| t.map(|v| v + 5)));
+        assert!(matches!(
+            Mesh::new(two, tris),
+            Err(MeshError::Disconnected { components: 2 })
+        ));
+        // Hanging node: split the right triangle's neighbour only.
+        let pts = vec![
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [1.0, 1.0],
+            [0.0, 1.0],
+            [2.0, 0.5],
+            [1.0, 0.5],
+        ];
+        let tris = vec![[0, 1, 3], [1, 2, 3], [1, 4, 5], [5, 4, 2]];
+        assert!(matches!(
+            Mesh::new(pts, tris),
+            Err(MeshError::HangingNode { vertex: 5 })
+        ));
+        assert!(matches!(
+            Mesh::new(sq[..4].to_vec(), vec![[0, 1, 2], [0, 2, 3]]),
+            Err(MeshError::NoInteriorVertex)
+        ));
+    }
+}

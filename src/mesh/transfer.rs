@@ -1,0 +1,134 @@
+//! P1 transfer between two meshes of the same domain: interpolation from a coarse mesh onto a
+//! fine one, and its transpose, which restricts nodal loads.
+
+use super::{max2, min2, orient, Buckets, Mesh};
+
+/// P1 interpolation from a coarse mesh onto the vertices of a fine one: each fine vertex is
+/// located in the coarse mesh (or, outside it, at the nearest triangle) with its barycentric
+/// coordinates. Its transpose restricts nodal loads: Pᵀ(f, φ_a)_a = (f, φ_A)_A exactly when the
+/// meshes are nested, since then every coarse hat function is a combination of fine ones.
+pub struct Prolongation {
+    coarse_vertices: usize,
+    weights: Vec<([usize; 3], [f64; 3])>,
+}
+
+impl Prolongation {
+    /// The interpolation from `coarse` onto the vertices of `fine`.
+    pub fn new(fine: &Mesh, coarse: &Mesh) -> Self {
+        let locator = Locator::new(coarse);
+        let weights = fine
+            .points
+            .iter()
+            .map(|&p| {
+                let (t, bary) = locator.locate(coarse, p);
+                (coarse.triangles[t], bary)
+            })
+            .collect();
+        Prolongation {
+            coarse_vertices: coarse.n_vertices(),
+            weights,
+        }
+    }
+
+    /// The fine P1 interpolant of the coarse P1 field `values`.
+    pub fn apply(&self, values: &[f64]) -> Vec<f64> {
+        (self.weights.iter())
+            .map(|(tri, bary)| (0..3).map(|k| bary[k] * values[tri[k]]).sum())
+            .collect()
+    }
+
+    /// Pᵀ `fine`: a fine nodal load restricted to the coarse vertices.
+    pub fn restrict(&self, fine: &[f64]) -> Vec<f64> {
+        let mut coarse = vec![0.0; self.coarse_vertices];
+        for ((tri, bary), f) in self.weights.iter().zip(fine) {
+            for k in 0..3 {
+                coarse[tri[k]] += bary[k] * f;
+            }
+        }
+        coarse
+    }
+}
+
+/// Point location in a mesh: the triangle containing a point and its barycentric coordinates.
+struct Locator {
+    grid: Buckets,
+}
+
+impl Locator {
+    fn new(mesh: &Mesh) -> Self {
+        let boxes = (0..mesh.triangles.len()).map(|t| {
+            let [p, q, r] = mesh.corners(t);
+            (min2(min2(p, q), r), max2(max2(p, q), r))
+        });
+        Locator {
+            grid: Buckets::from_boxes(boxes, mesh.triangles.len()),
+        }
+    }
+
+    fn locate(&self, mesh: &Mesh, p: [f64; 2]) -> (usize, [f64; 3]) {
+        let mut best = (0, [1.0, 0.0, 0.0], f64::NEG_INFINITY);
+        let candidates = self.grid.near_box(p, p);
+        let search: Box<dyn Iterator<Item = usize>> = if self.grid.near_box(p, p).next().is_some() {
+            Box::new(candidates)
+        } else {
+            Box::new(0..mesh.triangles.len())
+        };
+        for t in search {
+            let b = barycentric(mesh.corners(t), p);
+            let worst = b[0].min(b[1]).min(b[2]);
+            if worst > best.2 {
+                best = (t, b, worst);
+                if worst >= -1e-12 {
+                    break;
+                }
+            }
+        }
+        // Outside every triangle (a point of a finer boundary): clamp to the closest one.
+        let b = best.1.map(|v| v.max(0.0));
+        let s: f64 = b.iter().sum();
+        (best.0, b.map(|v| v / s))
+    }
+}
+
+fn barycentric([p, q, r]: [[f64; 2]; 3], x: [f64; 2]) -> [f64; 3] {
+    let area = orient(p, q, r);
+    let l1 = orient(x, q, r) / area;
+    let l2 = orient(p, x, r) / area;
+    [l1, l2, 1.0 - l1 - l2]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Diagonal;
+
+    #[test]
+    fn interpolation_reproduces_linear_fields() {
+        let coarse = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], 3, 3, Diagonal::Left).unwrap();
+        let fine = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], 7, 5, Diagonal::Crossed).unwrap();
+        let f = |p: [f64; 2]| 2.0 * p[0] - 3.0 * p[1] + 1.0;
+        let v: Vec<f64> = coarse.points.iter().map(|&p| f(p)).collect();
+        let p = Prolongation::new(&fine, &coarse);
+        let w = p.apply(&v);
+        for (p, w) in fine.points.iter().zip(w) {
+            assert!((w - f(*p)).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn restriction_of_nested_loads_is_exact() {
+        // (f, φ_A) on the coarse mesh = Pᵀ (f, φ_a) on its uniform refinement, for every diagonal.
+        for diagonal in [Diagonal::Right, Diagonal::Left, Diagonal::Crossed] {
+            let coarse = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 3, 2, diagonal).unwrap();
+            let fine = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 6, 4, diagonal).unwrap();
+            let f = crate::expr::Expr::parse("x*y + 1").unwrap();
+            let quad = crate::assembly::Quadrature { degree: 4 };
+            let direct = crate::assembly::load(&coarse, &f, quad).unwrap();
+            let restricted =
+                Prolongation::new(&fine, &coarse).restrict(&crate::assembly::load(&fine, &f, quad).unwrap());
+            for (a, b) in direct.iter().zip(&restricted) {
+                assert!((a - b).abs() < 1e-14, "{a} vs {b}");
+            }
+        }
+    }
+}

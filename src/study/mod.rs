@@ -1,0 +1,333 @@
+//! Convergence studies: one case on a sequence of uniformly refined meshes, each level
+//! warm-started from the previous one (nested iteration), with error norms, experimental orders of
+//! convergence (EOC), iteration counts and timings, written as Markdown, CSV, JSON and PNG plots
+//! into one result directory, whole or not at all.
+//!
+//! EOCs are computed against h (the largest triangle diameter) and against N^(−1/2) (N the number
+//! of vertices); the second is the fair measure for graded meshes (Remark 10).
+
+mod plot;
+
+use crate::atomic::{OutputError, Staging};
+use crate::case::{Case, CaseError};
+use crate::contact::Start;
+use crate::norms::Errors;
+use crate::run::{self, RunError};
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// One level of a study.
+#[derive(Debug, Clone, Serialize)]
+pub struct Level {
+    /// Cells per side.
+    pub cells: usize,
+    /// The mesh size.
+    pub h: f64,
+    /// The number of vertices N.
+    pub vertices: usize,
+    /// The errors, for a case with an exact solution.
+    pub errors: Option<Errors>,
+    /// Active-set iterations with nested iteration (warm start from the previous level).
+    pub iterations: usize,
+    /// Active-set iterations from a cold start (no contact), when asked for.
+    pub cold_iterations: Option<usize>,
+    /// Seconds of mesh, assembly and contact solve.
+    pub seconds: f64,
+}
+
+/// The settings of a study.
+#[derive(Debug, Clone)]
+pub struct StudyOptions {
+    /// Cells per side on each level, increasing.
+    pub levels: Vec<usize>,
+    /// Also solve each level from a cold start, to compare iteration counts.
+    pub cold: bool,
+    /// Largest level (cells per side) on which the H⁻¹ norm is computed (it costs a solve on S_h).
+    pub hminus1_max: usize,
+    /// Grading exponents of an L-shaped mesh to compare (none: the case's own mesh).
+    pub grading: Option<Vec<f64>>,
+}
+
+/// A study of one mesh variant: its label and its levels.
+pub type Series = (String, Vec<Level>);
+
+/// Runs the study of `case` (named `name`) and writes it into the directory `target`. Everything
+/// is checked first (the levels, every level's mesh and data, the target), so that a study that
+/// cannot run writes nothing; a failed study leaves no new file.
+pub fn study(
+    case: &Case,
+    name: &str,
+    options: &StudyOptions,
+    target: &Path,
+) -> Result<Vec<Series>, RunError> {
+    let variants = variants(case, options)?;
+    let inputs = case.inputs();
+    let staging = Staging::new(target, &inputs, "study")?;
+    let mut markdown = format!("# Convergence study: {} ({})\n\n", case.title, case.origin);
+    let mut series = Vec::new();
+    for (label, levels) in &variants {
+        let suffix = label
+            .strip_prefix("grading ")
+            .map_or(String::new(), |g| format!("-g{g}"));
+        let title = if label.is_empty() {
+            name.to_string()
+        } else {
+            format!("{name}, {label}")
+        };
+        let bar = progress(&format!("study {title}"), levels.len());
+        let result = run_levels(levels, options, |_, l| {
+            bar.set_message(format!("{}²: {} iterations", l.cells, l.iterations));
+            bar.inc(1);
+        })?;
+        bar.finish_and_clear();
+        let table = markdown_table(&title, &result);
+        println!("{table}");
+        markdown += &table;
+        markdown += "\n";
+        let dir = staging.path();
+        write_text(&dir.join(format!("study{suffix}.csv")), &csv(&result))?;
+        let json = serde_json::to_string_pretty(&result).expect("levels serialise");
+        write_text(&dir.join(format!("study{suffix}.json")), &json)?;
+        plot::iterations(
+            &dir.join(format!("iterations{suffix}.png")),
+            &format!("{title}: active-set iterations"),
+            &result,
+        )
+        .map_err(OutputError)?;
+        series.push((
+            if label.is_empty() {
+                name.to_string()
+            } else {
+                label.clone()
+            },
+            result,
+        ));
+    }
+    let drawn: Vec<(String, &[Level])> = series.iter().map(|(l, r)| (l.clone(), r.as_slice())).collect();
+    plot::errors(
+        &staging.path().join("errors.png"),
+        &format!("{name}: errors"),
+        &drawn,
+    )
+    .map_err(OutputError)?;
+    markdown += "EOCs against h, and in parentheses against N^(−1/2) (N vertices). ‖λ−λh‖_H⁻¹ is the dual \
+                 norm over P1 functions on the dual submesh S_h (a lower bound converging to the true norm).\n\n\
+                 ![errors](errors.png)\n";
+    write_text(&staging.path().join("study.md"), &markdown)?;
+    staging.commit(&inputs)?;
+    Ok(series)
+}
+
+/// The cases of each variant and level, after checking every level's mesh and data.
+fn variants(case: &Case, options: &StudyOptions) -> Result<Vec<(String, Vec<Case>)>, CaseError> {
+    let levels = &options.levels;
+    if levels.is_empty() || levels.contains(&0) || levels.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(CaseError(format!(
+            "--levels must be increasing positive sizes, got {levels:?}"
+        )));
+    }
+    if case.cells().is_none() {
+        return Err(CaseError(format!(
+            "{}: a study needs a built-in mesh (rectangle or lshape), not a mesh file",
+            case.origin
+        )));
+    }
+    let gradings: Vec<Option<f64>> = match &options.grading {
+        None => vec![None],
+        Some(gs) => gs.iter().map(|&g| Some(g)).collect(),
+    };
+    let mut variants = Vec::new();
+    for grading in gradings {
+        let mut base = case.clone();
+        if let Some(g) = grading {
+            base.set_grading(g)?;
+        }
+        let cases = (levels.iter())
+            .map(|&n| {
+                let mut c = base.clone();
+                c.set_cells(n)?;
+                c.check_on(&c.mesh()?)?;
+                Ok(c)
+            })
+            .collect::<Result<Vec<_>, CaseError>>()?;
+        variants.push((grading.map_or(String::new(), |g| format!("grading {g}")), cases));
+    }
+    Ok(variants)
+}
+
+/// Solves the `levels` (one case per level, finer and finer), each warm-started from the
+/// previous one, calling `progress(level index, level)` after each.
+pub fn run_levels(
+    levels: &[Case],
+    options: &StudyOptions,
+    mut progress: impl FnMut(usize, &Level),
+) -> Result<Vec<Level>, RunError> {
+    let mut out = Vec::new();
+    let mut previous: Option<run::Run> = None;
+    for (i, c) in levels.iter().enumerate() {
+        let cells = c.cells().expect("study levels are built-in meshes");
+        let start = previous.as_ref().map_or(Start::Cold, |r| Start::From {
+            mesh: &r.problem.mesh,
+            obstacle: &r.solution.obstacle,
+        });
+        let hminus1 = cells <= options.hminus1_max;
+        let r = run::run(
+            c,
+            &run::Options {
+                start,
+                hminus1,
+                flux: false,
+            },
+        )?;
+        let cold_iterations = match (options.cold, &previous) {
+            (false, _) => None,
+            (true, None) => Some(r.solution.obstacle.stats.iterations),
+            (true, Some(_)) => {
+                // A cold start needs about one iteration per ring of vertices the contact set spans.
+                let mut cold_case = c.clone();
+                cold_case.solver.max_iterations = cold_case.solver.max_iterations.max(4 * cells);
+                let options = run::Options {
+                    start: Start::Cold,
+                    hminus1: false,
+                    flux: false,
+                };
+                Some(run::run(&cold_case, &options)?.solution.obstacle.stats.iterations)
+            }
+        };
+        let stats = &r.solution.obstacle.stats;
+        let level = Level {
+            cells,
+            h: r.problem.mesh.h(),
+            vertices: r.problem.mesh.n_vertices(),
+            errors: r.errors.clone(),
+            iterations: stats.iterations,
+            cold_iterations,
+            seconds: stats.wall_seconds + r.timings.assembly + r.timings.mesh,
+        };
+        progress(i, &level);
+        out.push(level);
+        previous = Some(r);
+    }
+    Ok(out)
+}
+
+fn progress(prefix: &str, len: usize) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} levels {msg}")
+            .expect("a valid template"),
+    );
+    bar.set_prefix(prefix.to_string());
+    bar
+}
+
+fn write_text(path: &Path, text: &str) -> Result<(), OutputError> {
+    std::fs::write(path, text).map_err(|e| OutputError(format!("{}: {e}", path.display())))
+}
+
+/// The quantities tabulated for each level: (label, short name, value).
+pub(crate) fn quantities(level: &Level) -> Vec<(&'static str, &'static str, Option<f64>)> {
+    let e = level.errors.as_ref();
+    vec![
+        ("|u1−u1h|_H1", "h1_u1", e.and_then(|e| e.h1_u1)),
+        ("|u2−u2h|_H1", "h1_u2", e.and_then(|e| e.h1_u2)),
+        ("energy", "energy", e.and_then(|e| e.energy)),
+        ("‖u1−u1h‖_L2", "l2_u1", e.map(|e| e.l2_u1)),
+        ("‖u2−u2h‖_L2", "l2_u2", e.map(|e| e.l2_u2)),
+        ("‖λ−λh‖_L2", "l2_lambda", e.map(|e| e.l2_lambda)),
+        ("‖λ−λh‖_H⁻¹", "hminus1_lambda", e.and_then(|e| e.hminus1_lambda)),
+    ]
+}
+
+/// EOC between two levels against h and against N^(−1/2); None when an error is negligible.
+pub fn eoc(a: &Level, b: &Level, ea: f64, eb: f64) -> Option<(f64, f64)> {
+    (ea > 1e-12 && eb > 1e-12).then(|| {
+        let r = (ea / eb).ln();
+        (
+            r / (a.h / b.h).ln(),
+            2.0 * r / (b.vertices as f64 / a.vertices as f64).ln(),
+        )
+    })
+}
+
+/// The study as a Markdown table (EOCs against h, and against N^(−1/2) in parentheses; no EOC
+/// columns for a single level).
+pub fn markdown_table(title: &str, levels: &[Level]) -> String {
+    let mut s = format!("## {title}\n\n");
+    let (eoc_header, eoc_columns) = if levels.len() > 1 {
+        (" EOC h (N) |", 2)
+    } else {
+        ("", 1)
+    };
+    let names: Vec<&str> = levels.first().map_or(vec![], |l| {
+        quantities(l)
+            .into_iter()
+            .filter(|q| q.2.is_some())
+            .map(|q| q.0)
+            .collect()
+    });
+    s += "| cells | h | vertices |";
+    for n in &names {
+        let _ = write!(s, " {n} |{eoc_header}");
+    }
+    s += " iterations (nested) | iterations (cold) | seconds |\n|";
+    s += &"---|".repeat(3 + eoc_columns * names.len() + 3);
+    s += "\n";
+    for (i, l) in levels.iter().enumerate() {
+        let _ = write!(s, "| {}² | {:.4e} | {} |", l.cells, l.h, l.vertices);
+        for (label, _, value) in quantities(l) {
+            if !names.contains(&label) {
+                continue;
+            }
+            let previous = i.checked_sub(1).and_then(|j| {
+                let p = quantities(&levels[j]).into_iter().find(|q| q.0 == label)?.2?;
+                eoc(&levels[j], l, p, value?)
+            });
+            let _ = write!(s, " {} |", value.map_or("—".into(), |v| format!("{v:.4e}")));
+            if eoc_columns == 2 {
+                let _ = write!(
+                    s,
+                    " {} |",
+                    previous.map_or("—".into(), |(h, n)| format!("{h:.3} ({n:.3})"))
+                );
+            }
+        }
+        let _ = writeln!(
+            s,
+            " {} | {} | {:.3} |",
+            l.iterations,
+            l.cold_iterations.map_or("—".into(), |c| c.to_string()),
+            l.seconds
+        );
+    }
+    s
+}
+
+/// The study as CSV, one row per level, with EOCs against h.
+pub fn csv(levels: &[Level]) -> String {
+    let mut s = String::from("cells,h,vertices");
+    if let Some(l) = levels.first() {
+        for (_, name, _) in quantities(l) {
+            let _ = write!(s, ",{name},eoc_{name}");
+        }
+    }
+    s += ",iterations,cold_iterations,seconds\n";
+    for (i, l) in levels.iter().enumerate() {
+        let _ = write!(s, "{},{:e},{}", l.cells, l.h, l.vertices);
+        for (k, (_, _, value)) in quantities(l).into_iter().enumerate() {
+            let e = i
+                .checked_sub(1)
+                .and_then(|j| eoc(&levels[j], l, quantities(&levels[j])[k].2?, value?));
+            let _ = write!(
+                s,
+                ",{},{}",
+                value.map_or(String::new(), |v| format!("{v:e}")),
+                e.map_or(String::new(), |e| format!("{:.4}", e.0))
+            );
+        }
+        let cold = l.cold_iterations.map_or(String::new(), |c| c.to_string());
+        let _ = writeln!(s, ",{},{cold},{:.4}", l.iterations, l.seconds);
+    }
+    s
+}

@@ -1,0 +1,200 @@
+//! A result is whole or absent: result directories replace earlier ones in one step, any name
+//! works, studies check everything before writing, and a run killed at any instant leaves the
+//! earlier result or the new one, never a mix.
+
+use std::path::Path;
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const BIN: &str = env!("CARGO_BIN_EXE_membrane-contact");
+
+fn solve(out: &Path, n: usize) -> std::process::Output {
+    Command::new(BIN)
+        .args(["solve", "--n", &n.to_string(), "-o"])
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+fn listing(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
+        .collect();
+    v.sort();
+    v
+}
+
+/// Reads a result back whole: the XDMF files parse and name datasets of the declared sizes in
+/// `solution.h5`. Returns its vertex count.
+fn read_whole(dir: &Path) -> usize {
+    let h5 = hdf5::File::open(dir.join("solution.h5")).unwrap();
+    let vertices = h5.attr("vertices").unwrap().read_scalar::<i64>().unwrap() as usize;
+    for xdmf in ["solution.xdmf", "dual.xdmf"] {
+        let text = std::fs::read_to_string(dir.join(xdmf)).unwrap();
+        let doc = roxmltree::Document::parse(&text).unwrap();
+        for item in doc.descendants().filter(|n| n.has_tag_name("DataItem")) {
+            let (file, path) = item.text().unwrap().split_once(':').unwrap();
+            assert_eq!(file, "solution.h5");
+            let rows: usize = item
+                .attribute("Dimensions")
+                .unwrap()
+                .split(' ')
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap();
+            let data = h5.dataset(path).unwrap();
+            assert_eq!(data.shape()[0], rows, "{xdmf}: {path}");
+            assert_eq!(data.read_raw::<f64>().unwrap().len(), data.size());
+        }
+    }
+    vertices
+}
+
+#[test]
+fn a_result_replaces_an_earlier_one_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    assert!(solve(&out, 8).status.success());
+    assert_eq!(read_whole(&out), 81);
+    assert!(solve(&out, 16).status.success());
+    assert_eq!(read_whole(&out), 289);
+    assert_eq!(listing(dir.path()), ["out"], "no temporary is left");
+    // Another result beside it is its own: neither touches the other.
+    let dual = dir.path().join("out-dual");
+    assert!(solve(&dual, 8).status.success());
+    assert_eq!((read_whole(&out), read_whole(&dual)), (289, 81));
+}
+
+#[test]
+fn any_file_name_works() {
+    // XML's special characters and a colon never reach the XDMF files, and a name of 250
+    // bytes works (its temporary has a short name).
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["a&b<c\"d:e>f'g".to_string(), "n".repeat(250)] {
+        let out = dir.path().join(&name);
+        let run = solve(&out, 8);
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        assert_eq!(read_whole(&out), 81);
+    }
+}
+
+#[test]
+fn a_result_reads_back_as_a_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("first:result");
+    assert!(solve(&out, 8).status.success());
+    let case = dir.path().join("case.toml");
+    let text = "mu1 = 1.0\nmu2 = 2.0\nf1 = -5\nf2 = 5\ng = \"0.1*x\"\n\
+                [mesh]\nkind = \"file\"\npath = \"first:result/solution.xdmf\"\n";
+    std::fs::write(&case, text).unwrap();
+    let run = Command::new(BIN)
+        .arg("solve")
+        .arg(&case)
+        .arg("-o")
+        .arg(dir.path().join("second"))
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert_eq!(read_whole(&dir.path().join("second")), 81);
+}
+
+#[test]
+fn studies_are_whole_or_absent() {
+    let dir = tempfile::tempdir().unwrap();
+    // One level: a table without EOCs, and every file.
+    let one = dir.path().join("one");
+    let run = Command::new(BIN)
+        .args(["study", "--levels", "8", "-o"])
+        .arg(&one)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert!(!String::from_utf8_lossy(&run.stdout).contains("EOC"));
+    assert_eq!(
+        listing(&one),
+        [
+            ".membrane-contact",
+            "errors.png",
+            "iterations.png",
+            "study.csv",
+            "study.json",
+            "study.md"
+        ]
+    );
+    // A level whose boundary data fail: checked before anything is solved or written.
+    let case = dir.path().join("case.toml");
+    let text =
+        "mu1 = 1.0\nmu2 = 2.0\nf1 = -5\nf2 = 5\ng = \"cos(16*pi*x)\"\n[mesh]\nkind = \"rectangle\"\nn = 8\n";
+    std::fs::write(&case, text).unwrap();
+    let failed = dir.path().join("failed");
+    let t = Instant::now();
+    let run = Command::new(BIN)
+        .args(["study", case.to_str().unwrap(), "--levels", "8,12", "-o"])
+        .arg(&failed)
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("at the boundary vertex"), "{stderr}");
+    assert!(t.elapsed() < Duration::from_secs(60));
+    assert_eq!(
+        listing(dir.path()),
+        ["case.toml", "one"],
+        "a failed study leaves nothing"
+    );
+}
+
+/// The fault test: a run writing a large result is killed at several instants spread over its
+/// course (SIGKILL, SIGINT and SIGTERM in turn). After each, the output is the earlier result or
+/// the new one, read back whole; SIGINT and SIGTERM leave no temporary, and the next run clears
+/// what SIGKILL left.
+#[test]
+fn killed_runs_leave_the_earlier_result_or_the_new_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out");
+    assert!(solve(&out, 16).status.success());
+    let (old, n) = (read_whole(&out), 256);
+    let t = Instant::now();
+    assert!(solve(&out, n).status.success());
+    let full = t.elapsed();
+    let new = read_whole(&out);
+    assert_ne!(old, new);
+    assert!(solve(&out, 16).status.success());
+    let signals = [libc::SIGKILL, libc::SIGINT, libc::SIGTERM];
+    let mut seen = [0, 0];
+    for k in 0..9 {
+        let mut child = Command::new(BIN)
+            .args(["solve", "--flux", "--n", &n.to_string(), "-o"])
+            .arg(&out)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        // Instants from a tenth of the run to past its end.
+        std::thread::sleep(full.mul_f64(0.1 + 0.125 * k as f64));
+        let signal = signals[k % 3];
+        unsafe { libc::kill(child.id() as i32, signal) };
+        let status = child.wait().unwrap();
+        let vertices = read_whole(&out);
+        assert!(
+            vertices == old || vertices == new,
+            "after kill {k}: {vertices} vertices"
+        );
+        seen[usize::from(vertices == new)] += 1;
+        let stray: Vec<String> = listing(dir.path()).into_iter().filter(|f| f != "out").collect();
+        if signal != libc::SIGKILL && status.code() != Some(0) {
+            assert!(stray.is_empty(), "after signal {signal}: {stray:?}");
+        }
+        if vertices == new {
+            assert!(solve(&out, 16).status.success());
+        }
+    }
+    assert_eq!(
+        listing(dir.path()),
+        ["out"],
+        "the next runs cleared every temporary"
+    );
+    assert!(seen[0] > 0, "some kills hit the run before its end: {seen:?}");
+}
