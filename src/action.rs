@@ -138,6 +138,15 @@ impl Checks {
 
 impl Action {
     /// Computes (4.5) from both membranes, with the checks.
+    ///
+    /// ```
+    /// use membrane_contact::{action::Action, case::Case, contact, problem::DiscreteProblem};
+    /// let case = Case::default_case();
+    /// let problem = DiscreteProblem::new(case.mesh().unwrap(), &case.data).unwrap();
+    /// let solution = contact::solve(&problem, contact::Start::Cold, Vec::new(), case.solver).unwrap();
+    /// let action = Action::compute(&problem, &solution);
+    /// assert!(action.checks.verify().is_ok() && action.total > 0.0);
+    /// ```
     pub fn compute(problem: &DiscreteProblem, solution: &Solution) -> Action {
         let (mesh, k) = (&problem.mesh, &problem.stiffness);
         let (mu1, mu2) = (problem.data.mu1, problem.data.mu2);

@@ -168,6 +168,17 @@ impl Guess {
 /// The guess of `start` is computed on the w thread, so that the coarser levels of nested
 /// iteration (on `coarser`, from fine to coarse; used by [`Start::Nested`] only) overlap the
 /// symbolic analysis and the v solve.
+///
+/// ```
+/// use membrane_contact::{case::Case, contact, problem::DiscreteProblem};
+/// let case = Case::default_case();
+/// let problem = DiscreteProblem::new(case.mesh().unwrap(), &case.data).unwrap();
+/// let coarser = case.coarser_meshes().unwrap();
+/// let solution = contact::solve(&problem, contact::Start::Nested, coarser, case.solver).unwrap();
+/// // The membranes touch where the gap w = u1h − u2h vanishes, and nowhere cross.
+/// assert!(solution.obstacle.contact.iter().any(|&c| c));
+/// assert!(solution.obstacle.gap.iter().all(|&w| w >= 0.0));
+/// ```
 pub fn solve(
     problem: &DiscreteProblem,
     start: Start,

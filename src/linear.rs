@@ -22,9 +22,9 @@ use faer::{Conj, MatMut, Par, Side};
 /// The interior block K_II (lower triangle, CSC in interior numbering) and its symbolic analysis.
 pub struct InteriorSystem {
     /// The vertex of each unknown, increasing.
-    pub vertices: Vec<usize>,
+    pub(crate) vertices: Vec<usize>,
     /// Unknown of each vertex (`usize::MAX` where the value is fixed).
-    pub unknown: Vec<usize>,
+    pub(crate) unknown: Vec<usize>,
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
     k_val: Vec<f64>,

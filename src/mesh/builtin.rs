@@ -18,6 +18,12 @@ pub enum Diagonal {
 impl Mesh {
     /// The rectangle [x0, x1] × [y0, y1] with nx × ny cells, with the vertices and triangles of
     /// `dolfinx.mesh.create_rectangle` (vertex numbering row by row, crossed midpoints last).
+    ///
+    /// ```
+    /// use membrane_contact::mesh::{Diagonal, Mesh};
+    /// let mesh = Mesh::rectangle([0.0, 0.0], [2.0, 1.0], 4, 2, Diagonal::Right).unwrap();
+    /// assert_eq!((mesh.n_vertices(), mesh.triangles.len()), (15, 16));
+    /// ```
     pub fn rectangle(
         corner0: [f64; 2],
         corner1: [f64; 2],

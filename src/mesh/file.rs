@@ -24,6 +24,11 @@ const ACCEPTED: &str = ".xdmf (with HDF5 heavy data, as meshio or dolfinx write 
                         (a result of this program or a dolfinx mesh file)";
 
 /// Reads and checks the mesh in `path`, by its extension.
+///
+/// ```
+/// let mesh = membrane_contact::mesh::file::read(std::path::Path::new("tests/data/before-default-16.h5")).unwrap();
+/// assert_eq!(mesh.n_vertices(), 17 * 17);
+/// ```
 pub fn read(path: &Path) -> Result<Mesh, FileError> {
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("");
     let (points, cells) = match extension {

@@ -55,6 +55,15 @@ pub type Series = (String, Vec<Level>);
 /// Runs the study of `case` (named `name`) and writes it into the directory `target`. Everything
 /// is checked first (the levels, every level's mesh and data, the target), so that a study that
 /// cannot run writes nothing; a failed study leaves no new file.
+///
+/// ```
+/// use membrane_contact::{case::Case, study};
+/// let dir = tempfile::tempdir().unwrap();
+/// let options = study::StudyOptions { levels: vec![8, 16], cold: false, hminus1_max: 16, grading: None };
+/// let series = study::study(&Case::default_case(), "default", &options, &dir.path().join("s")).unwrap();
+/// assert_eq!(series[0].1.len(), 2);
+/// assert!(dir.path().join("s/study.md").exists());
+/// ```
 pub fn study(
     case: &Case,
     name: &str,
