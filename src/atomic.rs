@@ -12,7 +12,6 @@
 //! file [`MARKER`]) and holds none of the run's inputs; anything else is left alone with an error.
 
 use std::ffi::CString;
-use std::fmt;
 use std::os::unix::ffi::OsStrExt;
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, MutexGuard, Once};
@@ -20,17 +19,10 @@ use std::sync::{Mutex, MutexGuard, Once};
 /// The file that marks a directory as a result of this program.
 pub const MARKER: &str = ".membrane-contact";
 
-/// Why a result could not be put in place, naming the path.
-#[derive(Debug, Clone, PartialEq)]
-pub struct OutputError(pub String);
-
-impl fmt::Display for OutputError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for OutputError {}
+message_error!(
+    /// Why a result could not be put in place, naming the path.
+    OutputError
+);
 
 /// Temporary directories of this process, removed on SIGINT, SIGTERM or SIGHUP. Held while a
 /// result is swapped in, so that a signal waits for the swap to finish.

@@ -9,7 +9,6 @@ use crate::norms::Exact;
 use crate::problem::{self, Data};
 use crate::result::{Attr, Attribute, Describe};
 use serde::Deserialize;
-use std::fmt;
 use std::path::{Path, PathBuf};
 
 /// The built-in default case (`membrane-contact solve` without a case file).
@@ -144,17 +143,10 @@ pub enum MeshSpec {
     },
 }
 
-/// A case error, naming the file and the key.
-#[derive(Debug, Clone, PartialEq)]
-pub struct CaseError(pub String);
-
-impl fmt::Display for CaseError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for CaseError {}
+message_error!(
+    /// A case error, naming the file and the key.
+    CaseError
+);
 
 /// A checked case: parsed expressions and settings.
 #[derive(Debug, Clone)]

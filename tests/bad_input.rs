@@ -1,6 +1,9 @@
 //! Bad input, as a user would give it on the command line: every case must fail with a message
 //! naming the problem and a non-zero exit, leave no file behind, and leave an earlier result alone.
 
+mod common;
+use common::listing;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::sync::Mutex;
@@ -61,15 +64,6 @@ fn fails(case_text: &str, setup: impl Fn(&Path), extra: &[&str], output: Option<
         "the earlier result was touched"
     );
     stderr
-}
-
-fn listing(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
-        .collect();
-    v.sort();
-    v
 }
 
 fn case_fails(case_text: &str) -> String {

@@ -2,6 +2,9 @@
 //! works, studies check everything before writing, and a run killed at any instant leaves the
 //! earlier result or the new one, never a mix.
 
+mod common;
+use common::listing;
+
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -14,15 +17,6 @@ fn solve(out: &Path, n: usize) -> std::process::Output {
         .arg(out)
         .output()
         .unwrap()
-}
-
-fn listing(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().to_string())
-        .collect();
-    v.sort();
-    v
 }
 
 /// Reads a result back whole: the XDMF files parse and name datasets of the declared sizes in

@@ -4,20 +4,12 @@
 //! numbers in range, the sizes an XDMF file declares equal to the data.
 
 use super::Mesh;
-use std::fmt;
 use std::path::{Path, PathBuf};
 
-/// Why a mesh file could not be read, naming the file (and the dataset).
-#[derive(Debug, Clone, PartialEq)]
-pub struct FileError(pub String);
-
-impl fmt::Display for FileError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(&self.0)
-    }
-}
-
-impl std::error::Error for FileError {}
+message_error!(
+    /// Why a mesh file could not be read, naming the file (and the dataset).
+    FileError
+);
 
 /// The mesh file extensions read, for messages.
 const ACCEPTED: &str = ".xdmf (with HDF5 heavy data, as meshio or dolfinx write it) and .h5 \
