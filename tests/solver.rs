@@ -271,3 +271,51 @@ fn flux_reconstruction_is_conservative_and_converges() {
     let rate = (deviation[0] / deviation[1]).log2();
     assert!(rate > 0.9, "deviations {deviation:?}, rate {rate}");
 }
+
+#[test]
+fn error_norms_have_their_closed_form_values() {
+    // With f1 = f2 = 0 and g = 0 the discrete solution and λ_h vanish, so the errors are the norms
+    // of the given "exact" functions on the unit square, known in closed form:
+    // ‖sin πx sin πy‖_L² = 1/2, |sin πx sin πy|_H¹ = π/√2, ‖x(1−x)y(1−y)‖_L² = 1/30,
+    // |x(1−x)y(1−y)|_H¹ = 1/√45, ‖1‖_L² = 1, and ‖1‖²_H⁻¹ = ∫z with −Δz = 1, z = 0 on ∂ω:
+    // (64/π⁶) Σ_{m,n odd} 1/(m²n²(m² + n²)).
+    let c = case(
+        "mu1 = 2.0\nmu2 = 3.0\nf1 = 0\nf2 = 0\ng = 0\n[exact]\nu1 = \"sin(pi*x)*sin(pi*y)\"\n\
+         u2 = \"x*(1-x)*y*(1-y)\"\nlambda = 1\n\
+         grad_u1 = [\"pi*cos(pi*x)*sin(pi*y)\", \"pi*sin(pi*x)*cos(pi*y)\"]\n\
+         grad_u2 = [\"(1-2*x)*y*(1-y)\", \"x*(1-x)*(1-2*y)\"]",
+        16,
+    );
+    let options = run::Options {
+        start: Start::Cold,
+        hminus1: true,
+        flux: false,
+    };
+    let e = run::run(&c, &options).unwrap().errors.unwrap();
+    let pi = std::f64::consts::PI;
+    let close = |value: f64, exact: f64, tol: f64| {
+        assert!((value - exact).abs() <= tol * exact, "{value} against {exact}");
+    };
+    close(e.l2_u1, 0.5, 1e-12);
+    close(e.h1_u1.unwrap(), pi / 2f64.sqrt(), 1e-12);
+    close(e.l2_u2, 1.0 / 30.0, 1e-12);
+    close(e.h1_u2.unwrap(), 45f64.sqrt().recip(), 1e-12);
+    close(
+        e.energy.unwrap(),
+        (2.0 * pi * pi / 2.0 + 3.0 / 45.0).sqrt(),
+        1e-12,
+    );
+    close(e.l2_lambda, 1.0, 1e-12);
+    let odd = (1..400).step_by(2).map(f64::from);
+    let series: f64 = odd
+        .clone()
+        .flat_map(|m| odd.clone().map(move |n| 1.0 / (m * m * n * n * (m * m + n * n))))
+        .sum();
+    let torsion = (64.0 / pi.powi(6) * series).sqrt();
+    // The discrete dual norm (P1 on S_h) is a lower bound converging at O(h²).
+    let hminus1 = e.hminus1_lambda.unwrap();
+    assert!(
+        hminus1 <= torsion && hminus1 > (1.0 - 2e-3) * torsion,
+        "{hminus1} against {torsion}"
+    );
+}
