@@ -121,20 +121,20 @@ pub struct SolverStats {
     pub coarse_seconds: f64,
 }
 
-/// The solution w of the obstacle problem, with its multiplier and contact set.
+/// The solution w of the obstacle problem, with its λ and contact set.
 #[derive(Debug, Clone)]
 pub struct Obstacle {
     /// w = u1h − u2h at every vertex.
     pub gap: Vec<f64>,
     /// λ_a = r_a / m_a at interior vertices (0 on ∂ω).
-    pub multiplier: Vec<f64>,
+    pub lambda: Vec<f64>,
     /// Interior vertices where the membranes touch (the final active set).
     pub contact: Vec<bool>,
     /// What the solver did.
     pub stats: SolverStats,
 }
 
-/// The solution (u1h, u2h) of (3.4), with the obstacle problem's w = u1h − u2h, its multiplier,
+/// The solution (u1h, u2h) of (3.4), with the obstacle problem's w = u1h − u2h, its λ,
 /// the contact set and the solver statistics.
 #[derive(Debug, Clone)]
 pub struct Solution {
@@ -142,23 +142,23 @@ pub struct Solution {
     pub u1: Vec<f64>,
     /// u2h at every vertex.
     pub u2: Vec<f64>,
-    /// The obstacle problem's solution w = u1h − u2h, with its multiplier and contact set.
+    /// The obstacle problem's solution w = u1h − u2h, with its λ and contact set.
     pub obstacle: Obstacle,
 }
 
-/// An initial guess of the gap w and the multiplier λ at every vertex, e.g. a coarser mesh's
+/// An initial guess of the gap w and λ at every vertex, e.g. a coarser mesh's
 /// solution interpolated here (nested iteration).
 struct Guess {
     gap: Vec<f64>,
-    multiplier: Vec<f64>,
+    lambda: Vec<f64>,
 }
 
 impl Guess {
-    /// The gap and multiplier of another mesh's solution, transferred by `p`.
+    /// The gap and λ of another mesh's solution, transferred by `p`.
     fn prolong(p: &Prolongation, o: &Obstacle) -> Guess {
         Guess {
             gap: p.apply(&o.gap),
-            multiplier: p.apply(&o.multiplier),
+            lambda: p.apply(&o.lambda),
         }
     }
 }
@@ -297,7 +297,7 @@ fn obstacle(
     let rhs = w_problem.rhs(system, &problem.g_h);
     let mut active: Vec<bool> = match warm {
         Some(guess) => (system.vertices.iter())
-            .map(|&a| w_problem.predicts_contact(a, guess.multiplier[a] * problem.mass[a], guess.gap[a]))
+            .map(|&a| w_problem.predicts_contact(a, guess.lambda[a] * problem.mass[a], guess.gap[a]))
             .collect(),
         None => vec![false; n],
     };
@@ -334,14 +334,14 @@ fn obstacle(
         if changed.is_empty() {
             stats.analyses = factor.analyses;
             let nv = problem.mesh.n_vertices();
-            let (mut multiplier, mut contact) = (vec![0.0; nv], vec![false; nv]);
+            let (mut lambda, mut contact) = (vec![0.0; nv], vec![false; nv]);
             for (i, &a) in system.vertices.iter().enumerate() {
-                multiplier[a] = step.residual[i] / problem.mass[a];
+                lambda[a] = step.residual[i] / problem.mass[a];
                 contact[a] = active[i];
             }
             return Ok(Obstacle {
                 gap: step.w,
-                multiplier,
+                lambda,
                 contact,
                 stats,
             });
