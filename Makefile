@@ -12,7 +12,7 @@ SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 BENCH_SIZES ?= 256 512 1024
 BENCH_REPEAT ?= 3
 
-.PHONY: all deps build run test cargo-test validate bench bench-reference study fuzz lint clean
+.PHONY: all deps build run test cargo-test validate bench bench-reference study fuzz lint mutants clean
 
 all: build
 
@@ -60,6 +60,13 @@ fuzz: deps
 	cd fuzz && for t in case expr mesh xdmf; do \
 		RUSTC_BOOTSTRAP=1 cargo fuzz run -O $$t -- -max_total_time=$(FUZZ_SECONDS) -max_len=4096 || exit 1; \
 	done
+
+# Mutation testing of the numerical core (hours; not in CI): every mutant must fail a test, or be
+# explained in docs/mutants.md. MUTANTS_FILES narrows it, e.g. MUTANTS_FILES=src/action.rs.
+MUTANTS_FILES ?= src/assembly.rs src/contact.rs src/action.rs src/flux.rs src/norms.rs src/linear.rs
+mutants: deps
+	command -v cargo-mutants >/dev/null || cargo install cargo-mutants --locked
+	cargo mutants $(addprefix -f ,$(MUTANTS_FILES)) --profile mutants --timeout 300 --output target -- --lib --tests
 
 lint:
 	cargo fmt --all -- --check

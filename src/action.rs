@@ -230,3 +230,124 @@ impl Describe for Action {
         ]
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::assembly::Quadrature;
+    use crate::contact::{Obstacle, SolverStats};
+    use crate::expr::Expr;
+    use crate::mesh::{Diagonal, Mesh};
+    use crate::problem::Data;
+
+    #[test]
+    fn verify_fails_exactly_beyond_its_limits() {
+        let ok = Checks {
+            prop12: TOLERANCE,
+            negative_lambda: 0.0,
+            complementarity: 0.0,
+            negative_gap: 0.0,
+            resolution: RESOLUTION,
+            noise: 1.0,
+            loads: 1e3,
+        };
+        assert_eq!(ok.verify(), Ok(()));
+        let failed = Checks {
+            complementarity: 2.0 * TOLERANCE,
+            ..ok
+        };
+        let what = "the complementarity (4.8)";
+        assert_eq!(
+            failed.verify(),
+            Err(CheckError::Failed {
+                what,
+                value: 2.0 * TOLERANCE
+            })
+        );
+        let unresolved = Checks {
+            resolution: 2.0 * RESOLUTION,
+            ..ok
+        };
+        assert_eq!(
+            unresolved.verify(),
+            Err(CheckError::Unresolved {
+                noise: 1.0,
+                loads: 1e3
+            })
+        );
+        for nan in [
+            Checks {
+                negative_lambda: f64::NAN,
+                ..ok
+            },
+            Checks {
+                resolution: f64::INFINITY,
+                ..ok
+            },
+        ] {
+            assert_eq!(nan.verify(), Err(CheckError::NotFinite));
+        }
+    }
+
+    #[test]
+    fn the_action_and_its_checks_follow_their_formulas() {
+        // Arbitrary fields (not a solution) on a small mesh, against (4.5) and the checks'
+        // definitions evaluated here vertex by vertex.
+        let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], 4, 4, Diagonal::Left).unwrap();
+        let e = |s: &str| Expr::parse(s).unwrap();
+        let data = Data::new([2.0, 3.0], e("1 + x"), e("y"), e("0"), Quadrature { degree: 2 }).unwrap();
+        let p = DiscreteProblem::new(mesh, &data).unwrap();
+        let n = p.mesh.n_vertices();
+        let u1: Vec<f64> = (0..n).map(|a| (a as f64 * 0.7).sin()).collect();
+        let u2: Vec<f64> = (0..n).map(|a| (a as f64 * 0.3).cos() - 0.5).collect();
+        let gap: Vec<f64> = u1.iter().zip(&u2).map(|(a, b)| a - b).collect();
+        let contact: Vec<bool> = (0..n).map(|a| a % 3 == 0).collect();
+        let obstacle = Obstacle {
+            gap: gap.clone(),
+            lambda: vec![0.0; n],
+            contact: contact.clone(),
+            stats: SolverStats::default(),
+        };
+        let action = Action::compute(
+            &p,
+            &Solution {
+                u1: u1.clone(),
+                u2: u2.clone(),
+                obstacle,
+            },
+        );
+        let k = &p.stiffness;
+        let wmax = gap.iter().fold(0.0_f64, |m, w| m.max(w.abs()));
+        let (mut prop12, mut negative, mut compl, mut total, mut area) =
+            (0.0_f64, 0.0_f64, 0.0_f64, 0.0, 0.0);
+        let (mut noise, mut loads) = (0.0_f64, 0.0_f64);
+        for a in (0..n).filter(|&a| !p.mesh.on_boundary[a]) {
+            let m = p.mass[a];
+            let (mut k1, mut k2, mut size) = (0.0, 0.0, p.load1[a].abs() + p.load2[a].abs());
+            for (b, v) in k.row(a) {
+                k1 += 2.0 * v * u1[b];
+                k2 += 3.0 * v * u2[b];
+                size += (2.0 * v * u1[b]).abs() + (3.0 * v * u2[b]).abs();
+            }
+            let (l1, l2) = ((k1 - p.load1[a]) / m, (p.load2[a] - k2) / m);
+            assert!((action.lambda[a] - l1).abs() < 1e-13 && (action.lambda2[a] - l2).abs() < 1e-13);
+            prop12 = prop12.max((l1 - l2).abs() * m / size);
+            negative = negative.max(-l1 * m / size);
+            compl = compl.max((l1 * m).abs() / size * gap[a].abs() / wmax);
+            total += l1 * m;
+            area += if contact[a] { m } else { 0.0 };
+            noise = noise.max(ROUNDOFF * size / m);
+            loads = loads.max((p.load1[a].abs() + p.load2[a].abs()) / m);
+        }
+        let c = &action.checks;
+        let close = |x: f64, y: f64| assert!((x - y).abs() <= 1e-13 * y.abs().max(1e-300), "{x} against {y}");
+        close(c.prop12, prop12);
+        close(c.negative_lambda, negative);
+        close(c.complementarity, compl);
+        close(c.negative_gap, -gap.iter().fold(0.0_f64, |m, &w| m.min(w)) / wmax);
+        close(action.total, total);
+        close(action.contact_area, area);
+        close(c.resolution, noise / loads);
+        assert!(prop12 > 0.1 && negative > 0.0 && c.negative_gap > 0.0 && area > 0.0);
+    }
+}

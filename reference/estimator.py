@@ -1,0 +1,505 @@
+"""Guaranteed a posteriori error estimators for the discrete solution of (3.4)/(4.5) AS COMPUTED by
+the Rust code (prototype of issue 13; the derivation, with every constant, is docs/a-posteriori.md).
+
+Usage (from the repository root, Debian's python3):
+    /usr/bin/python3 -m reference.estimator DIR [DIR ...]        one line per result
+    /usr/bin/python3 -m reference.estimator --table DIR [DIR ...] the markdown table of the report
+    /usr/bin/python3 -m reference.estimator --per-triangle OUT.npz DIR   also saves the per-triangle terms
+DIR is a result of `membrane-contact solve CASE --n N --flux [--hminus1] -o DIR`.
+
+Bound (docs/a-posteriori.md, (E)):  |||u - u_h||| <= eta := (eta_FR^2 + eta_D^2 + 2 eta_C)^(1/2),
+    eta_FR^2 = sum_i ( (sum_kappa (eta_F + eta_osc)_kappa^2)^(1/2) + eta_Q,i )^2,
+with, per cell kappa of S_h and membrane i (tau_i the equilibrated flux of the variant):
+    eta_F   = mu_i^(-1/2) || mu_i grad u_ih + tau_i ||_kappa                         (flux)
+    eta_osc = (h_kappa / pi) mu_i^(-1/2) || f_i - Pi_kappa f_i ||_kappa              (data oscillation)
+    eta_Q,i = C_F mu_i^(-1/2) || sum_a c_a chi_{D_a} ||                              (means, Friedrichs)
+    eta_C   = (lambda_h, w_h + psi)                                                  (contact)
+    eta_D   = mu_1^(1/2) || grad psi ||,  psi the lifting of g - g_h                 (boundary data)
+and the action:  ||lambda - lambda_h||_H^-1 <= sqrt(mu1 mu2/(mu1+mu2)) eta + eta_lambda.
+
+Three fluxes (docs, section 5):
+    "dual"     t_ih of (4.13) as written by --flux; the piecewise-constant part of its residual is
+               lifted separately by sigma on each D_a (min ||sigma||), eta_F -> eta_F + ||sigma||.
+    "dualmin"  t_ih + sigma with sigma minimising ||mu grad u_h + t + sigma|| on each D_a: the
+               local minimisation of [14] on the dual cells (same normal fluxes on the dD_a).
+    "patch"    the Braess-Schoeberl / Ern-Vohralik equilibration on the vertex patches, RT0 on S_h.
+"""
+import math
+import sys
+
+import basix
+import numpy as np
+import sympy as sp
+
+from . import common, expr
+
+DEGREE = 10  # quadrature on the cells of S_h (the Rust error rule is degree 10 on T_h)
+GAUSS_1D = 12  # Gauss-Legendre points per piece for the boundary lifting
+VARIANTS = ("dual", "dualmin", "patch")
+
+
+# ---------------------------------------------------------------------------------------------
+# geometry
+# ---------------------------------------------------------------------------------------------
+
+def orient(p):
+    """Twice the signed area of triangles p (N x 3 x 2)."""
+    return (p[:, 1, 0] - p[:, 0, 0]) * (p[:, 2, 1] - p[:, 0, 1]) - (p[:, 1, 1] - p[:, 0, 1]) * (p[:, 2, 0] - p[:, 0, 0])
+
+
+def p1_gradients(p):
+    """Gradients of the barycentric coordinates of triangles p (N x 3 x 2): N x 3 x 2."""
+    two = orient(p)
+    g = np.empty_like(p)
+    for k in range(3):
+        b, c = p[:, (k + 1) % 3], p[:, (k + 2) % 3]
+        g[:, k, 0] = (b[:, 1] - c[:, 1]) / two
+        g[:, k, 1] = (c[:, 0] - b[:, 0]) / two
+    return g
+
+
+def barycentric(p, x):
+    """Barycentric coordinates of points x (N x m x 2) in triangles p (N x 3 x 2): N x m x 3."""
+    g = p1_gradients(p)
+    out = np.empty(x.shape[:2] + (3,))
+    for k in range(3):
+        c = p[:, (k + 1) % 3]
+        out[:, :, k] = np.einsum("nmd,nd->nm", x - c[:, None, :], g[:, k])
+    return out
+
+
+class Geometry:
+    """T_h, S_h, the edges of S_h and everything the estimators share."""
+
+    def __init__(self, r):
+        self.P = r["points"][:, :2]
+        self.T = r["cells"]
+        self.S = r["dual_cells"]
+        self.Q = r["dual_points"][:, :2]
+        self.owner = r["dual_owner"]
+        nt, ns, nv = len(self.T), len(self.S), len(self.P)
+        assert ns == 6 * nt
+        self.tri = np.arange(ns) // 6  # the triangle K of T_h containing each cell of S_h
+        self.pk = self.P[self.T]  # nt x 3 x 2
+        self.area_K = 0.5 * orient(self.pk)
+        self.grad_K = p1_gradients(self.pk)  # nt x 3 x 2
+        self.ps = self.Q[self.S]  # ns x 3 x 2
+        self.area = 0.5 * orient(self.ps)
+        assert (self.area > 0).all() and (self.area_K > 0).all(), "cells must be counter-clockwise"
+        self.diam = np.max([np.linalg.norm(self.ps[:, i] - self.ps[:, (i + 1) % 3], axis=1) for i in range(3)], axis=0)
+        # edges of T_h, boundary vertices and edges
+        e = np.sort(np.concatenate([self.T[:, [0, 1]], self.T[:, [1, 2]], self.T[:, [2, 0]]]), axis=1)
+        ue, cnt = np.unique(e, axis=0, return_counts=True)
+        self.bedges = ue[cnt == 1]
+        self.on_boundary = np.zeros(nv, bool)
+        self.on_boundary[self.bedges.ravel()] = True
+        # edges of S_h: edge k of a cell runs from its vertex k to k + 1; the global unknown x_e is
+        # the flux through e along the right normal of (min -> max); a cell's outward flux is
+        # sign * x_e (cells are counter-clockwise: the right normal of each edge points outward)
+        ce = np.stack([self.S[:, [0, 1]], self.S[:, [1, 2]], self.S[:, [2, 0]]], axis=1)  # ns x 3 x 2
+        key = np.sort(ce, axis=2).reshape(-1, 2)
+        uniq, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+        self.cell_edge = inv.reshape(ns, 3)
+        self.cell_sign = np.where(ce[:, :, 0] < ce[:, :, 1], 1.0, -1.0)
+        self.n_edges = len(uniq)
+        self.edge_on_boundary = counts == 1
+        # midpoints of the edges of each cell (edge k), and the RT0 basis there
+        self.mid = 0.5 * (self.ps + np.roll(self.ps, -1, axis=1))  # ns x 3 x 2, mid[k] of edge k
+        # psi_k(x) = (x - P_{k+2}) / (2|kappa|): unit outward flux through edge k
+        opp = np.roll(self.ps, -2, axis=1)  # opp[k] = P_{k+2}
+        self.psi_mid = (self.mid[:, None, :, :] - opp[:, :, None, :]) / (2 * self.area[:, None, None, None])  # ns x k x m x 2
+        # cell mass matrices (midpoint rule: exact for quadratics)
+        self.mass = np.einsum("nkmd,njmd->nkj", self.psi_mid, self.psi_mid) * (self.area / 3)[:, None, None]
+        # quadrature of degree DEGREE on the cells of S_h
+        xi, w = basix.make_quadrature(basix.CellType.triangle, DEGREE)
+        a, b, c = self.ps[:, 0], self.ps[:, 1], self.ps[:, 2]
+        self.xq = a[:, None] + xi[None, :, 0, None] * (b - a)[:, None] + xi[None, :, 1, None] * (c - a)[:, None]
+        self.wq = 2 * self.area[:, None] * w[None, :]
+        self.lam_q = barycentric(self.pk[self.tri], self.xq)  # barycentric coordinates in K, ns x nq x 3
+        self.lam_mid = barycentric(self.pk[self.tri], self.mid)  # ns x 3 x 3
+        # the local index of the owner a of each cell in its triangle K
+        self.owner_local = np.argmax(self.T[self.tri] == self.owner[:, None], axis=1)
+        self.dual_area = np.bincount(self.owner, self.area, minlength=nv)
+        self.interior = ~self.on_boundary
+        # vertex -> triangles (for the vertex patches)
+        order = np.argsort(self.T.ravel(), kind="stable")
+        self.vt_ptr = np.concatenate([[0], np.cumsum(np.bincount(self.T.ravel(), minlength=nv))])
+        self.vt_tri = order // 3
+        self.vt_loc = order % 3
+        order = np.argsort(self.owner, kind="stable")
+        self.dual_ptr = np.concatenate([[0], np.cumsum(np.bincount(self.owner, minlength=nv))])
+        self.dual_cells_of = order
+        lo, hi = self.P.min(axis=0), self.P.max(axis=0)
+        # Friedrichs: ||v|| <= C_F ||grad v|| on H^1_0 of the bounding box, hence of omega
+        self.C_F = 1.0 / (math.pi * math.sqrt(1.0 / (hi[0] - lo[0]) ** 2 + 1.0 / (hi[1] - lo[1]) ** 2))
+
+    def rt0_at(self, F, x, cells=slice(None)):
+        """The RT0 field with outward cell fluxes F (ns x 3) at points x (ns x m x 2)."""
+        opp = np.roll(self.ps[cells], -2, axis=1)
+        return np.einsum("nk,nkmd->nmd", F, (x[:, None, :, :] - opp[:, :, None, :])) / (2 * self.area[cells][:, None, None])
+
+    def cell_fluxes(self, x_edge):
+        return self.cell_sign * x_edge[self.cell_edge]
+
+    def l2_affine(self, v_mid):
+        """||v||_kappa^2 for v affine on each cell, given at the edge midpoints (ns x 3 x 2)."""
+        return (self.area / 3) * np.sum(v_mid ** 2, axis=(1, 2))
+
+
+# ---------------------------------------------------------------------------------------------
+# local mixed problems on patches of S_h
+# ---------------------------------------------------------------------------------------------
+
+def solve_patch(geo, cells, target_mid, div):
+    """min ||sigma - target|| over sigma in RT0 on `cells` (of S_h) with div sigma = div (per cell),
+    sigma.n = 0 on the boundary of the patch except on d(omega). Returns (edge ids, edge fluxes)."""
+    ce, cs = geo.cell_edge[cells], geo.cell_sign[cells]
+    edges, inv = np.unique(ce.ravel(), return_inverse=True)
+    inv = inv.reshape(ce.shape)
+    cnt = np.bincount(inv.ravel(), minlength=len(edges))
+    free = (cnt == 2) | geo.edge_on_boundary[edges]
+    closed = not geo.edge_on_boundary[edges].any()
+    unk = -np.ones(len(edges), np.int64)
+    unk[free] = np.arange(free.sum())
+    nu, nc = int(free.sum()), len(cells)
+    u = unk[inv]  # nc x 3
+    ok = u >= 0
+    M = geo.mass[cells] * cs[:, :, None] * cs[:, None, :]
+    b = np.einsum("nkmd,nmd->nk", geo.psi_mid[cells], target_mid) * (geo.area[cells] / 3)[:, None] * cs
+    n = nu + nc + (1 if closed else 0)
+    K = np.zeros((n, n))
+    rhs = np.zeros(n)
+    for j in range(3):
+        for k in range(3):
+            m = ok[:, j] & ok[:, k]
+            np.add.at(K, (u[m, j], u[m, k]), M[m, j, k])
+        m = ok[:, j]
+        np.add.at(rhs, u[m, j], b[m, j])
+        rows = nu + np.arange(nc)[m]
+        np.add.at(K, (rows, u[m, j]), cs[m, j])
+        np.add.at(K, (u[m, j], rows), cs[m, j])
+    rhs[nu:nu + nc] = div * geo.area[cells]
+    if closed:  # the multiplier is defined up to a constant: fix its sum
+        K[nu:nu + nc, -1] = 1.0
+        K[-1, nu:nu + nc] = 1.0
+    x = np.linalg.solve(K, rhs)[:nu]
+    return edges[free], x
+
+
+def equilibrate(geo, G_tri, int_fphi, own_term):
+    """The patch flux of section 7(c): sum over the vertices a of the minimisers of
+    ||Pi_RT(phi_a G) + tau|| on the cells of S_h in supp phi_a, with tau.n = 0 on the patch boundary
+    inside omega and div tau = Pi(f phi_a) - G.grad phi_a + own_term[a] on the cells of D_a.
+    G_tri: the discrete flux mu grad u_h per triangle; int_fphi: int_kappa f phi_j (ns x 3).
+    Returns the fluxes through the edges of S_h."""
+    nv = len(geo.P)
+    x = np.zeros(geo.n_edges)
+    G = G_tri[geo.tri]
+    g_phi = np.einsum("nd,nkd->nk", G_tri, geo.grad_K)  # G . grad phi_j per triangle
+    e_vec = np.roll(geo.ps, -1, axis=1) - geo.ps
+    nu = np.stack([e_vec[..., 1], -e_vec[..., 0]], axis=-1)  # outward normals times lengths
+    for a in range(nv):
+        tris = geo.vt_tri[geo.vt_ptr[a]:geo.vt_ptr[a + 1]]
+        locs = geo.vt_loc[geo.vt_ptr[a]:geo.vt_ptr[a + 1]]
+        cells = (6 * tris[:, None] + np.arange(6)[None]).ravel()
+        j = np.repeat(locs, 6)
+        phi_mid = geo.lam_mid[cells, :, j]  # nc x 3 (at the 3 edge midpoints)
+        # target: the RT0 interpolant of -phi_a G (fluxes phi_a(m_k) G.nu_k)
+        Fi = -phi_mid * np.einsum("nd,nkd->nk", G[cells], nu[cells])
+        target = geo.rt0_at(Fi, geo.mid[cells], cells)
+        own = geo.owner[cells] == a
+        d = int_fphi[cells, j] / geo.area[cells] - g_phi[geo.tri[cells], j] + own * own_term[a]
+        edges, xe = solve_patch(geo, cells, target, d)
+        x[edges] += xe
+    return x
+
+
+def lift(geo, c):
+    """An RT0 field tau_c on S_h with div tau_c = c exactly (c constant on the cells of S_h, zero
+    integral against nothing in particular): z_h in X_0h with (grad z_h, grad phi_b) = (c, phi_b), then
+    the patch equilibration of -Delta z = c, which is compatible with no defect (c is integrated
+    exactly). (c, v) = -(tau_c, grad v) for v in H^1_0: section 4(c')."""
+    import scipy.sparse as sps
+    import scipy.sparse.linalg as spl
+
+    nv = len(geo.P)
+    k = np.einsum("nid,njd->nij", geo.grad_K, geo.grad_K) * geo.area_K[:, None, None]
+    rows = np.repeat(geo.T, 3, axis=1).ravel()
+    cols = np.tile(geo.T, (1, 3)).ravel()
+    K = sps.csr_matrix((k.ravel(), (rows, cols)), shape=(nv, nv))
+    cen = barycentric(geo.pk[geo.tri], geo.ps.mean(axis=1)[:, None, :])[:, 0]  # phi_j at the cell centroids
+    int_cphi = (c * geo.area)[:, None] * cen  # int_kappa c phi_j, exact
+    b = np.zeros(nv)
+    np.add.at(b, geo.T[geo.tri].ravel(), int_cphi.ravel())
+    inner = np.flatnonzero(geo.interior)
+    z = np.zeros(nv)
+    z[inner] = spl.spsolve(K[inner][:, inner].tocsc(), b[inner])
+    grad_z = np.einsum("nkd,nk->nd", geo.grad_K, z[geo.T])
+    return equilibrate(geo, grad_z, int_cphi, np.zeros(nv))
+
+
+# ---------------------------------------------------------------------------------------------
+# the estimator
+# ---------------------------------------------------------------------------------------------
+
+def case_function(source):
+    tree = expr.parse(source)
+    return lambda x, y: np.broadcast_to(expr.to_numpy(tree, x, y), np.shape(x))
+
+
+def case_gradient(source):
+    """grad g as NumPy functions (SymPy derivative of the case expression)."""
+    from .exact_cases import X, Y, to_sympy
+
+    g = to_sympy(source)
+    parts = [sp.lambdify((X, Y), sp.diff(g, v).rewrite(sp.Piecewise), "numpy") for v in (X, Y)]
+    return lambda x, y: np.stack([np.broadcast_to(np.asarray(p(x, y), float), np.shape(x)) for p in parts], axis=-1)
+
+
+def boundary_lifting(geo, case, gap, lam):
+    """psi, the lifting of g - g_h into the triangles of the boundary edges (docs, section 4):
+    per triangle ||grad psi||_K^2 and int_K lambda_h psi."""
+    g, dg = case_function(case["g"]), case_gradient(case["g"])
+    t, w = np.polynomial.legendre.leggauss(GAUSS_1D)
+    tau = np.concatenate([(t + 1) / 4, (t + 3) / 4])  # [0, 1/2] and [1/2, 1]: s* has a kink at 1/2
+    wt = np.concatenate([w, w]) / 4
+    nt = len(geo.T)
+    grad2 = np.zeros(nt)
+    lampsi = np.zeros(nt)
+    # the triangle and third vertex of each boundary edge
+    e = np.concatenate([geo.T[:, [0, 1]], geo.T[:, [1, 2]], geo.T[:, [2, 0]]])
+    owner = np.concatenate([np.arange(nt)] * 3)
+    key = {tuple(sorted(p)): i for i, p in enumerate(map(tuple, np.sort(e, axis=1)))}
+    per_tri = {}
+    for (p, q) in geo.bedges:
+        i = key[(p, q)]
+        K = owner[i]
+        per_tri.setdefault(K, []).append((p, q))
+    norms = {}
+    for K, edges in per_tri.items():
+        verts = geo.T[K]
+        gl = geo.grad_K[K]
+        parts = []
+        for (p, q) in edges:
+            c = [v for v in verts if v != p and v != q][0]
+            lp, lq, lc = [int(np.flatnonzero(verts == v)[0]) for v in (p, q, c)]
+            P, Qp = geo.P[p], geo.P[q]
+            y = P[None] + tau[:, None] * (Qp - P)[None]
+            gp, gq = float(g(P[0:1], P[1:2])[0]), float(g(Qp[0:1], Qp[1:2])[0])
+            delta = g(y[:, 0], y[:, 1]) - ((1 - tau) * gp + tau * gq)
+            ddelta = dg(y[:, 0], y[:, 1]) @ (Qp - P) - (gq - gp)
+            ds = -gl[lc]
+            field = delta[:, None] * ds[None] + ddelta[:, None] * (gl[lq][None] - tau[:, None] * ds[None])
+            n2 = geo.area_K[K] * np.sum(wt * np.sum(field ** 2, axis=1))
+            sstar = 1.0 / (1.0 + np.maximum(tau, 1 - tau))
+            lampsi[K] += lam[c] * 2 * geo.area_K[K] * np.sum(wt * delta * sstar ** 3 / 3)
+            parts.append((math.sqrt(n2), float(np.min(delta)), (gp, gq)))
+        if len(parts) == 1:
+            grad2[K] = parts[0][0] ** 2  # w_h + psi = (1 - s) w_c + s g >= 0: psi is the lifting
+        else:
+            # two (or three) boundary edges: psi0 = sum of the edge liftings; psi = max(psi0, -g_h)
+            gmin = min(float(g(geo.P[v:v + 1, 0], geo.P[v:v + 1, 1])[0]) for v in verts)
+            need = sum(max(0.0, -d) for _, d, _ in parts)
+            n = sum(x for x, _, _ in parts) ** 2
+            if gmin < need:  # max(psi0, -g_h) may differ from psi0: |grad psi|^2 <= |grad psi0|^2 + |grad g_h|^2
+                gh = np.array([float(g(geo.P[v:v + 1, 0], geo.P[v:v + 1, 1])[0]) for v in verts])
+                n += geo.area_K[K] * float(np.sum((gh @ gl) ** 2))
+            grad2[K] = n
+    return grad2, lampsi
+
+
+def estimate(path, variants=VARIANTS, lift_means=("dualmin", "patch")):
+    r = common.read_result(path)
+    geo = Geometry(r)
+    case = r["case"]
+    mu = [float(case["mu1"]), float(case["mu2"])]
+    sign = [1.0, -1.0]
+    u = [r["u1"], r["u2"]]
+    gap = r["gap"]
+    lam = r["lambda"].copy()
+    lam[geo.on_boundary] = 0.0
+    lam_cell = r["dual_lambda"]
+    nt, ns, nv = len(geo.T), len(geo.S), len(geo.P)
+    out = {"path": path, "n_triangles": nt, "C_F": geo.C_F}
+    origin = str(r["attrs"].get("case_origin", path))
+    out["case_name"] = origin.rsplit("/", 1)[-1].replace(".toml", "")
+    m = case["mesh"]
+    per_square = 4 if m.get("diagonal", "right") == "crossed" else 2
+    out["n"] = int(round(math.sqrt(nt / per_square / (0.75 if m["kind"] == "lshape" else 1.0))))
+    attrs = r["attrs"]
+    out["error_energy"] = float(attrs.get("error_energy", np.nan))
+    out["error_hminus1"] = float(attrs.get("error_hminus1_lambda", np.nan))
+
+    # contact term (lambda_h, w_h + psi) and the boundary lifting
+    w_cent = np.einsum("nk,nk->n", barycentric(geo.pk[geo.tri], geo.ps.mean(axis=1)[:, None, :])[:, 0], gap[geo.T[geo.tri]])
+    contact_cell = lam_cell * w_cent * geo.area
+    grad_psi2, lampsi = boundary_lifting(geo, case, gap, lam)
+    contact_K = np.bincount(geo.tri, contact_cell, minlength=nt) + lampsi
+    eta_C = float(contact_K.sum())
+    eta_D = math.sqrt(mu[0] * grad_psi2.sum())
+    out["eta_C"], out["eta_D"] = eta_C, eta_D
+
+    per = {}
+    membrane = []
+    for i in range(2):
+        f = case_function(case["f%d" % (i + 1)])
+        fq = f(geo.xq[..., 0], geo.xq[..., 1])
+        int_f = np.sum(geo.wq * fq, axis=1)
+        pif = int_f / geo.area
+        osc = (geo.diam / math.pi) * np.sqrt(np.maximum(np.sum(geo.wq * (fq - pif[:, None]) ** 2, axis=1), 0.0)) / math.sqrt(mu[i])
+        int_fphi = np.einsum("nq,nq,nqk->nk", geo.wq, fq, geo.lam_q)  # int_kappa f phi_j, j the vertices of K
+        grad_uh = np.einsum("nkd,nk->nd", geo.grad_K, u[i][geo.T])  # per triangle
+        G = mu[i] * grad_uh[geo.tri]  # mu grad u_h per cell
+        # t_ih as written: t(c) and div t per cell; edge fluxes through the midpoints
+        tc = np.stack([r["t%d_x" % (i + 1)], r["t%d_y" % (i + 1)]], axis=1)
+        div_t = r["div_t%d" % (i + 1)]
+        cen = geo.ps.mean(axis=1)
+        t_mid = tc[:, None, :] + 0.5 * div_t[:, None, None] * (geo.mid - cen[:, None, :])
+        e_vec = np.roll(geo.ps, -1, axis=1) - geo.ps
+        F_t = t_mid[..., 0] * e_vec[..., 1] - t_mid[..., 1] * e_vec[..., 0]  # outward cell fluxes
+        x_t = np.zeros(geo.n_edges)
+        x_t[geo.cell_edge.ravel()] = (geo.cell_sign * F_t).ravel()
+        # Lemma 17: the loads (f_i, phi_a)_q as computed, from int_{D_a} div t_ih
+        int_div = np.bincount(geo.owner, div_t * geo.area, minlength=nv)
+        load_q = int_div - sign[i] * lam * geo.dual_area
+        rho = pif + sign[i] * lam_cell - div_t  # the piecewise-constant part of the residual
+        m_a = np.bincount(geo.owner, rho * geo.area, minlength=nv)
+        m_a[geo.on_boundary] = 0.0  # boundary cells: lifted with free flux on d(omega)
+        res = {"mean_defect": float(np.abs(m_a).max())}
+        for v in variants:
+            sig_extra = np.zeros(ns)
+            if v in ("dual", "dualmin"):
+                x = x_t.copy()
+                sig = np.zeros(geo.n_edges)
+                target = np.zeros_like(geo.mid) if v == "dual" else -(G[:, None, :] + t_mid)
+                for a in range(nv):
+                    cells = geo.dual_cells_of[geo.dual_ptr[a]:geo.dual_ptr[a + 1]]
+                    d = rho[cells] - m_a[a] / geo.dual_area[a]
+                    edges, xe = solve_patch(geo, cells, target[cells], d)
+                    sig[edges] += xe
+                Fs = geo.cell_fluxes(sig)
+                if v == "dual":
+                    sig_extra = np.sqrt(geo.l2_affine(geo.rt0_at(Fs, geo.mid))) / math.sqrt(mu[i])
+                else:
+                    x = x + sig
+                mean_cell = m_a[geo.owner] / geo.dual_area[geo.owner]
+            else:  # vertex patches (Braess-Schoeberl / Ern-Vohralik), RT0 on S_h
+                # e_a = (f, phi_a) - (f, phi_a)_q at interior vertices
+                exact_load = np.zeros(nv)
+                np.add.at(exact_load, geo.T[geo.tri].ravel(), int_fphi.ravel())
+                e_a = np.where(geo.interior, exact_load - load_q, 0.0)
+                x = equilibrate(geo, mu[i] * grad_uh, int_fphi, sign[i] * lam - e_a / geo.dual_area)
+                mean_cell = e_a[geo.owner] / geo.dual_area[geo.owner]
+            eta_Q_friedrichs = geo.C_F * math.sqrt(np.sum(mean_cell ** 2 * geo.area) / mu[i])
+            eta_Q = eta_Q_friedrichs
+            lifted = v in lift_means and np.abs(mean_cell).max() > 0
+            if lifted:  # section 4(c'): tau_c with div tau_c = c, added to the flux; no mean is left
+                x_c = lift(geo, mean_cell)
+                x = x + x_c
+                eta_Q = math.sqrt(geo.l2_affine(geo.rt0_at(geo.cell_fluxes(x_c), geo.mid)).sum() / mu[i])  # for the record
+                mean_cell = np.zeros(ns)
+            F = geo.cell_fluxes(x)
+            tau_mid = geo.rt0_at(F, geo.mid)
+            eta_F = np.sqrt(geo.l2_affine(G[:, None, :] + tau_mid)) / math.sqrt(mu[i]) + sig_extra
+            # checks: conservation of tau on the cells (div tau = Pi f +- lambda_h - mean)
+            div_tau = F.sum(axis=1) / geo.area
+            if v != "dual":
+                target_div = pif + sign[i] * lam_cell - mean_cell
+                res[v + "_div_defect"] = float(np.abs(div_tau - target_div).max() / max(np.abs(target_div).max(), 1e-300))
+            res[v] = {"eta_F": eta_F, "eta_osc": osc, "eta_Q": 0.0 if lifted else eta_Q, "eta_Q_record": eta_Q,
+                      "eta_Q_friedrichs": eta_Q_friedrichs, "tau_mid": tau_mid, "G_mid": G, "mean_cell": mean_cell,
+                      "osc_raw": osc * math.sqrt(mu[i]), "F_raw": eta_F * math.sqrt(mu[i])}
+        membrane.append(res)
+
+    for v in variants:
+        parts = []
+        for i in range(2):
+            d = membrane[i][v]
+            cell = d["eta_F"] + d["eta_osc"]
+            parts.append(math.sqrt(np.sum(cell ** 2)) + d["eta_Q"])
+        eta_FR = math.sqrt(parts[0] ** 2 + parts[1] ** 2)
+        eta = math.sqrt(eta_FR ** 2 + eta_D ** 2 + 2 * max(eta_C, 0.0))  # (E), docs section 3
+        # the action in H^-1: alpha = mu2/(mu1+mu2)
+        alpha = mu[1] / (mu[0] + mu[1])
+        d1, d2 = membrane[0][v], membrane[1][v]
+        zeta = alpha * (d1["G_mid"][:, None, :] + d1["tau_mid"]) - (1 - alpha) * (d2["G_mid"][:, None, :] + d2["tau_mid"])
+        zeta_cell = np.sqrt(geo.l2_affine(zeta))
+        if v == "dual":  # the separate lifts sigma_i enter with weights alpha, 1 - alpha
+            zeta_cell = zeta_cell + alpha * (d1["F_raw"] - np.sqrt(geo.l2_affine(d1["G_mid"][:, None, :] + d1["tau_mid"]))) \
+                + (1 - alpha) * (d2["F_raw"] - np.sqrt(geo.l2_affine(d2["G_mid"][:, None, :] + d2["tau_mid"])))
+        osc_l = alpha * d1["osc_raw"] + (1 - alpha) * d2["osc_raw"]
+        mean_l = -alpha * d1["mean_cell"] + (1 - alpha) * d2["mean_cell"]
+        eta_lam = math.sqrt(np.sum((zeta_cell + osc_l) ** 2)) + geo.C_F * math.sqrt(np.sum(mean_l ** 2 * geo.area))
+        # the gap w = u1 - u2: mu_bar ||grad(w - w_h)||^2 <= eta_lam^2/mu_bar + mu_bar ||grad psi||^2 + 2 eta_C
+        mu_bar = mu[0] * mu[1] / (mu[0] + mu[1])
+        eta_w = math.sqrt(eta_lam ** 2 / mu_bar + mu_bar * grad_psi2.sum() + 2 * max(eta_C, 0.0))
+        eta_lambda = math.sqrt(mu_bar) * eta_w + eta_lam
+        per_tri = np.zeros(nt)
+        for i in range(2):
+            d = membrane[i][v]
+            per_tri += np.bincount(geo.tri, (d["eta_F"] + d["eta_osc"]) ** 2, minlength=nt)
+        out[v] = {
+            "eta": eta, "eta_FR": eta_FR,
+            "eta_F": math.sqrt(sum(np.sum(membrane[i][v]["eta_F"] ** 2) for i in range(2))),
+            "eta_osc": math.sqrt(sum(np.sum(membrane[i][v]["eta_osc"] ** 2) for i in range(2))),
+            "eta_Q": math.sqrt(sum(membrane[i][v]["eta_Q"] ** 2 for i in range(2))),
+            "eta_Q_friedrichs": math.sqrt(sum(membrane[i][v]["eta_Q_friedrichs"] ** 2 for i in range(2))),
+            "eta_Q_lifted": math.sqrt(sum(membrane[i][v]["eta_Q_record"] ** 2 for i in range(2))),
+            "eta_lambda": eta_lambda, "eta_w": eta_w,
+            "per_triangle": {"flux_osc_sq": per_tri, "contact": contact_K, "lifting_sq": mu[0] * grad_psi2},
+        }
+        for i in range(2):
+            if v + "_div_defect" in membrane[i]:
+                out[v]["div_defect_%d" % (i + 1)] = membrane[i][v + "_div_defect"]
+    out["mean_defect"] = max(membrane[0]["mean_defect"], membrane[1]["mean_defect"])
+    return out
+
+
+def line(o, variants=VARIANTS):
+    e = o["error_energy"]
+    s = "%s  err %.4e" % (o["path"], e)
+    for v in variants:
+        d = o[v]
+        s += " | %s eta %.4e eff %.3f (F %.2e osc %.2e Q %.2e) lam %.2e/%.2e" % (
+            v, d["eta"], d["eta"] / e, d["eta_F"], d["eta_osc"], d["eta_Q"], d["eta_lambda"], o["error_hminus1"])
+    s += " | C %.2e D %.2e" % (o["eta_C"], o["eta_D"])
+    return s
+
+
+def table_row(o):
+    """One markdown row: case, n, true error, then per flux eta and effectivity; data terms; action."""
+    case = o["case_name"]
+    cells = ["%s" % case, "%d" % o["n"], "%.3e" % o["error_energy"]]
+    for v in VARIANTS:
+        cells += ["%.3e" % o[v]["eta"], "%.3f" % (o[v]["eta"] / o["error_energy"])]
+    cells += ["%.1e" % o["eta_D"], "%.1e" % o["eta_C"], "%.1e / %.1e" % (o["patch"]["eta_Q_friedrichs"], o["patch"]["eta_Q_lifted"]), "%.2e" % o["error_hminus1"],
+              "%.2e" % o["patch"]["eta_lambda"],
+              "%.0f" % (o["patch"]["eta_lambda"] / o["error_hminus1"]) if o["error_hminus1"] > 1e-12 else "—"]
+    return "| " + " | ".join(cells) + " |"
+
+
+TABLE_HEAD = ("| case | n | error | eta dual | eff | eta dualmin | eff | eta patch | eff | eta_D | eta_C | patch: C_F norm of means / norm of their lift "
+              "| H-1 error of lambda (Rust, lower bound) | eta_lambda (patch) | ratio |\n" + "|---" * 15 + "|")
+
+
+def main(argv):
+    table = "--table" in argv
+    save = None
+    if "--per-triangle" in argv:
+        k = argv.index("--per-triangle")
+        save = argv[k + 1]
+        del argv[k:k + 2]
+    paths = [a for a in argv if not a.startswith("--")]
+    if table:
+        print(TABLE_HEAD, flush=True)
+    for p in paths:
+        o = estimate(p)
+        print(table_row(o) if table else line(o), flush=True)
+        if table:
+            print(line(o), file=sys.stderr, flush=True)
+        if save:
+            np.savez(save, **{v + "_" + k: x for v in VARIANTS for k, x in o[v]["per_triangle"].items()})
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
