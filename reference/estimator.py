@@ -7,22 +7,28 @@ Usage (from the repository root, Debian's python3):
     /usr/bin/python3 -m reference.estimator --per-triangle OUT.npz DIR   also saves the per-triangle terms
 DIR is a result of `membrane-contact solve CASE --n N --flux [--hminus1] -o DIR`.
 
-Bound (docs/a-posteriori.md, (E)):  |||u - u_h||| <= eta := (eta_FR^2 + eta_D^2 + 2 eta_C)^(1/2),
+Bound (docs/a-posteriori.md, Theorem (E)):
+    |||u - u_h||| <= eta := (eta_FR^2 + eta_D^2 + 2 eta_C)^(1/2),
     eta_FR^2 = sum_i ( (sum_kappa (eta_F + eta_osc)_kappa^2)^(1/2) + eta_Q,i )^2,
 with, per cell kappa of S_h and membrane i (tau_i the equilibrated flux of the variant):
     eta_F   = mu_i^(-1/2) || mu_i grad u_ih + tau_i ||_kappa                         (flux)
-    eta_osc = (h_kappa / pi) mu_i^(-1/2) || f_i - Pi_kappa f_i ||_kappa              (data oscillation)
-    eta_Q,i = C_F mu_i^(-1/2) || sum_a c_a chi_{D_a} ||                              (means, Friedrichs)
+    eta_osc = (h_kappa / pi) mu_i^(-1/2) || f_i - Pi_kappa f_i ||_kappa              (oscillation)
+    eta_Q,i = C_F mu_i^(-1/2) || c_i ||, c_i = sum_a c_a chi_{D_a} the dual-cell means of the
+              residual (Friedrichs, section 4(c)); 0 when they are lifted into tau_i (4(c'))
     eta_C   = (lambda_h, w_h + psi)                                                  (contact)
     eta_D   = mu_1^(1/2) || grad psi ||,  psi the lifting of g - g_h                 (boundary data)
-and the action:  ||lambda - lambda_h||_H^-1 <= sqrt(mu1 mu2/(mu1+mu2)) eta + eta_lambda.
+and the action (section 8), mu_bar = mu1 mu2/(mu1 + mu2):
+    ||lambda - lambda_h||_H^-1 <= mu_bar^(1/2) eta_w + eta_lambda,
+    eta_w = (eta_lambda^2/mu_bar + mu_bar ||grad psi||^2 + 2 eta_C)^(1/2).
 
-Three fluxes (docs, section 5):
+Three fluxes (docs, section 7):
     "dual"     t_ih of (4.13) as written by --flux; the piecewise-constant part of its residual is
-               lifted separately by sigma on each D_a (min ||sigma||), eta_F -> eta_F + ||sigma||.
-    "dualmin"  t_ih + sigma with sigma minimising ||mu grad u_h + t + sigma|| on each D_a: the
-               local minimisation of [14] on the dual cells (same normal fluxes on the dD_a).
-    "patch"    the Braess-Schoeberl / Ern-Vohralik equilibration on the vertex patches, RT0 on S_h.
+               lifted separately by sigma on each D_a (min ||sigma||), eta_F -> eta_F + ||sigma||;
+               the means by Friedrichs.
+    "dualmin"  t_ih + sigma with sigma minimising ||mu grad u_h + t + sigma|| on each D_a (the
+               local minimisation of the paper's [14] on the dual cells), means lifted.
+    "patch"    the Braess-Schoeberl / Ern-Vohralik equilibration on the vertex patches, RT0 on S_h,
+               means (quadrature errors of the loads) lifted. Recommended.
 """
 import math
 import sys
@@ -215,10 +221,9 @@ def equilibrate(geo, G_tri, int_fphi, own_term):
 
 
 def lift(geo, c):
-    """An RT0 field tau_c on S_h with div tau_c = c exactly (c constant on the cells of S_h, zero
-    integral against nothing in particular): z_h in X_0h with (grad z_h, grad phi_b) = (c, phi_b), then
+    """An RT0 field tau_c on S_h with div tau_c = c exactly (c constant on the cells of S_h): z_h in X_0h with (grad z_h, grad phi_b) = (c, phi_b), then
     the patch equilibration of -Delta z = c, which is compatible with no defect (c is integrated
-    exactly). (c, v) = -(tau_c, grad v) for v in H^1_0: section 4(c')."""
+    exactly): (c, v) = -(tau_c, grad v) for v in H^1_0, section 4(c')."""
     import scipy.sparse as sps
     import scipy.sparse.linalg as spl
 
@@ -256,7 +261,7 @@ def case_gradient(source):
     return lambda x, y: np.stack([np.broadcast_to(np.asarray(p(x, y), float), np.shape(x)) for p in parts], axis=-1)
 
 
-def boundary_lifting(geo, case, gap, lam):
+def boundary_lifting(geo, case, lam):
     """psi, the lifting of g - g_h into the triangles of the boundary edges (docs, section 4):
     per triangle ||grad psi||_K^2 and int_K lambda_h psi."""
     g, dg = case_function(case["g"]), case_gradient(case["g"])
@@ -275,7 +280,6 @@ def boundary_lifting(geo, case, gap, lam):
         i = key[(p, q)]
         K = owner[i]
         per_tri.setdefault(K, []).append((p, q))
-    norms = {}
     for K, edges in per_tri.items():
         verts = geo.T[K]
         gl = geo.grad_K[K]
@@ -333,13 +337,12 @@ def estimate(path, variants=VARIANTS, lift_means=("dualmin", "patch")):
     # contact term (lambda_h, w_h + psi) and the boundary lifting
     w_cent = np.einsum("nk,nk->n", barycentric(geo.pk[geo.tri], geo.ps.mean(axis=1)[:, None, :])[:, 0], gap[geo.T[geo.tri]])
     contact_cell = lam_cell * w_cent * geo.area
-    grad_psi2, lampsi = boundary_lifting(geo, case, gap, lam)
+    grad_psi2, lampsi = boundary_lifting(geo, case, lam)
     contact_K = np.bincount(geo.tri, contact_cell, minlength=nt) + lampsi
     eta_C = float(contact_K.sum())
     eta_D = math.sqrt(mu[0] * grad_psi2.sum())
     out["eta_C"], out["eta_D"] = eta_C, eta_D
 
-    per = {}
     membrane = []
     for i in range(2):
         f = case_function(case["f%d" % (i + 1)])
