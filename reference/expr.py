@@ -15,9 +15,12 @@ import math
 import re
 
 _TOKEN = re.compile(
-    r"\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)|(?P<name>[A-Za-z_][A-Za-z_0-9]*)"
-    r"|(?P<op><=|>=|&&|\|\||[<>+\-*/^(),]))"
+    r"[ \t\n\r\f]*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)|(?P<name>[A-Za-z_][A-Za-z_0-9]*)"
+    r"|(?P<op><=|>=|&&|\|\||[<>+\-*/^(),]))",
+    re.ASCII,
 )
+# ASCII whitespace only, as Rust's u8::is_ascii_whitespace (not \v, nor Unicode spaces).
+_SPACE = " \t\n\r\f"
 UNARY = ("sqrt", "exp", "log", "sin", "cos", "tan", "atan", "tanh", "abs", "sign", "floor")
 BINARY = ("min", "max", "atan2")
 ARITY = dict([(f, 1) for f in UNARY] + [(f, 2) for f in BINARY] + [("if", 3)])
@@ -42,7 +45,7 @@ class ExprError(ValueError):
 def _lex(s):
     out, i = [], 0
     while i < len(s):
-        if s[i].isspace():
+        if s[i] in _SPACE:
             i += 1
             continue
         m = _TOKEN.match(s, i)
@@ -292,6 +295,18 @@ def _build(tree, x, y, lib):
     raise ExprError("bad tree %r" % (tree,))
 
 
+def _minimum_number(np, smaller):
+    """min (smaller=True) or max of two arrays as src/expr.rs: a NaN is ignored, and of +0 and -0
+    min takes -0, max +0 (np.fmin and np.fmax return their second argument on a tie)."""
+
+    def f(a, b):
+        a, b = np.broadcast_arrays(a, b)
+        first = (a < b if smaller else a > b) | np.isnan(b) | ((a == b) & (np.signbit(a) == smaller))
+        return np.where(first, a, b)
+
+    return f
+
+
 def to_numpy(tree, x, y):
     """The expression at points (x, y) (NumPy arrays)."""
     import numpy as np
@@ -312,8 +327,8 @@ def to_numpy(tree, x, y):
         "abs": np.abs,
         "sign": np.sign,
         "floor": np.floor,
-        "min": np.fmin,
-        "max": np.fmax,
+        "min": _minimum_number(np, True),
+        "max": _minimum_number(np, False),
         "atan2": np.arctan2,
         "if": np.where,
     }
@@ -340,7 +355,8 @@ def _ufl_floor(a):
 
 def to_ufl(tree, mesh):
     """The expression as UFL of the spatial coordinate of `mesh`. sign is UFL's (0 at 0, as NumPy;
-    it differs from NumPy only at NaN, where UFL gives 1)."""
+    it differs from NumPy only at NaN, where UFL gives 1); min and max are C's fmin and fmax
+    (which of +0 and -0 they return is left open: it matters only for 1/min(x, -x) at x = 0)."""
     import ufl
 
     X = ufl.SpatialCoordinate(mesh)

@@ -229,8 +229,8 @@ impl Expr {
                         Binary::Mul => map2(a, b, |a, b| a * b),
                         Binary::Div => map2(a, b, |a, b| a / b),
                         Binary::Pow => map2(a, b, f64::powf),
-                        Binary::Min => map2(a, b, f64::min),
-                        Binary::Max => map2(a, b, f64::max),
+                        Binary::Min => map2(a, b, min),
+                        Binary::Max => map2(a, b, max),
                         Binary::Atan2 => map2(a, b, f64::atan2),
                     }
                 }
@@ -350,14 +350,36 @@ fn map2(a: &mut [f64], b: &[f64], f: impl Fn(f64, f64) -> f64) {
     a.iter_mut().zip(b).for_each(|(a, b)| *a = f(*a, *b));
 }
 
-/// −1, 0 or 1 by the sign of a (NaN stays NaN), as NumPy's `sign`; `f64::signum` gives 1 at 0.
+/// −1, 0 or 1 by the sign of a (+0 at ±0, NaN stays NaN), as NumPy's `sign`; `f64::signum`
+/// gives ±1 at ±0.
 fn sign(a: f64) -> f64 {
     if a > 0.0 {
         1.0
     } else if a < 0.0 {
         -1.0
+    } else if a == 0.0 {
+        0.0
     } else {
         a
+    }
+}
+
+/// The smaller of a and b, ignoring a NaN, and −0 of ±0 (IEEE 754-2019 minimumNumber):
+/// `f64::min` leaves the zero open, and gives +0 one by one but −0 when vectorised.
+fn min(a: f64, b: f64) -> f64 {
+    if a < b || b.is_nan() || (a == b && a.is_sign_negative()) {
+        a
+    } else {
+        b
+    }
+}
+
+/// The larger of a and b, ignoring a NaN, and +0 of ±0 (IEEE 754-2019 maximumNumber).
+fn max(a: f64, b: f64) -> f64 {
+    if a > b || b.is_nan() || (a == b && a.is_sign_positive()) {
+        a
+    } else {
+        b
     }
 }
 
@@ -1017,6 +1039,16 @@ mod tests {
         );
         assert!(ev("sign(log(x))", -1.0, 0.0).is_nan());
         assert_eq!(ev("floor(x) + floor(y)", -0.5, 2.0), -1.0 + 2.0);
+    }
+
+    #[test]
+    fn signed_zeros() {
+        let bits = |s: &str| ev(s, 0.0, -0.0).to_bits();
+        assert_eq!([bits("min(x, y)"), bits("min(y, x)")], [(-0.0f64).to_bits(); 2]);
+        assert_eq!(
+            [bits("max(x, y)"), bits("max(y, x)"), bits("sign(y)")],
+            [0.0f64.to_bits(); 3]
+        );
     }
 
     #[test]
