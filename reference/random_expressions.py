@@ -7,10 +7,11 @@ be rejected (syntax errors, conditions outside if, unknown names, wrong arity, b
 nesting beyond the limits) and are marked with why. Before writing, the Python reference's parser
 (reference/expr.py, to NumPy) is checked against the oracle on every expression.
 
-Output (JSON): {"points": [[x, y], ...], "cases": [{"lets": [[name, text], ...], "text": ...,
+Output (JSON): {"points": [[repr of x, repr of y], ...], "cases": [{"lets": [[name, text], ...], "text": ...,
 "values": [repr of the value at each point, or null where it is ill-conditioned (see `oracle`),
-...] or null, "reject": why or null}, ...]}; values are `repr` strings so that nan and inf survive
-JSON.
+...] or null, "reject": why or null}, ...]}; numbers are `repr` strings so that nan and inf
+survive JSON, and so that they are read back exactly (serde_json's default float parsing may be
+off by a unit in the last place).
 
 Usage (from the repository root):
     /usr/bin/python3 -m reference.random_expressions --seed 1 --count 10000 --out cases.json
@@ -38,7 +39,7 @@ LET_NAMES = ("r", "C", "a1", "_t", "s_2", "rho", "Exp", "xx", "pi2", "e_")
 NOT_NAMES = ("z", "X", "Pi", "E", "foo", "ln", "sinh", "pow", "PI", "x1")
 RTOL = 1e-12
 NOISE = 4e-15
-RUNS = 3
+RUNS = 6
 SAFETY = 10
 
 
@@ -164,15 +165,16 @@ def evaluate(node, x, y, lets, noise=None, flags=None):
         value = np.where(*args)
     if noise is None:
         return value
-    factor = 1 + noise.uniform(-NOISE, NOISE, x.shape)
+    factor = 1 + noise.choice([-1, 1], x.shape) * noise.uniform(NOISE / 4, NOISE, x.shape)
     factor[0] = 1
     return value * factor
 
 
 def near_discontinuity(k, node, args, flags):
     """flags |= points where the exact run (row 0) is within SAFETY spreads of the runs from a
-    jump: a comparison's equality, floor's integers, sign's and sqrt's and log's 0, and the
-    integer exponents of a negative base."""
+    jump: a comparison's equality, floor's integers, sign's and sqrt's and log's 0, atan2's
+    negative x axis, the integer exponents of a negative base, base 0 and ±1, exponent 0, and
+    factors, numerators and denominators at 0."""
     def spread(a):
         return np.abs(a - a[0]).max(axis=0)
 
@@ -186,17 +188,25 @@ def near_discontinuity(k, node, args, flags):
         flags |= near(args[0][0], args[0])
     elif k == "fn" and node[1] == "floor":
         flags |= near(args[0][0] - np.round(args[0][0]), args[0])
+    elif k == "fn" and node[1] == "atan2":
+        flags |= (args[1][0] < 0) & near(args[0][0], args[0])
     elif k == "^":
         base, p = args
         flags |= (base[0] < 0) & near(p[0] - np.round(p[0]), p)
+        flags |= near(base[0], base)  # the domain's edge (0^p is 0 or inf, b^p NaN below 0)
+        flags |= near(np.abs(base[0]) - 1, base) | near(p[0], p)  # 1^p, b^0 = 1; (±1)^inf = 1
+    elif k in ("*", "/"):
+        flags |= near(args[0][0], args[0]) | near(args[1][0], args[1])  # 0 * inf, 0 / 0, 1 / ±0
 
 
 def oracle(tree, x, y, lets, rng):
     """The values of a tree at the points, None where they are ill-conditioned: where RUNS - 1
-    evaluations with every computed number perturbed by a relative NOISE (about 20 units in the
-    last place) move the value by more than RTOL / 10, or put a jump (`near_discontinuity`) within
+    evaluations with every computed number perturbed by a relative NOISE / 4 to NOISE (5 to 20
+    units in the last place) move the value by more than RTOL / 10, or put a jump (`near_discontinuity`) within
     reach. There the last bits of the functions (NumPy's vectorised exp, log, ... against the C
-    library's that Rust calls) decide the value, which is then no reference."""
+    library's that Rust calls) decide the value, which is then no reference. Five perturbed runs:
+    perturbations are rounded to whole units in the last place, so that two perturbed terms of a
+    cancelling sum can cancel exactly in one run by chance."""
     flags = np.zeros(x.shape, bool)
     runs = [np.broadcast_to(c, (RUNS, len(c))) for c in (x, y)]
     with np.errstate(all="ignore"):
@@ -246,6 +256,7 @@ def rejected(gen, rng):
         "not a name": [[(gen.pick(["2a", "a-b", "a b", ""]), "1")], "1"],
         "named value called": [[("r", "x")], "r(1)"],
         "condition as named value": [[("c", c)], "if(c, 1, 2)"],
+        "names too large": [[("a0", "x")] + [("a%d" % k, "a%d + a%d" % (k - 1, k - 1)) for k in range(1, 17)], "a16"],
     }
     if rng.random() < 0.2:
         why = gen.pick(list(lets))
@@ -299,7 +310,7 @@ def generate(seed, count):
         lets, tree = valid(gen, rng)
         cases.append({"lets": [[k, text(v, rng)] for k, v in lets], "text": text(tree, rng), "reject": None,
                       "values": oracle(tree, pts[:, 0], pts[:, 1], dict(lets), rng)})
-    return {"points": pts.tolist(), "cases": cases}
+    return {"points": [[repr(float(c)) for c in p] for p in pts], "cases": cases}
 
 
 def main(argv=None):
@@ -309,7 +320,7 @@ def main(argv=None):
     ap.add_argument("--out", required=True)
     args = ap.parse_args(argv)
     data = generate(args.seed, args.count)
-    pts = np.array(data["points"])
+    pts = np.array(data["points"], float)
     failures = [(c, why) for c in data["cases"] for why in [python_check(c, pts)] if why]
     for case, why in failures[:10]:
         print("reference/expr.py disagrees on %r (lets %r): %s" % (case["text"], case["lets"], why), file=sys.stderr)

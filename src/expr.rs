@@ -1035,7 +1035,7 @@ mod tests {
         );
         assert_eq!(
             ev("sign(x) + 10*sign(y) + 100*sign(x - 1)", -3.0, 0.0),
-            -1.0 + 0.0 + 100.0 * -1.0
+            -1.0 + 0.0 - 100.0
         );
         assert!(ev("sign(log(x))", -1.0, 0.0).is_nan());
         assert_eq!(ev("floor(x) + floor(y)", -0.5, 2.0), -1.0 + 2.0);

@@ -75,7 +75,7 @@ fn random_expressions_agree_with_the_oracle() {
     let (seed, count) = (env_or("EXPR_SEED", 1), env_or("EXPR_CASES", 10_000));
     let data = generate(seed, count);
     let points: Vec<[f64; 2]> = (data["points"].as_array().unwrap().iter())
-        .map(|p| [p[0].as_f64().unwrap(), p[1].as_f64().unwrap()])
+        .map(|p| [0, 1].map(|k| p[k].as_str().unwrap().parse().unwrap()))
         .collect();
     let cases = data["cases"].as_array().unwrap();
     assert!(cases.len() as u64 >= count);
