@@ -83,7 +83,8 @@ class Gen:
             return (op, sub(), sub())
         if k < 0.45:
             small = str(r.integers(0, 5))  # a small integer exponent (a^k is a loop of products in Rust)
-            exponent = ("num", small, float(small)) if r.random() < 0.3 else self.number() if r.random() < 0.4 else sub()
+            exponent = ("num", small, float(small)) if r.random() < 0.3 else (
+                self.number() if r.random() < 0.4 else sub())
             return ("^", sub(), exponent)
         if k < 0.55:
             return (self.pick(["neg", "neg", "pos"]), sub())
@@ -290,7 +291,9 @@ def python_check(case, pts):
         return "accepted, expected a rejection (%s)" % case["reject"]
     known = [i for i, v in enumerate(case["values"]) if v is not None]
     expected = np.array([float(case["values"][i]) for i in known])
-    return None if close(values[known], expected).all() else "values %s, expected %s" % (values.tolist(), case["values"])
+    if close(values[known], expected).all():
+        return None
+    return "values %s, expected %s" % (values.tolist(), case["values"])
 
 
 def generate(seed, count):
@@ -300,8 +303,9 @@ def generate(seed, count):
     pts = points(rng)
     cases = []
     for depth in (31, 32):  # the nesting limit: 31 parentheses are allowed, 32 are not
-        cases.append({"lets": [], "text": "(" * depth + "x" + ")" * depth, "reject": None if depth == 31 else "too deep",
-                      "values": None if depth == 32 else [repr(v) for v in pts[:, 0]]})
+        cases.append({"lets": [], "text": "(" * depth + "x" + ")" * depth,
+                      "reject": None if depth == 31 else "too deep",
+                      "values": None if depth == 32 else [repr(float(v)) for v in pts[:, 0]]})
     while len(cases) < count:
         if rng.random() < 0.2:
             lets, source, why = rejected(gen, rng)
