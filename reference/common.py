@@ -40,7 +40,8 @@ def read_result(path):
         out.update({k: mesh[k][...] for k in VERTEX_FIELDS + EXACT_FIELDS if k in mesh})
         out.update({k: dual[k][...] for k in FLUX_FIELDS if k in dual})
     out["case_text"] = str(out["attrs"]["case_text"])
-    out["case"] = tomllib.loads(out["case_text"])
+    # Expressions parsed once, with the names of the case's [let] table substituted.
+    out["case"] = expr.parse_case(tomllib.loads(out["case_text"]))
     return out
 
 
@@ -104,12 +105,13 @@ def quadrature_degree(case):
 
 
 def at_points(source, points):
-    """A case expression (string or number) at points (N x >= 2), as a NumPy array."""
+    """A case expression (string, number or parsed tree) at points (N x >= 2), as a NumPy array."""
     return expr.to_numpy(expr.parse(source), points[:, 0], points[:, 1])
 
 
 def as_ufl(source, domain):
-    """A case expression (string or number) as UFL of the spatial coordinate of `domain`."""
+    """A case expression (string, number or parsed tree) as UFL of the spatial coordinate of
+    `domain`."""
     return expr.to_ufl(expr.parse(source), domain)
 
 

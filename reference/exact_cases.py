@@ -4,12 +4,14 @@ parser (sympy.parsing.sympy_parser.parse_expr), not the project's parser (refere
 Translation of the case language (data/cases/README.md) into SymPy's input, textual and minimal:
   `a ^ b`      -> `a ** b`   (both right-associative, both bind tighter than unary minus)
   `if(c, a, b)` -> `ite(c, a, b)`, ite = Piecewise((a, c), (b, True))   (`if` is a Python keyword)
-  `min`, `max`, `abs` -> Min, Max, Abs;  `log` is natural in both;  `x`, `y` real symbols;
-  numbers become exact rationals (the `rationalize` transformation), `pi` is SymPy's pi.
-`&&` and `||` are not translated (Python's `&` binds tighter than comparisons): a case using
-them is reported as not checkable.
+  `min`, `max`, `abs`, `sign` -> Min, Max, Abs, sign;  `log` is natural in both;  `x`, `y` real
+  symbols; numbers become exact rationals (the `rationalize` transformation), `pi` and `e` are
+  SymPy's pi and E; the names of the [let] table are SymPy expressions read in file order.
+`&&` and `||` are not translated (Python's `&` binds tighter than comparisons), nor is `floor`
+(it switches at every integer, which the regions below cannot follow): a case using them is
+reported as not checkable.
 
-The domain is split into regions where no Max, Min, Abs or Piecewise switches (sign patterns of
+The domain is split into regions where no Max, Min, Abs, sign or Piecewise switches (sign patterns of
 their switching functions at sample points); in each region every switch is replaced by its
 branch, and there
   - the PDEs  f1 + mu1 lap u1 + lambda = 0,  f2 + mu2 lap u2 - lambda = 0, the given gradients
@@ -39,18 +41,21 @@ X, Y = sp.symbols("x y", real=True)
 T = sp.symbols("t", nonnegative=True)
 NAMES = {"x": X, "y": Y, "ite": lambda c, a, b: sp.Piecewise((a, c), (b, True)), "min": sp.Min, "max": sp.Max,
          "abs": sp.Abs, "sqrt": sp.sqrt, "exp": sp.exp, "log": sp.log, "sin": sp.sin, "cos": sp.cos,
-         "atan2": sp.atan2, "pi": sp.pi}
+         "atan2": sp.atan2, "pi": sp.pi, "e": sp.E, "tan": sp.tan, "atan": sp.atan, "tanh": sp.tanh,
+         "sign": sp.sign}
 TOL = 1e-9
 SIMPLIFY_SECONDS = 20
 
 
-def to_sympy(source):
-    """A case expression (string or number) read by SymPy's parser after the translation above."""
+def to_sympy(source, names=None):
+    """A case expression (string or number) read by SymPy's parser after the translation above;
+    `names` are the [let] names read so far."""
     text = repr(source) if isinstance(source, (int, float)) else source
-    if "&&" in text or "||" in text:
-        raise ValueError("'&&' and '||' are not translated for SymPy: %r" % text)
+    if "&&" in text or "||" in text or re.search(r"\bfloor\s*\(", text):
+        raise ValueError("'&&', '||' and floor are not translated for SymPy: %r" % text)
     text = re.sub(r"\bif\s*\(", "ite(", text.replace("^", "**"))
-    return parse_expr(text, local_dict=dict(NAMES), transformations=standard_transformations + (rationalize,))
+    return parse_expr(text, local_dict={**NAMES, **(names or {})},
+                      transformations=standard_transformations + (rationalize,))
 
 
 def polygon(case):
@@ -65,13 +70,14 @@ def polygon(case):
 
 
 def switches(exprs):
-    """The switching functions s (branch changes where s = 0) of Max, Min, Abs and Piecewise."""
+    """The switching functions s (branch changes where s = 0) of Max, Min, Abs, sign and
+    Piecewise."""
     found = []
     for e in exprs:
         for node in sp.preorder_traversal(e):
             if isinstance(node, (sp.Max, sp.Min)) and len(node.args) == 2:
                 found.append(node.args[0] - node.args[1])
-            elif isinstance(node, sp.Abs):
+            elif isinstance(node, (sp.Abs, sp.sign)):
                 found.append(node.args[0])
             elif isinstance(node, sp.Piecewise):
                 found += [c.lhs - c.rhs for _, c in node.args if isinstance(c, sp.core.relational.Relational)]
@@ -110,7 +116,7 @@ def samples(poly, funcs, rng, count=400):
 
 
 def resolve(e, point):
-    """e with every Max, Min, Abs and Piecewise replaced by its branch at `point`."""
+    """e with every Max, Min, Abs, sign and Piecewise replaced by its branch at `point`."""
     at = {X: point[0], Y: point[1]}
 
     def branch(node):
@@ -120,12 +126,14 @@ def resolve(e, point):
             return node.args[0] if (node.args[0] - node.args[1]).evalf(subs=at) < 0 else node.args[1]
         if isinstance(node, sp.Abs):
             return node.args[0] if node.args[0].evalf(subs=at) >= 0 else -node.args[0]
+        if isinstance(node, sp.sign):
+            return sp.sign(node.args[0].evalf(subs=at))
         for value, cond in node.args:  # Piecewise
             if cond == sp.true or bool(cond.subs(at)):
                 return value
         raise ValueError("no branch of %s at %s" % (node, point))
 
-    return e.replace(lambda n: isinstance(n, (sp.Max, sp.Min, sp.Abs, sp.Piecewise)), branch)
+    return e.replace(lambda n: isinstance(n, (sp.Max, sp.Min, sp.Abs, sp.sign, sp.Piecewise)), branch)
 
 
 class Timeout(Exception):
@@ -162,12 +170,15 @@ def zero_check(name, e, pts, failures, how):
 
 def read(case):
     """The case's data and exact solution as SymPy expressions."""
+    names = {}
+    for k, v in case.get("let", {}).items():
+        names[k] = to_sympy(v, names)
     ex = case["exact"]
-    e = {k: to_sympy(ex[k]) for k in ("u1", "u2", "lambda")}
-    e.update({k: to_sympy(case[k]) for k in ("f1", "f2", "g")})
+    e = {k: to_sympy(ex[k], names) for k in ("u1", "u2", "lambda")}
+    e.update({k: to_sympy(case[k], names) for k in ("f1", "f2", "g")})
     for name in ("u1", "u2"):
         if ex.get("grad_" + name):
-            e["grad_" + name] = [to_sympy(c) for c in ex["grad_" + name]]
+            e["grad_" + name] = [to_sympy(c, names) for c in ex["grad_" + name]]
     return e
 
 

@@ -1,20 +1,41 @@
 """The case-file expression language (src/expr.rs), evaluated identically in Python.
 
-The same grammar as the Rust parser (see data/cases/README.md): numbers, x, y, pi, + - * / ^,
-parentheses, sqrt, exp, log, sin, cos, abs, min, max, atan2, if(cond, a, b) with cond built from
-< <= > >= && ||. `parse` returns a tree; `to_numpy` and `to_ufl` turn it into a NumPy value at
-points or a UFL expression of the spatial coordinate. (The SymPy check of exact solutions does not
-use this parser: exact_cases.py reads the expressions with SymPy's own.)
+The same grammar as the Rust parser (see data/cases/README.md): numbers, x, y, pi, e, named values
+(the case's [let] table), + - * / ^, parentheses, sqrt, exp, log, sin, cos, tan, atan, tanh, abs,
+sign, floor, min, max, atan2, if(cond, a, b) with cond built from < <= > >= && || (and
+parentheses). A condition is allowed only as the first argument of if, as an operand of && and ||,
+and in parentheses around those. `parse` returns a tree; `to_numpy` and `to_ufl` turn it into a
+NumPy value at points or a UFL expression of the spatial coordinate. `parse_case` parses every
+expression of a case with its [let] names. (The SymPy check of exact solutions does not use this
+parser: exact_cases.py reads the expressions with SymPy's own.) tests/expressions.rs checks this
+parser and the Rust one against random expressions evaluated from their syntax trees
+(reference/random_expressions.py).
 """
 import math
 import re
 
 _TOKEN = re.compile(
-    r"\s*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)|(?P<name>[A-Za-z_][A-Za-z_0-9]*)"
-    r"|(?P<op><=|>=|&&|\|\||[<>+\-*/^(),]))"
+    r"[ \t\n\r\f]*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)|(?P<name>[A-Za-z_][A-Za-z_0-9]*)"
+    r"|(?P<op><=|>=|&&|\|\||[<>+\-*/^(),]))",
+    re.ASCII,
 )
-UNARY = {"sqrt", "exp", "log", "sin", "cos", "abs"}
-BINARY = {"min", "max", "atan2"}
+# ASCII whitespace only, as Rust's u8::is_ascii_whitespace (not \v, nor Unicode spaces).
+_SPACE = " \t\n\r\f"
+UNARY = ("sqrt", "exp", "log", "sin", "cos", "tan", "atan", "tanh", "abs", "sign", "floor")
+BINARY = ("min", "max", "atan2")
+ARITY = dict([(f, 1) for f in UNARY] + [(f, 2) for f in BINARY] + [("if", 3)])
+CONSTANTS = {"pi": math.pi, "e": math.e}
+BUILTIN_NAMES = ("x", "y", "pi", "e")
+CONDITIONS = ("cmp", "and", "or")
+# The limits of src/expr.rs: tokens, nesting of the unary level, stack slots of the evaluator,
+# nodes after substituting names.
+MAX_TOKENS = 10_000
+MAX_NESTING = 32
+STACK = 64
+MAX_NODES = 100_000
+# The keys of a case that hold expressions.
+CASE_KEYS = ("f1", "f2", "g")
+EXACT_KEYS = ("u1", "u2", "lambda", "grad_u1", "grad_u2")
 
 
 class ExprError(ValueError):
@@ -24,7 +45,7 @@ class ExprError(ValueError):
 def _lex(s):
     out, i = [], 0
     while i < len(s):
-        if s[i].isspace():
+        if s[i] in _SPACE:
             i += 1
             continue
         m = _TOKEN.match(s, i)
@@ -34,12 +55,31 @@ def _lex(s):
         text = m.group(kind)
         out.append((kind, float(text) if kind == "num" else text))
         i = m.end()
+    if len(out) > MAX_TOKENS:
+        raise ExprError("expression too long (%d tokens, at most %d)" % (len(out), MAX_TOKENS))
     return out
 
 
+def _num(tree):
+    if tree[0] in CONDITIONS:
+        raise ExprError("a condition is used where a number is expected")
+    return tree
+
+
+def _cond(tree):
+    if tree[0] not in CONDITIONS:
+        raise ExprError("a number is used where a condition (a < b) is expected")
+    return tree
+
+
+def _size(tree):
+    return 1 + sum(_size(t) for t in tree[1:] if isinstance(t, tuple))
+
+
 class _Parser:
-    def __init__(self, tokens):
-        self.t, self.p = tokens, 0
+    def __init__(self, tokens, names, later):
+        self.t, self.p, self.depth, self.nodes = tokens, 0, 0, 0
+        self.names, self.later = names, later
 
     def peek(self, op):
         return self.p < len(self.t) and self.t[self.p] == ("op", op)
@@ -49,55 +89,60 @@ class _Parser:
             raise ExprError("expected %r" % op)
         self.p += 1
 
-    def or_(self):
-        left = self.and_()
-        while self.peek("||"):
+    def joined(self, op, kind, level):
+        left = level()
+        while self.peek(op):
             self.p += 1
-            left = ("or", left, self.and_())
+            left = (kind, _cond(left), _cond(level()))
         return left
 
+    def or_(self):
+        return self.joined("||", "or", self.and_)
+
     def and_(self):
-        left = self.cmp()
-        while self.peek("&&"):
-            self.p += 1
-            left = ("and", left, self.cmp())
-        return left
+        return self.joined("&&", "and", self.cmp)
 
     def cmp(self):
         left = self.sum()
         for op in ("<=", ">=", "<", ">"):
             if self.peek(op):
                 self.p += 1
-                return ("cmp", op, left, self.sum())
+                return ("cmp", op, _num(left), _num(self.sum()))
+        return left
+
+    def arithmetic(self, ops, level):
+        left = level()
+        while any(self.peek(op) for op in ops):
+            op = self.t[self.p][1]
+            self.p += 1
+            left = (op, _num(left), _num(level()))
         return left
 
     def sum(self):
-        left = self.prod()
-        while self.peek("+") or self.peek("-"):
-            op = self.t[self.p][1]
-            self.p += 1
-            left = (op, left, self.prod())
-        return left
+        return self.arithmetic("+-", self.prod)
 
     def prod(self):
-        left = self.unary()
-        while self.peek("*") or self.peek("/"):
-            op = self.t[self.p][1]
-            self.p += 1
-            left = (op, left, self.unary())
-        return left
+        return self.arithmetic("*/", self.unary)
 
     def unary(self):
-        if self.peek("-"):
+        self.depth += 1
+        if self.depth > MAX_NESTING:
+            raise ExprError("expression nested too deeply")
+        if self.peek("-") or self.peek("+"):
+            negate = self.peek("-")
             self.p += 1
-            return ("neg", self.unary())
-        if self.peek("+"):
-            self.p += 1
-            return self.unary()
+            a = _num(self.unary())
+            out = ("neg", a) if negate else a
+        else:
+            out = self.power()
+        self.depth -= 1
+        return out
+
+    def power(self):
         base = self.atom()
         if self.peek("^"):
             self.p += 1
-            return ("^", base, self.unary())
+            return ("^", _num(base), _num(self.unary()))
         return base
 
     def atom(self):
@@ -112,34 +157,110 @@ class _Parser:
             self.take(")")
             return inner
         if kind == "name":
-            if not self.peek("("):
-                if v in ("x", "y"):
-                    return (v,)
-                if v == "pi":
-                    return ("const", math.pi)
-                raise ExprError("unknown name %r" % v)
-            self.p += 1
-            args = [self.or_()]
-            while self.peek(","):
-                self.p += 1
-                args.append(self.or_())
-            self.take(")")
-            arity = 1 if v in UNARY else 2 if v in BINARY else 3 if v == "if" else None
-            if arity is None or len(args) != arity:
-                raise ExprError("bad call %s(...)" % v)
-            return ("call", v, *args)
+            return self.call(v) if self.peek("(") else self.name(v)
         raise ExprError("unexpected %r" % (v,))
 
+    def name(self, v):
+        if v in ("x", "y"):
+            return (v,)
+        if v in CONSTANTS:
+            return ("const", CONSTANTS[v])
+        if v in self.names:
+            tree = self.names[v]
+            self.nodes += _size(tree)
+            if self.nodes > MAX_NODES:
+                raise ExprError("expression too large with the names substituted")
+            return tree
+        if v in self.later:
+            raise ExprError("%r is defined later (or is the name being defined): a name may use only "
+                            "the names defined before it" % v)
+        raise ExprError("unknown name %r" % v)
 
-def parse(source):
-    """Parses an expression (a number is accepted as is)."""
-    if isinstance(source, (int, float)):
-        return ("const", float(source))
-    p = _Parser(_lex(source))
+    def call(self, v):
+        self.p += 1
+        args = [self.or_()]
+        while self.peek(","):
+            self.p += 1
+            args.append(self.or_())
+        self.take(")")
+        if len(args) != ARITY.get(v, -1):
+            raise ExprError("bad call %s(...) with %d argument(s)" % (v, len(args)))
+        if v == "if":
+            return ("call", v, _cond(args[0]), _num(args[1]), _num(args[2]))
+        return ("call", v, *map(_num, args))
+
+
+def _parse_tree(source, names, later):
+    """The tree of `source`, with `names` ({name: tree}) substituted; `later` are names not
+    defined yet."""
+    p = _Parser(_lex(source), names, later)
     tree = p.or_()
     if p.p != len(p.t):
         raise ExprError("unexpected %r" % (p.t[p.p][1],))
+    if tree[0] in CONDITIONS:
+        raise ExprError("a condition is allowed only as the first argument of if(...)")
     return tree
+
+
+def _stack(tree):
+    """The stack the Rust evaluator needs for `tree` (src/expr.rs compiles to a stack program and
+    refuses more than STACK slots): each operand is pushed after those before it."""
+    k = tree[0]
+    if k in ("const", "x", "y"):
+        return 1
+    if k == "neg":
+        return _stack(tree[1])
+    exponent = tree[2] if k == "^" else None
+    if exponent and exponent[0] == "const" and exponent[1] % 1 == 0 and abs(exponent[1]) <= 64:
+        return _stack(tree[1])  # a^k for an integer constant k: one instruction on a
+    operands = [t for t in tree[1:] if isinstance(t, tuple)]
+    return max(_stack(t) + i for i, t in enumerate(operands))
+
+
+def parse(source, names=None):
+    """Parses an expression (a number is accepted as is, a tree is returned as is); `names` maps
+    named values to their trees (see `parse_names`)."""
+    if isinstance(source, tuple):
+        return source
+    if isinstance(source, (int, float)):
+        return ("const", float(source))
+    tree = _parse_tree(source, names or {}, ())
+    if _stack(tree) > STACK:
+        raise ExprError("expression nested too deeply")
+    return tree
+
+
+def parse_names(table):
+    """{name: tree} of a [let] table, in its order: each name may use only the names above it."""
+    names, keys = {}, list(table)
+    for i, (key, source) in enumerate(table.items()):
+        problem = ("is not a name" if not re.fullmatch(r"[A-Za-z_][A-Za-z_0-9]*", key)
+                   else "would shadow a built-in name" if key in BUILTIN_NAMES
+                   else "would shadow a function" if key in ARITY else None)
+        try:
+            if problem:
+                raise ExprError("the name %r %s" % (key, problem))
+            if isinstance(source, bool) or not isinstance(source, (str, int, float)):
+                raise ExprError("need an expression (a string or a number)")
+            names[key] = parse(source) if not isinstance(source, str) else _parse_tree(source, names, keys[i:])
+        except ExprError as e:
+            raise ExprError("key 'let.%s': %s" % (key, e)) from None
+    return names
+
+
+def parse_case(case):
+    """The case (a dict from TOML) with every expression parsed to a tree, the [let] names
+    substituted, so that `to_numpy`, `to_ufl` and the helpers of common.py take them as they are."""
+    names = parse_names(case.get("let", {}))
+    out = dict(case)
+    for k in CASE_KEYS:
+        out[k] = parse(case[k], names)
+    if "exact" in case:
+        ex = out["exact"] = dict(case["exact"])
+        for k in EXACT_KEYS:
+            if k in ex:
+                ex[k] = [parse(c, names) for c in ex[k]] if k.startswith("grad") else parse(ex[k], names)
+    return out
 
 
 def _build(tree, x, y, lib):
@@ -174,6 +295,18 @@ def _build(tree, x, y, lib):
     raise ExprError("bad tree %r" % (tree,))
 
 
+def _minimum_number(np, smaller):
+    """min (smaller=True) or max of two arrays as src/expr.rs: a NaN is ignored, and of +0 and -0
+    min takes -0, max +0 (np.fmin and np.fmax return their second argument on a tie)."""
+
+    def f(a, b):
+        a, b = np.broadcast_arrays(a, b)
+        first = (a < b if smaller else a > b) | np.isnan(b) | ((a == b) & (np.signbit(a) == smaller))
+        return np.where(first, a, b)
+
+    return f
+
+
 def to_numpy(tree, x, y):
     """The expression at points (x, y) (NumPy arrays)."""
     import numpy as np
@@ -188,9 +321,14 @@ def to_numpy(tree, x, y):
         "log": np.log,
         "sin": np.sin,
         "cos": np.cos,
+        "tan": np.tan,
+        "atan": np.arctan,
+        "tanh": np.tanh,
         "abs": np.abs,
-        "min": np.fmin,
-        "max": np.fmax,
+        "sign": np.sign,
+        "floor": np.floor,
+        "min": _minimum_number(np, True),
+        "max": _minimum_number(np, False),
         "atan2": np.arctan2,
         "if": np.where,
     }
@@ -198,8 +336,27 @@ def to_numpy(tree, x, y):
         return np.asarray(_build(tree, np.asarray(x, float), np.asarray(y, float), lib), float)
 
 
+def _ufl_floor(a):
+    """floor(a) in UFL. UFL 2022.2 has no floor, but FFCx turns a plain MathFunction into a call
+    of the C function of its name; UFL rebuilds an operator as `type(o)(*operands)`, which a plain
+    MathFunction (name, argument) does not take, so its rebuild is taught to keep the name (the
+    subclasses, UFL's own functions, are rebuilt as before)."""
+    from ufl.core.operator import Operator
+    from ufl.mathfunctions import MathFunction
+
+    def rebuild(self, *operands):
+        if type(self) is MathFunction:
+            return MathFunction(self._name, *operands)
+        return Operator._ufl_expr_reconstruct_(self, *operands)
+
+    MathFunction._ufl_expr_reconstruct_ = rebuild
+    return MathFunction("floor", a)
+
+
 def to_ufl(tree, mesh):
-    """The expression as UFL of the spatial coordinate of `mesh`."""
+    """The expression as UFL of the spatial coordinate of `mesh`. sign is UFL's (0 at 0, as NumPy;
+    it differs from NumPy only at NaN, where UFL gives 1); min and max are C's fmin and fmax
+    (which of +0 and -0 they return is left open: it matters only for 1/min(x, -x) at x = 0)."""
     import ufl
 
     X = ufl.SpatialCoordinate(mesh)
@@ -213,7 +370,12 @@ def to_ufl(tree, mesh):
         "log": ufl.ln,
         "sin": ufl.sin,
         "cos": ufl.cos,
+        "tan": ufl.tan,
+        "atan": ufl.atan,
+        "tanh": ufl.tanh,
         "abs": abs,
+        "sign": ufl.sign,
+        "floor": _ufl_floor,
         "min": ufl.min_value,
         "max": ufl.max_value,
         "atan2": ufl.atan_2,

@@ -3,7 +3,7 @@
 
 use crate::assembly::Quadrature;
 use crate::contact::SolverOptions;
-use crate::expr::Expr;
+use crate::expr::{Expr, ExprError, Names};
 use crate::mesh::{self, Diagonal, Mesh};
 use crate::norms::Exact;
 use crate::problem::{self, Data};
@@ -31,6 +31,9 @@ struct CaseFile {
     f1: Expression,
     f2: Expression,
     g: Expression,
+    /// Named values usable in every expression, in file order (toml's `preserve_order`).
+    #[serde(default, rename = "let")]
+    names: toml::Table,
     #[serde(default)]
     exact: Option<ExactFile>,
     mesh: MeshTable,
@@ -206,7 +209,8 @@ impl Case {
     pub fn parse(text: &str, origin: &str, base_dir: PathBuf) -> Result<Case, CaseError> {
         let err = |m: String| CaseError(format!("{origin}: {m}"));
         let file: CaseFile = toml::from_str(text).map_err(|e| err(toml_error(text, &e)))?;
-        let expr = |key: &str, e: &Expression| parse_expression(key, e).map_err(err);
+        let names = let_names(&file.names).map_err(err)?;
+        let expr = |key: &str, e: &Expression| parse_expression(key, e, &names).map_err(err);
         let degree = file.quadrature.degree;
         if degree > Quadrature::MAX_DEGREE {
             return Err(err(format!(
@@ -428,19 +432,45 @@ fn toml_error(text: &str, e: &toml::de::Error) -> String {
     }
 }
 
-/// An expression of the case language; errors quote at most the first 60 characters.
-fn parse_expression(key: &str, e: &Expression) -> Result<Expr, String> {
+/// An expression of the case language, using the named values `names`.
+fn parse_expression(key: &str, e: &Expression, names: &Names) -> Result<Expr, String> {
     let source = match e {
         Expression::Number(v) => format!("{v:?}"),
         Expression::Text(s) => s.clone(),
     };
-    Expr::parse(&source).map_err(|error| {
-        let shown = match source.char_indices().nth(60) {
-            Some((i, _)) => format!("{}… ({} characters)", &source[..i], source.chars().count()),
-            None => source.clone(),
+    Expr::parse_with(&source, names).map_err(|error| quote(key, &source, &error))
+}
+
+/// The `[let]` table: each name may use the names above it (file order), which rules out cycles.
+fn let_names(table: &toml::Table) -> Result<Names, String> {
+    let keys: Vec<&str> = table.keys().map(String::as_str).collect();
+    let mut names = Names::default();
+    for (i, (key, value)) in table.iter().enumerate() {
+        let key_path = format!("let.{key}");
+        let source = match value {
+            toml::Value::String(s) => s.clone(),
+            toml::Value::Float(v) => format!("{v:?}"),
+            toml::Value::Integer(v) => v.to_string(),
+            other => {
+                return Err(format!(
+                    "key '{key_path}' = {other}: need an expression (a string or a number)"
+                ))
+            }
         };
-        format!("key '{key}' = \"{shown}\": {error}")
-    })
+        names
+            .define(key, &source, &keys[i + 1..])
+            .map_err(|error| quote(&key_path, &source, &error))?;
+    }
+    Ok(names)
+}
+
+/// An expression error naming the key; it quotes at most the first 60 characters.
+fn quote(key: &str, source: &str, error: &ExprError) -> String {
+    let shown = match source.char_indices().nth(60) {
+        Some((i, _)) => format!("{}… ({} characters)", &source[..i], source.chars().count()),
+        None => source.to_string(),
+    };
+    format!("key '{key}' = \"{shown}\": {error}")
 }
 
 /// The typed mesh of a `[mesh]` table: the keys its kind takes, checked.

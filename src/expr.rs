@@ -1,6 +1,7 @@
 //! The case-file expression language: data f1, f2, g and exact solutions as functions of (x, y).
 //!
-//! Grammar (documented for users in `data/cases/README.md`; `reference/expr.py` mirrors it):
+//! Grammar (documented for users in `data/cases/README.md`; `reference/expr.py` mirrors it, and
+//! `tests/expressions.rs` checks both against random expressions evaluated independently):
 //!
 //! ```text
 //! expr  := or
@@ -11,11 +12,17 @@
 //! prod  := unary (("*"|"/") unary)*
 //! unary := ("-"|"+") unary | power
 //! power := atom ["^" unary]         -- right-associative, -x^2 = -(x^2)
-//! atom  := number | x | y | pi | name "(" args ")" | "(" expr ")"
+//! atom  := number | x | y | pi | e | name | function "(" args ")" | "(" expr ")"
 //! ```
 //!
-//! Functions: sqrt, exp, log (natural), sin, cos, abs (one argument), min, max, atan2(y, x) (two),
-//! and the piecewise form `if(condition, a, b)`. All arithmetic is in f64: `1/2` is 0.5.
+//! Every level may hold a condition (a comparison, or conditions joined by && and ||), but a
+//! condition is allowed only as the first argument of `if`, as an operand of && and ||, and in
+//! parentheses around those: `if((x < 0.5 || y < 0.5) && x > 0.2, 1, 0)`.
+//!
+//! Functions: sqrt, exp, log (natural), sin, cos, tan, atan, tanh, abs, sign, floor (one
+//! argument), min, max, atan2(y, x) (two), and the piecewise form `if(condition, a, b)`. A `name`
+//! is one of the case's named values ([`Names`], the `[let]` table). All arithmetic is in f64:
+//! `1/2` is 0.5.
 //!
 //! The language is this small on purpose: the Python reference must evaluate it identically (as UFL
 //! at quadrature points and as NumPy at vertices), which rules out general-purpose evaluators whose
@@ -48,7 +55,12 @@ enum Unary {
     Log,
     Sin,
     Cos,
+    Tan,
+    Atan,
+    Tanh,
     Abs,
+    Sign,
+    Floor,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -135,36 +147,19 @@ fn truth(b: bool) -> f64 {
 impl Expr {
     /// Parses `source`; the error names the offending token and its position.
     pub fn parse(source: &str) -> Result<Self, ExprError> {
-        let tokens = lex(source)?;
-        if tokens.len() > MAX_TOKENS {
-            return Err(ExprError {
-                position: 0,
-                message: format!(
-                    "expression too long ({} tokens, at most {MAX_TOKENS})",
-                    tokens.len()
-                ),
-            });
-        }
-        let mut p = Parser {
-            tokens,
-            pos: 0,
-            end: source.len(),
-            depth: 0,
-        };
-        let root = match p.or()? {
-            Node::Num(n) => n,
-            Node::Cond(_) => {
-                return Err(p.error_at(0, "a condition is allowed only as the first argument of if(…)"))
-            }
-        };
-        if p.pos < p.tokens.len() {
-            let (at, ref t) = p.tokens[p.pos];
-            return Err(p.error_at(at, &format!("unexpected {t}")));
-        }
+        Self::parse_with(source, &Names::default())
+    }
+
+    /// Parses `source`, which may use `names` (substituted here, so evaluation costs the same).
+    pub fn parse_with(source: &str, names: &Names) -> Result<Self, ExprError> {
+        let root = parse_tree(source, names, &[])?;
         let mut c = Compiler::default();
         c.num(&root);
         if c.max_depth > STACK {
-            return Err(p.error_at(0, "expression nested too deeply"));
+            return Err(ExprError {
+                position: 0,
+                message: "expression nested too deeply".into(),
+            });
         }
         Ok(Expr {
             code: c.code,
@@ -214,7 +209,12 @@ impl Expr {
                         Unary::Log => map1(a, f64::ln),
                         Unary::Sin => map1(a, f64::sin),
                         Unary::Cos => map1(a, f64::cos),
+                        Unary::Tan => map1(a, f64::tan),
+                        Unary::Atan => map1(a, f64::atan),
+                        Unary::Tanh => map1(a, f64::tanh),
                         Unary::Abs => map1(a, f64::abs),
+                        Unary::Sign => map1(a, sign),
+                        Unary::Floor => map1(a, f64::floor),
                     }
                 }
                 Op::PowI(2) => map1(&mut stack[sp - 1][..m], |a| a * a),
@@ -229,8 +229,8 @@ impl Expr {
                         Binary::Mul => map2(a, b, |a, b| a * b),
                         Binary::Div => map2(a, b, |a, b| a / b),
                         Binary::Pow => map2(a, b, f64::powf),
-                        Binary::Min => map2(a, b, f64::min),
-                        Binary::Max => map2(a, b, f64::max),
+                        Binary::Min => map2(a, b, min),
+                        Binary::Max => map2(a, b, max),
                         Binary::Atan2 => map2(a, b, f64::atan2),
                     }
                 }
@@ -350,6 +350,39 @@ fn map2(a: &mut [f64], b: &[f64], f: impl Fn(f64, f64) -> f64) {
     a.iter_mut().zip(b).for_each(|(a, b)| *a = f(*a, *b));
 }
 
+/// −1, 0 or 1 by the sign of a (+0 at ±0, NaN stays NaN), as NumPy's `sign`; `f64::signum`
+/// gives ±1 at ±0.
+fn sign(a: f64) -> f64 {
+    if a > 0.0 {
+        1.0
+    } else if a < 0.0 {
+        -1.0
+    } else if a == 0.0 {
+        0.0
+    } else {
+        a
+    }
+}
+
+/// The smaller of a and b, ignoring a NaN, and −0 of ±0 (IEEE 754-2019 minimumNumber):
+/// `f64::min` leaves the zero open, and gives +0 one by one but −0 when vectorised.
+fn min(a: f64, b: f64) -> f64 {
+    if a < b || b.is_nan() || (a == b && a.is_sign_negative()) {
+        a
+    } else {
+        b
+    }
+}
+
+/// The larger of a and b, ignoring a NaN, and +0 of ±0 (IEEE 754-2019 maximumNumber).
+fn max(a: f64, b: f64) -> f64 {
+    if a > b || b.is_nan() || (a == b && a.is_sign_positive()) {
+        a
+    } else {
+        b
+    }
+}
+
 #[inline]
 fn compare(op: Compare, a: f64, b: f64) -> bool {
     match op {
@@ -438,20 +471,169 @@ fn lex(s: &str) -> Result<Vec<(usize, Token)>, ExprError> {
     Ok(out)
 }
 
+/// What a parser level returns: a number, or a condition (allowed only as the first argument of
+/// `if`, as an operand of `&&` and `||`, and in parentheses around those).
 enum Node {
     Num(Num),
     Cond(Cond),
 }
 
-struct Parser {
+/// The functions of the language and their number of arguments.
+const FUNCTIONS: [(&str, usize); 15] = [
+    ("sqrt", 1),
+    ("exp", 1),
+    ("log", 1),
+    ("sin", 1),
+    ("cos", 1),
+    ("tan", 1),
+    ("atan", 1),
+    ("tanh", 1),
+    ("abs", 1),
+    ("sign", 1),
+    ("floor", 1),
+    ("min", 2),
+    ("max", 2),
+    ("atan2", 2),
+    ("if", 3),
+];
+
+/// The names every expression knows.
+const BUILTIN_NAMES: [&str; 4] = ["x", "y", "pi", "e"];
+
+/// Most nodes an expression may have once names are substituted (a guard against `a = x + x`,
+/// `b = a + a`, … doubling), and the deepest tree (the compiler recurses over it).
+const MAX_NODES: usize = 100_000;
+const MAX_TREE_DEPTH: usize = MAX_TOKENS;
+
+/// Named values (the `[let]` table of a case), substituted into expressions at parse time so
+/// that evaluation is as fast as if they had been written out.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Names {
+    /// Name, tree and node count, in order of definition.
+    defs: Vec<(String, Num, usize)>,
+}
+
+impl Names {
+    /// Defines `key` as `source`, which may use the names defined before it; `later` are the
+    /// names still to be defined (a reference to one of them is an error: a name may use only
+    /// earlier ones, which also rules out cycles).
+    pub fn define(&mut self, key: &str, source: &str, later: &[&str]) -> Result<(), ExprError> {
+        let problem = if !is_name(key) {
+            Some("is not a name (letters, digits and '_', not starting with a digit)")
+        } else if BUILTIN_NAMES.contains(&key) {
+            Some("would shadow a built-in name (x, y, pi, e)")
+        } else if FUNCTIONS.iter().any(|(f, _)| *f == key) {
+            Some("would shadow a function of the language")
+        } else if self.get(key).is_some() {
+            Some("is defined twice")
+        } else {
+            None
+        };
+        if let Some(problem) = problem {
+            return Err(ExprError {
+                position: 0,
+                message: format!("the name '{key}' {problem}"),
+            });
+        }
+        let mut later_and_self = later.to_vec();
+        later_and_self.push(key);
+        let tree = parse_tree(source, self, &later_and_self)?;
+        let nodes = count_nodes(&tree);
+        self.defs.push((key.to_string(), tree, nodes));
+        Ok(())
+    }
+
+    fn get(&self, name: &str) -> Option<&(String, Num, usize)> {
+        self.defs.iter().find(|d| d.0 == name)
+    }
+}
+
+fn is_name(s: &str) -> bool {
+    let mut chars = s.chars();
+    chars.next().is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
+}
+
+fn count_nodes(n: &Num) -> usize {
+    1 + match n {
+        Num::Const(_) | Num::X | Num::Y => 0,
+        Num::Unary(_, a) => count_nodes(a),
+        Num::Binary(_, a, b) => count_nodes(a) + count_nodes(b),
+        Num::If(c, a, b) => count_cond(c) + count_nodes(a) + count_nodes(b),
+    }
+}
+
+fn count_cond(c: &Cond) -> usize {
+    match c {
+        Cond::Compare(_, a, b) => 1 + count_nodes(a) + count_nodes(b),
+        Cond::And(a, b) | Cond::Or(a, b) => 1 + count_cond(a) + count_cond(b),
+    }
+}
+
+fn tree_depth(n: &Num) -> usize {
+    1 + match n {
+        Num::Const(_) | Num::X | Num::Y => 0,
+        Num::Unary(_, a) => tree_depth(a),
+        Num::Binary(_, a, b) => tree_depth(a).max(tree_depth(b)),
+        Num::If(c, a, b) => cond_depth(c).max(tree_depth(a)).max(tree_depth(b)),
+    }
+}
+
+fn cond_depth(c: &Cond) -> usize {
+    1 + match c {
+        Cond::Compare(_, a, b) => tree_depth(a).max(tree_depth(b)),
+        Cond::And(a, b) | Cond::Or(a, b) => cond_depth(a).max(cond_depth(b)),
+    }
+}
+
+/// Parses `source` to a number tree, substituting `names`; `later` are names not defined yet.
+fn parse_tree(source: &str, names: &Names, later: &[&str]) -> Result<Num, ExprError> {
+    let tokens = lex(source)?;
+    if tokens.len() > MAX_TOKENS {
+        return Err(ExprError {
+            position: 0,
+            message: format!(
+                "expression too long ({} tokens, at most {MAX_TOKENS})",
+                tokens.len()
+            ),
+        });
+    }
+    let mut p = Parser {
+        tokens,
+        pos: 0,
+        end: source.len(),
+        depth: 0,
+        names,
+        later,
+        nodes: 0,
+    };
+    let root = p.or()?;
+    if p.pos < p.tokens.len() {
+        let (at, ref t) = p.tokens[p.pos];
+        return Err(p.error_at(at, &format!("unexpected {t}")));
+    }
+    let Node::Num(root) = root else {
+        return Err(p.error_at(0, "a condition is allowed only as the first argument of if(…)"));
+    };
+    if tree_depth(&root) > MAX_TREE_DEPTH {
+        return Err(p.error_at(0, "expression nested too deeply (with the names substituted)"));
+    }
+    Ok(root)
+}
+
+struct Parser<'a> {
     tokens: Vec<(usize, Token)>,
     pos: usize,
     end: usize,
     /// Nesting depth (bounded, so that no input can exhaust the call stack).
     depth: usize,
+    names: &'a Names,
+    later: &'a [&'a str],
+    /// Nodes brought in by substituted names so far.
+    nodes: usize,
 }
 
-impl Parser {
+impl Parser<'_> {
     fn error_at(&self, position: usize, message: &str) -> ExprError {
         ExprError {
             position,
@@ -467,6 +649,13 @@ impl Parser {
         matches!(self.tokens.get(self.pos), Some((_, Token::Op(o))) if *o == op)
     }
 
+    /// Consumes the first of `ops` that comes next.
+    fn take_op<T: Copy>(&mut self, ops: &[(&str, T)]) -> Option<T> {
+        let found = ops.iter().find(|(op, _)| self.peek_op(op))?;
+        self.pos += 1;
+        Some(found.1)
+    }
+
     fn expect_op(&mut self, op: &str) -> Result<(), ExprError> {
         if self.peek_op(op) {
             self.pos += 1;
@@ -480,148 +669,148 @@ impl Parser {
         }
     }
 
-    fn num(&mut self, node: Node, at: usize) -> Result<Num, ExprError> {
+    fn num(&self, node: Node, at: usize) -> Result<Num, ExprError> {
         match node {
             Node::Num(n) => Ok(n),
             Node::Cond(_) => Err(self.error_at(at, "a condition is used where a number is expected")),
         }
     }
 
-    fn cond(&mut self, node: Node, at: usize) -> Result<Cond, ExprError> {
+    fn cond(&self, node: Node, at: usize) -> Result<Cond, ExprError> {
         match node {
             Node::Cond(c) => Ok(c),
             Node::Num(_) => Err(self.error_at(at, "a number is used where a condition (a < b) is expected")),
         }
     }
 
-    fn or(&mut self) -> Result<Node, ExprError> {
+    /// A level that parses a number, as a number tree (with its position).
+    fn num_of(&mut self, level: fn(&mut Self) -> Result<Node, ExprError>) -> Result<Num, ExprError> {
         let at = self.here();
-        let mut left = self.and()?;
-        while self.peek_op("||") {
+        let node = level(self)?;
+        self.num(node, at)
+    }
+
+    /// `level (op level)*` for && and ||: conditions joined left to right.
+    fn conditions(
+        &mut self,
+        op: &str,
+        level: fn(&mut Self) -> Result<Node, ExprError>,
+    ) -> Result<Node, ExprError> {
+        let at = self.here();
+        let mut left = level(self)?;
+        while self.peek_op(op) {
             self.pos += 1;
             let at_r = self.here();
-            let right = self.and()?;
-            let l = self.cond(left, at)?;
-            let r = self.cond(right, at_r)?;
-            left = Node::Cond(Cond::Or(Box::new(l), Box::new(r)));
+            let right = level(self)?;
+            let (l, r) = (Box::new(self.cond(left, at)?), Box::new(self.cond(right, at_r)?));
+            left = Node::Cond(if op == "&&" {
+                Cond::And(l, r)
+            } else {
+                Cond::Or(l, r)
+            });
         }
         Ok(left)
+    }
+
+    fn or(&mut self) -> Result<Node, ExprError> {
+        self.conditions("||", Self::and)
     }
 
     fn and(&mut self) -> Result<Node, ExprError> {
+        self.conditions("&&", Self::compare)
+    }
+
+    fn compare(&mut self) -> Result<Node, ExprError> {
         let at = self.here();
-        let mut left = self.compare()?;
-        while self.peek_op("&&") {
-            self.pos += 1;
-            let at_r = self.here();
-            let right = self.compare()?;
-            let l = self.cond(left, at)?;
-            let r = self.cond(right, at_r)?;
-            left = Node::Cond(Cond::And(Box::new(l), Box::new(r)));
+        let left = self.sum()?;
+        let ops = [
+            ("<", Compare::Lt),
+            ("<=", Compare::Le),
+            (">", Compare::Gt),
+            (">=", Compare::Ge),
+        ];
+        let Some(op) = self.take_op(&ops) else {
+            return Ok(left);
+        };
+        let left = self.num(left, at)?;
+        let right = self.num_of(Self::sum)?;
+        Ok(Node::Cond(Cond::Compare(op, left, right)))
+    }
+
+    /// `level (op level)*` for + - and * /: numbers joined left to right.
+    fn arithmetic(
+        &mut self,
+        ops: &[(&str, Binary)],
+        level: fn(&mut Self) -> Result<Node, ExprError>,
+    ) -> Result<Node, ExprError> {
+        let at = self.here();
+        let mut left = level(self)?;
+        while let Some(op) = self.take_op(ops) {
+            let l = self.num(left, at)?;
+            let r = self.num_of(level)?;
+            left = Node::Num(Num::Binary(op, Box::new(l), Box::new(r)));
         }
         Ok(left)
     }
 
-    fn compare(&mut self) -> Result<Node, ExprError> {
-        let left = self.sum()?;
-        let op = match self.tokens.get(self.pos) {
-            Some((_, Token::Op("<"))) => Compare::Lt,
-            Some((_, Token::Op("<="))) => Compare::Le,
-            Some((_, Token::Op(">"))) => Compare::Gt,
-            Some((_, Token::Op(">="))) => Compare::Ge,
-            _ => return Ok(Node::Num(left)),
-        };
-        self.pos += 1;
-        let right = self.sum()?;
-        Ok(Node::Cond(Cond::Compare(op, left, right)))
+    fn sum(&mut self) -> Result<Node, ExprError> {
+        self.arithmetic(&[("+", Binary::Add), ("-", Binary::Sub)], Self::product)
     }
 
-    fn sum(&mut self) -> Result<Num, ExprError> {
-        let mut left = self.product()?;
-        loop {
-            let op = if self.peek_op("+") {
-                Binary::Add
-            } else if self.peek_op("-") {
-                Binary::Sub
-            } else {
-                return Ok(left);
-            };
-            self.pos += 1;
-            let right = self.product()?;
-            left = Num::Binary(op, Box::new(left), Box::new(right));
-        }
+    fn product(&mut self) -> Result<Node, ExprError> {
+        self.arithmetic(&[("*", Binary::Mul), ("/", Binary::Div)], Self::unary)
     }
 
-    fn product(&mut self) -> Result<Num, ExprError> {
-        let mut left = self.unary()?;
-        loop {
-            let op = if self.peek_op("*") {
-                Binary::Mul
-            } else if self.peek_op("/") {
-                Binary::Div
-            } else {
-                return Ok(left);
-            };
-            self.pos += 1;
-            let right = self.unary()?;
-            left = Num::Binary(op, Box::new(left), Box::new(right));
-        }
-    }
-
-    fn unary(&mut self) -> Result<Num, ExprError> {
+    fn unary(&mut self) -> Result<Node, ExprError> {
         self.depth += 1;
         if self.depth > STACK / 2 {
             return Err(self.error_at(self.here(), "expression nested too deeply"));
         }
-        let result = self.unary_inner();
+        let result = match self.take_op(&[("-", true), ("+", false)]) {
+            Some(negate) => {
+                let a = self.num_of(Self::unary)?;
+                Ok(Node::Num(if negate {
+                    Num::Unary(Unary::Neg, Box::new(a))
+                } else {
+                    a
+                }))
+            }
+            None => self.power(),
+        };
         self.depth -= 1;
         result
     }
 
-    fn unary_inner(&mut self) -> Result<Num, ExprError> {
-        if self.peek_op("-") {
-            self.pos += 1;
-            return Ok(Num::Unary(Unary::Neg, Box::new(self.unary()?)));
-        }
-        if self.peek_op("+") {
-            self.pos += 1;
-            return self.unary();
-        }
-        self.power()
-    }
-
-    fn power(&mut self) -> Result<Num, ExprError> {
+    fn power(&mut self) -> Result<Node, ExprError> {
+        let at = self.here();
         let base = self.atom()?;
-        if self.peek_op("^") {
-            self.pos += 1;
-            let exponent = self.unary()?;
-            return Ok(Num::Binary(Binary::Pow, Box::new(base), Box::new(exponent)));
+        if !self.peek_op("^") {
+            return Ok(base);
         }
-        Ok(base)
+        self.pos += 1;
+        let base = self.num(base, at)?;
+        let exponent = self.num_of(Self::unary)?;
+        Ok(Node::Num(Num::Binary(
+            Binary::Pow,
+            Box::new(base),
+            Box::new(exponent),
+        )))
     }
 
-    fn atom(&mut self) -> Result<Num, ExprError> {
+    fn atom(&mut self) -> Result<Node, ExprError> {
         let at = self.here();
         let Some((_, token)) = self.tokens.get(self.pos).cloned() else {
             return Err(self.error_at(at, "unexpected end of expression"));
         };
         self.pos += 1;
         match token {
-            Token::Number(v) => Ok(Num::Const(v)),
+            Token::Number(v) => Ok(Node::Num(Num::Const(v))),
             Token::Op("(") => {
                 let inner = self.or()?;
                 self.expect_op(")")?;
-                self.num(inner, at)
+                Ok(inner)
             }
-            Token::Name(name) => {
-                if !self.peek_op("(") {
-                    return match name.as_str() {
-                        "x" => Ok(Num::X),
-                        "y" => Ok(Num::Y),
-                        "pi" => Ok(Num::Const(std::f64::consts::PI)),
-                        _ => Err(self.error_at(at, &format!("unknown name '{name}' (known: x, y, pi)"))),
-                    };
-                }
+            Token::Name(name) if self.peek_op("(") => {
                 self.pos += 1;
                 let mut args = vec![(self.here(), self.or()?)];
                 while self.peek_op(",") {
@@ -631,23 +820,51 @@ impl Parser {
                 self.expect_op(")")?;
                 self.call(&name, at, args)
             }
+            Token::Name(name) => self.name(&name, at).map(Node::Num),
             t => Err(self.error_at(at, &format!("unexpected {t}"))),
         }
     }
 
-    fn call(&mut self, name: &str, at: usize, args: Vec<(usize, Node)>) -> Result<Num, ExprError> {
-        let arity = match name {
-            "sqrt" | "exp" | "log" | "sin" | "cos" | "abs" => 1,
-            "min" | "max" | "atan2" => 2,
-            "if" => 3,
-            _ => {
+    /// A name outside a call: x, y, pi, e or a named value.
+    fn name(&mut self, name: &str, at: usize) -> Result<Num, ExprError> {
+        match name {
+            "x" => return Ok(Num::X),
+            "y" => return Ok(Num::Y),
+            "pi" => return Ok(Num::Const(std::f64::consts::PI)),
+            "e" => return Ok(Num::Const(std::f64::consts::E)),
+            _ => {}
+        }
+        if let Some((_, tree, nodes)) = self.names.get(name) {
+            self.nodes += nodes;
+            if self.nodes > MAX_NODES {
                 return Err(self.error_at(
                     at,
-                    &format!(
-                    "unknown function '{name}' (known: sqrt, exp, log, sin, cos, abs, min, max, atan2, if)"
-                ),
-                ))
+                    &format!("expression too large with the names substituted (over {MAX_NODES} nodes)"),
+                ));
             }
+            return Ok(tree.clone());
+        }
+        let message = if self.later.last() == Some(&name) {
+            format!("'{name}' refers to itself")
+        } else if self.later.contains(&name) {
+            format!("'{name}' is defined later: a name may use only the names defined before it")
+        } else {
+            let known: Vec<&str> = BUILTIN_NAMES
+                .into_iter()
+                .chain(self.names.defs.iter().map(|d| d.0.as_str()))
+                .collect();
+            format!("unknown name '{name}' (known: {})", known.join(", "))
+        };
+        Err(self.error_at(at, &message))
+    }
+
+    fn call(&mut self, name: &str, at: usize, args: Vec<(usize, Node)>) -> Result<Node, ExprError> {
+        let Some(&(_, arity)) = FUNCTIONS.iter().find(|(f, _)| *f == name) else {
+            let known: Vec<&str> = FUNCTIONS.iter().map(|(f, _)| *f).collect();
+            return Err(self.error_at(
+                at,
+                &format!("unknown function '{name}' (known: {})", known.join(", ")),
+            ));
         };
         if args.len() != arity {
             return Err(self.error_at(
@@ -660,28 +877,46 @@ impl Parser {
             let (ac, c) = args.next().unwrap();
             let c = self.cond(c, ac)?;
             let (aa, a) = args.next().unwrap();
-            let a = self.num(a, aa)?;
             let (ab, b) = args.next().unwrap();
-            let b = self.num(b, ab)?;
-            return Ok(Num::If(Box::new(c), Box::new(a), Box::new(b)));
+            let (a, b) = (self.num(a, aa)?, self.num(b, ab)?);
+            return Ok(Node::Num(Num::If(Box::new(c), Box::new(a), Box::new(b))));
         }
         let mut nums = Vec::with_capacity(arity);
         for (a, n) in args {
-            nums.push(self.num(n, a)?);
+            nums.push(Box::new(self.num(n, a)?));
         }
-        let mut nums = nums.into_iter();
-        let first = Box::new(nums.next().unwrap());
-        Ok(match name {
-            "min" => Num::Binary(Binary::Min, first, Box::new(nums.next().unwrap())),
-            "max" => Num::Binary(Binary::Max, first, Box::new(nums.next().unwrap())),
-            "atan2" => Num::Binary(Binary::Atan2, first, Box::new(nums.next().unwrap())),
-            "sqrt" => Num::Unary(Unary::Sqrt, first),
-            "exp" => Num::Unary(Unary::Exp, first),
-            "log" => Num::Unary(Unary::Log, first),
-            "sin" => Num::Unary(Unary::Sin, first),
-            "cos" => Num::Unary(Unary::Cos, first),
-            _ => Num::Unary(Unary::Abs, first),
-        })
+        let second = if arity == 2 { nums.pop() } else { None };
+        let first = nums.pop().expect("one argument at least");
+        Ok(Node::Num(match second {
+            Some(b) => Num::Binary(binary_function(name), first, b),
+            None => Num::Unary(unary_function(name), first),
+        }))
+    }
+}
+
+/// The operation of a two-argument function of [`FUNCTIONS`].
+fn binary_function(name: &str) -> Binary {
+    match name {
+        "min" => Binary::Min,
+        "max" => Binary::Max,
+        _ => Binary::Atan2,
+    }
+}
+
+/// The unary operation of a one-argument function of [`FUNCTIONS`].
+fn unary_function(name: &str) -> Unary {
+    match name {
+        "sqrt" => Unary::Sqrt,
+        "exp" => Unary::Exp,
+        "log" => Unary::Log,
+        "sin" => Unary::Sin,
+        "cos" => Unary::Cos,
+        "tan" => Unary::Tan,
+        "atan" => Unary::Atan,
+        "tanh" => Unary::Tanh,
+        "abs" => Unary::Abs,
+        "sign" => Unary::Sign,
+        _ => Unary::Floor,
     }
 }
 
@@ -789,6 +1024,102 @@ mod tests {
         let x = 0.1_f64;
         let y = 0.5_f64;
         assert_eq!(e.eval(x, y), y.atan2(x).powi(2) + (x - y).abs().sqrt());
+    }
+
+    #[test]
+    fn new_functions_and_e() {
+        assert_eq!(ev("e", 0.0, 0.0), std::f64::consts::E);
+        assert_eq!(
+            ev("tan(x) + atan(y) + tanh(x*y)", 0.5, 2.0),
+            0.5f64.tan() + 2f64.atan() + 1f64.tanh()
+        );
+        assert_eq!(
+            ev("sign(x) + 10*sign(y) + 100*sign(x - 1)", -3.0, 0.0),
+            -1.0 + 0.0 - 100.0
+        );
+        assert!(ev("sign(log(x))", -1.0, 0.0).is_nan());
+        assert_eq!(ev("floor(x) + floor(y)", -0.5, 2.0), -1.0 + 2.0);
+    }
+
+    #[test]
+    fn signed_zeros() {
+        let bits = |s: &str| ev(s, 0.0, -0.0).to_bits();
+        assert_eq!([bits("min(x, y)"), bits("min(y, x)")], [(-0.0f64).to_bits(); 2]);
+        assert_eq!(
+            [bits("max(x, y)"), bits("max(y, x)"), bits("sign(y)")],
+            [0.0f64.to_bits(); 3]
+        );
+    }
+
+    #[test]
+    fn conditions_in_parentheses() {
+        let e = Expr::parse("if((x<0.5 || y<0.5) && x>0.2, 1, 0)").unwrap();
+        assert_eq!(
+            [e.eval(0.3, 0.9), e.eval(0.1, 0.1), e.eval(0.7, 0.7)],
+            [1.0, 0.0, 0.0]
+        );
+        assert_eq!(ev("if(((x > 0)), 1, 2)", 1.0, 0.0), 1.0);
+        for bad in [
+            "(x < 1) + 2",
+            "-(x < 1)",
+            "sin((x < 1))",
+            "(x < 1)^2",
+            "(x < 1)",
+            "2^(x<1)",
+        ] {
+            let e = Expr::parse(bad).unwrap_err();
+            assert!(e.message.contains("condition"), "{bad}: {e}");
+        }
+    }
+
+    /// Names in order; the errors of `define`.
+    fn names(entries: &[(&str, &str)]) -> Result<Names, ExprError> {
+        let keys: Vec<&str> = entries.iter().map(|e| e.0).collect();
+        let mut names = Names::default();
+        for (i, (key, source)) in entries.iter().enumerate() {
+            names.define(key, source, &keys[i + 1..])?;
+        }
+        Ok(names)
+    }
+
+    #[test]
+    fn named_values_are_substituted() {
+        let n = names(&[
+            ("r", "sqrt((x-0.5)^2 + (y-0.5)^2)"),
+            ("C", "sqrt(2)/(sqrt(2)-1)"),
+            ("u", "C*r^2"),
+        ])
+        .unwrap();
+        let e = Expr::parse_with("u + r", &n).unwrap();
+        let c = 2f64.sqrt() / (2f64.sqrt() - 1.0);
+        assert_eq!(e.eval(0.5, 1.5), c + 1.0);
+        assert_eq!(
+            e,
+            Expr::parse("(sqrt(2)/(sqrt(2)-1))*sqrt((x-0.5)^2 + (y-0.5)^2)^2 + sqrt((x-0.5)^2 + (y-0.5)^2)")
+                .unwrap()
+        );
+        assert!(Expr::parse("u").unwrap_err().message.contains("unknown name 'u'"));
+    }
+
+    #[test]
+    fn named_value_errors() {
+        let message = |entries: &[(&str, &str)]| names(entries).unwrap_err().message;
+        assert!(message(&[("a", "b + 1"), ("b", "x")]).contains("'b' is defined later"));
+        assert!(message(&[("a", "b"), ("b", "a")]).contains("'b' is defined later"));
+        assert!(message(&[("a", "a + 1")]).contains("'a' refers to itself"));
+        assert!(message(&[("a", "z")]).contains("unknown name 'z' (known: x, y, pi, e)"));
+        for builtin in ["x", "y", "pi", "e"] {
+            assert!(message(&[(builtin, "1")]).contains(&format!("'{builtin}' would shadow a built-in")));
+        }
+        assert!(message(&[("sin", "1")]).contains("'sin' would shadow a function"));
+        assert!(message(&[("2a", "1")]).contains("not a name"));
+        assert!(message(&[("a", "1"), ("a", "2")]).contains("twice"));
+        let doubling: Vec<(String, String)> = (1..40)
+            .map(|k| (format!("a{k}"), format!("a{} + a{}", k - 1, k - 1)))
+            .collect();
+        let mut entries = vec![("a0", "x")];
+        entries.extend(doubling.iter().map(|(k, s)| (k.as_str(), s.as_str())));
+        assert!(message(&entries).contains("too large"));
     }
 
     #[test]
