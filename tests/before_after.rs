@@ -54,7 +54,12 @@ fn compare(case_file: &str, before: &str) {
     for name in old.attr_names().unwrap() {
         let now = renamed(&name);
         // The absolute checks gave way to the relative check_* attributes.
-        let dropped = ["max_lambda1_minus_lambda2", "max_lambda_times_gap", "min_gap", "min_lambda"];
+        let dropped = [
+            "max_lambda1_minus_lambda2",
+            "max_lambda_times_gap",
+            "min_gap",
+            "min_lambda",
+        ];
         if name.starts_with("seconds") || dropped.contains(&name.as_str()) {
             continue;
         }
