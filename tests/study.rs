@@ -1,14 +1,14 @@
 //! Convergence studies: the paper's rates on a convex case, the corner singularity and its cure
 //! by graded meshes, bounded iterations with nested iteration, and the files the command writes.
 
-use membrane_contact::case::Case;
+use membrane_contact::case::{Case, Levels};
 use membrane_contact::study::{self, eoc, Level, StudyOptions};
 use std::path::Path;
 use std::process::Command;
 
 fn levels(case: &Case, sizes: &[usize], cold: bool) -> Vec<Level> {
     let options = StudyOptions {
-        levels: sizes.to_vec(),
+        levels: Levels::Cells(sizes.to_vec()),
         cold,
         hminus1_max: 64,
         grading: None,
@@ -103,6 +103,7 @@ fn study_command_writes_tables_and_plots() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("study/study.json")).unwrap()).unwrap();
     assert_eq!(json[2]["cells"], 16);
+    assert!(json[2]["refine"].is_null());
     assert!(json[2]["errors"]["h1_u1"].as_f64().unwrap() > 0.0);
     // Bad levels are an error, not a panic.
     let bad = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
