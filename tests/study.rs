@@ -113,3 +113,51 @@ fn study_command_writes_tables_and_plots() {
     assert_eq!(bad.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--levels must be increasing"));
 }
+
+#[test]
+fn disk_study_by_refinement_converges_at_rate_one() {
+    // Curved refinement: the polygonal ω_h converges to the disk, so the H¹ errors against the
+    // disk's exact solution fall at rate 1 and the L² errors at rate 2.
+    let dir = tempfile::tempdir().unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .args([
+            "study",
+            "data/cases/disk_contact.toml",
+            "--refine",
+            "0,1,2,3",
+            "-o",
+        ])
+        .arg(dir.path().join("study"))
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("study/study.json")).unwrap()).unwrap();
+    let level = |i: usize, key: &str| json[i]["errors"][key].as_f64().unwrap();
+    let rate = |key: &str| {
+        (level(2, key) / level(3, key)).ln()
+            / (json[2]["h"].as_f64().unwrap() / json[3]["h"].as_f64().unwrap()).ln()
+    };
+    let (h1, l2) = (rate("h1_u1"), rate("l2_u2"));
+    assert!(
+        (0.95..1.05).contains(&h1) && (1.9..2.1).contains(&l2),
+        "EOCs {h1}, {l2}"
+    );
+    assert_eq!(json[3]["refine"], 3);
+    assert!(
+        (1..4).all(|i| json[i]["iterations"].as_u64().unwrap() <= 4),
+        "{json}"
+    );
+    let csv = std::fs::read_to_string(dir.path().join("study/study.csv")).unwrap();
+    assert!(
+        csv.starts_with("refine,h,vertices") && csv.contains("\n3,"),
+        "{csv}"
+    );
+    // Cells per side do not apply to a disk.
+    let bad = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .args(["study", "data/cases/disk_contact.toml", "--levels", "8,16"])
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("not of kind = \"disk\": use --refine"));
+}

@@ -116,3 +116,28 @@ fn nodes(msh: &mshio::MshFile<u64, i32, f64>) -> Result<HashMap<u64, [f64; 3]>, 
     }
     Ok(out)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ascii_and_binary_files_give_the_same_mesh() {
+        let (p, t) = read(Path::new("data/meshes/square.msh")).unwrap();
+        let (q, s) = read(Path::new("tests/data/square-binary.msh")).unwrap();
+        assert_eq!((p.len(), t.len()), (98, 162));
+        // Gmsh writes 16 significant digits in ASCII, the full double in binary.
+        assert_eq!(t, s);
+        let worst = (p.iter().zip(&q))
+            .map(|(a, b)| (a[0] - b[0]).abs().max((a[1] - b[1]).abs()))
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-15, "{worst}");
+        // All triangles of the surface, and no node of the physical lines left over.
+        let mesh = crate::mesh::Mesh::new(p, t).unwrap();
+        assert!((mesh.measure() - 1.0).abs() < 1e-14);
+        let boundary = mesh.on_boundary.iter().filter(|&&b| b).count();
+        assert_eq!(boundary, 32, "8 edges per side of length 0.125");
+        let old = read(Path::new("tests/data/square-v22.msh")).unwrap_err().0;
+        assert!(old.contains("MSH format version 2.2 is not read"), "{old}");
+    }
+}
