@@ -379,7 +379,9 @@ impl Case {
 
     /// The mesh solved on and, with `coarser`, the meshes of nested iteration below it, finest
     /// first. With `refine` = k ≥ 1 they are the given mesh refined k − 1, …, 0 times (the
-    /// coarsest level is the given mesh; boundary vertices on the curves of ∂ω); otherwise the
+    /// coarsest level is the given mesh; boundary vertices on the curves of ∂ω; refined and
+    /// generated meshes renumbered along a Z-order curve, built-in and file meshes keep their
+    /// numbering); otherwise the
     /// built-in meshes of ⌈n/2⌉, ⌈n/4⌉, … cells down to [`COARSEST`] below a built-in mesh of n
     /// cells per side, and none below a disk, polygon or file.
     pub fn hierarchy(&self, coarser: bool) -> Result<(Mesh, Vec<Mesh>), CaseError> {
@@ -392,7 +394,7 @@ impl Case {
                     self.origin, self.refine
                 ))
             })?;
-            levels.push(finer);
+            levels.push(finer.renumbered());
         }
         let mesh = levels.pop().expect("the finest level");
         levels.reverse();
@@ -440,7 +442,7 @@ impl Case {
                 Mesh::rectangle(corners[0], corners[1], n[0], n[1], *diagonal)
             }
             MeshSpec::Lshape { n, diagonal, grading } => Mesh::l_shape(*n, *diagonal, *grading),
-            MeshSpec::Domain { domain, h } => domain.mesh(*h),
+            MeshSpec::Domain { domain, h } => domain.mesh(*h).map(|m| m.renumbered()),
             MeshSpec::File { .. } => unreachable!("read above"),
         };
         built.map_err(|e| err(format!("{keys}: the mesh is not valid: {e}")))

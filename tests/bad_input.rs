@@ -761,3 +761,21 @@ fn gmsh_files_without_triangles_or_of_old_versions() {
     );
     contains(&msh_fails("solid cube\n"), "mesh.msh: not a Gmsh MSH file");
 }
+
+#[test]
+fn a_refined_file_mesh_too_large_for_memory() {
+    // 98 vertices refined 14 times: about 2.6e10 vertices, refused after reading the file.
+    let case = format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"square.msh\"\nrefine = 14\n");
+    let e = fails(
+        &case,
+        |d| {
+            std::fs::copy("data/meshes/square.msh", d.join("square.msh"))
+                .map(|_| ())
+                .unwrap()
+        },
+        &[],
+        None,
+    );
+    contains(&e, "square.msh, refine = 14: 26306674688 vertices need about");
+    contains(&e, "use a coarser mesh");
+}
