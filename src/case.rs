@@ -378,12 +378,11 @@ impl Case {
     }
 
     /// The mesh solved on and, with `coarser`, the meshes of nested iteration below it, finest
-    /// first. With `refine` = k ≥ 1 they are the given mesh refined k − 1, …, 0 times (the
-    /// coarsest level is the given mesh; boundary vertices on the curves of ∂ω; refined and
-    /// generated meshes renumbered along a Z-order curve, built-in and file meshes keep their
-    /// numbering); otherwise the
-    /// built-in meshes of ⌈n/2⌉, ⌈n/4⌉, … cells down to [`COARSEST`] below a built-in mesh of n
-    /// cells per side, and none below a disk, polygon or file.
+    /// first. With `refine` = k ≥ 1 they are the given mesh refined k − 1, …, 0 times: the
+    /// coarsest level is the given mesh, new boundary vertices lie on the curves of ∂ω. Otherwise
+    /// they are the built-in meshes of ⌈n/2⌉, ⌈n/4⌉, … cells down to [`COARSEST`] below a
+    /// built-in mesh of n cells per side, and none below a disk, polygon or file. Generated and
+    /// refined meshes are renumbered along a Z-order curve; built-in and file meshes keep theirs.
     pub fn hierarchy(&self, coarser: bool) -> Result<(Mesh, Vec<Mesh>), CaseError> {
         let mut levels = vec![self.given_mesh()?];
         let curves = self.curves();
@@ -632,6 +631,7 @@ fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
     }
 }
 
+/// `kind = "rectangle"`: n, corners (default the unit square), diagonal.
 fn rectangle_spec(t: &MeshTable, need: impl Fn(&str) -> String) -> Result<MeshSpec, String> {
     let n = match t.n.ok_or_else(|| need("n"))? {
         Cells::Square(n) => [n, n],
@@ -652,6 +652,7 @@ fn rectangle_spec(t: &MeshTable, need: impl Fn(&str) -> String) -> Result<MeshSp
     Ok(MeshSpec::Rectangle { corners, n, diagonal })
 }
 
+/// `kind = "lshape"`: n (at least 2), diagonal, grading ≥ 1.
 fn lshape_spec(t: &MeshTable, need: impl Fn(&str) -> String) -> Result<MeshSpec, String> {
     let n = match t.n.ok_or_else(|| need("n"))? {
         Cells::Square(n) if n >= 2 => n,

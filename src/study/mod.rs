@@ -177,9 +177,10 @@ fn variants(case: &Case, options: &StudyOptions) -> Result<Vec<(String, Vec<Case
         let cases = (levels.iter())
             .map(|&k| {
                 let mut c = base.clone();
-                match cells {
-                    true => c.set_cells(k)?,
-                    false => c.refine = k,
+                if cells {
+                    c.set_cells(k)?;
+                } else {
+                    c.refine = k;
                 }
                 c.check_on(&c.mesh()?)?;
                 Ok(c)
