@@ -1,7 +1,8 @@
 //! Triangle meshes read from files: XDMF with HDF5 heavy data (as meshio and dolfinx write it),
 //! an HDF5 file with `/mesh/geometry` and `/mesh/topology` (a result of this program, or dolfinx's
-//! `/Mesh/mesh/…`), or a Gmsh MSH 4.1 file (see [`super::msh`]). Every number is checked: coordinates finite and planar, vertex indices whole
-//! numbers in range, the sizes an XDMF file declares equal to the data.
+//! `/Mesh/mesh/…`), or a Gmsh MSH 4.1 file (read by the private module `msh`). Every number is
+//! checked: coordinates finite and planar, vertex indices whole numbers in range, the sizes an
+//! XDMF file declares equal to the data.
 
 use super::Mesh;
 use std::fmt;
