@@ -53,6 +53,7 @@ study: build
 	$(BIN) study data/cases/default.toml --levels 8,16,32,64,128,256,512 --cold
 	$(BIN) study data/cases/disk_jump.toml --levels 8,16,32,64,128,256
 	$(BIN) study data/cases/lshape_corner.toml --levels 8,16,32,64,128,256 --grading 1,2
+	$(BIN) study data/cases/disk_contact.toml --refine 0,1,2,3,4,5,6
 
 FUZZ_SECONDS ?= 600
 fuzz: deps

@@ -18,7 +18,8 @@ branch, and there
     and the complementarity (u1 - u2) lambda = 0 are checked symbolically (simplify), else at the
     region's sample points (|residual| <= 1e-9);
   - u1 - u2 >= 0 and lambda >= 0 at the region's sample points (>= -1e-9);
-and u1 = g, u2 = 0, g >= 0 on EVERY edge of the boundary polygon (symbolically along the edge,
+and u1 = g, u2 = 0, g >= 0 on EVERY piece of the boundary: each edge of a polygon (holes included)
+or of a mesh file's triangulation, each circle of a disk or annulus (symbolically along the piece,
 else at 201 points of it, ends included). Sample points: random points of the domain, plus pairs
 1e-7 on either side of every switching curve (found by bisection between random points).
 
@@ -58,15 +59,83 @@ def to_sympy(source, names=None):
                       transformations=standard_transformations + (rationalize,))
 
 
-def polygon(case):
-    """The boundary polygon of the case's domain (counter-clockwise vertices)."""
-    m = case["mesh"]
-    if m["kind"] == "rectangle":
-        (x0, y0), (x1, y1) = m.get("corners", [[0, 0], [1, 1]])
-        return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], float)
-    if m["kind"] == "lshape":  # (-1, 1)^2 minus [0, 1] x [-1, 0]
-        return np.array([[-1, -1], [0, -1], [0, 0], [1, 0], [1, 1], [-1, 1]], float)
-    raise ValueError("no boundary polygon for mesh kind %r" % m["kind"])
+class Domain:
+    """The case's domain: a bounding box, a test for points inside, and the boundary pieces, each
+    a curve p(t), t in [0, 1], given numerically (`at`) and symbolically (`subs`, x and y in T)."""
+
+    def __init__(self, case, path):
+        m = case["mesh"]
+        self.pieces = []
+        if m["kind"] == "disk":
+            c, radii = m.get("centre", [0.0, 0.0]), [m["radius"]] + ([m["inner_radius"]] if "inner_radius" in m else [])
+            for r in radii:
+                self.circle(c, r)
+            self.lo, self.hi = np.subtract(c, m["radius"]), np.add(c, m["radius"])
+            r2 = [r * r for r in radii]
+            self.inside = lambda p: ((p - c) ** 2).sum(1) < r2[0] if len(r2) == 1 else (
+                (((p - c) ** 2).sum(1) < r2[0]) & (((p - c) ** 2).sum(1) > r2[1]))
+            return
+        rings = self.rings(m, path)
+        for ring in rings:
+            for k in range(len(ring)):
+                self.edge(ring[k], ring[(k + 1) % len(ring)])
+        paths = [Path(r) for r in rings]
+        self.lo, self.hi = rings[0].min(axis=0), rings[0].max(axis=0)
+        self.inside = lambda p: paths[0].contains_points(p) & ~np.any([q.contains_points(p) for q in paths[1:]]
+                                                                      + [np.zeros(len(p), bool)], axis=0)
+
+    @staticmethod
+    def rings(m, path):
+        """The boundary polygons, the outer one first."""
+        if m["kind"] == "rectangle":
+            (x0, y0), (x1, y1) = m.get("corners", [[0, 0], [1, 1]])
+            return [np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], float)]
+        if m["kind"] == "lshape":  # (-1, 1)^2 minus [0, 1] x [-1, 0]
+            return [np.array([[-1, -1], [0, -1], [0, 0], [1, 0], [1, 1], [-1, 1]], float)]
+        if m["kind"] == "polygon":
+            return [np.array(r, float) for r in [m["boundary"]] + m.get("holes", [])]
+        if m["kind"] == "file":
+            return mesh_rings(os.path.join(os.path.dirname(os.path.abspath(path)), m["path"]))
+        raise ValueError("no boundary for mesh kind %r" % m["kind"])
+
+    def edge(self, p, q):
+        on = {X: sp.nsimplify(p[0]) + T * sp.nsimplify(q[0] - p[0]), Y: sp.nsimplify(p[1]) + T * sp.nsimplify(q[1] - p[1])}
+        self.pieces.append(("edge (%g, %g)-(%g, %g)" % (*p, *q), lambda t: p + t * (q - p), on))
+
+    def circle(self, c, r):
+        cx, cy, rr = (sp.nsimplify(v) for v in (c[0], c[1], r))
+        on = {X: cx + rr * sp.cos(2 * sp.pi * T), Y: cy + rr * sp.sin(2 * sp.pi * T)}
+        at = lambda t: np.column_stack([c[0] + r * np.cos(2 * np.pi * t[:, 0]), c[1] + r * np.sin(2 * np.pi * t[:, 0])])  # noqa: E731
+        self.pieces.append(("circle about (%g, %g) of radius %g" % (c[0], c[1], r), at, on))
+
+
+def mesh_rings(path):
+    """The boundary loops of a triangle mesh file (read by meshio), the one of largest area first."""
+    import meshio
+    mesh = meshio.read(path)
+    tri = np.concatenate([c.data for c in mesh.cells if c.type == "triangle"])
+    edges = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    unique, count = np.unique(edges, axis=0, return_counts=True)
+    nxt = {}
+    for a, b in unique[count == 1]:
+        nxt.setdefault(a, []).append(b)
+        nxt.setdefault(b, []).append(a)
+    rings, seen = [], set()
+    for start in nxt:
+        if start in seen:
+            continue
+        ring, prev, cur = [start], None, start
+        seen.add(start)
+        while True:
+            step = [v for v in nxt[cur] if v != prev][0]
+            if step == start:
+                break
+            ring.append(step)
+            seen.add(step)
+            prev, cur = cur, step
+        rings.append(mesh.points[ring, :2])
+    area = lambda r: abs(np.dot(r[:, 0], np.roll(r[:, 1], -1)) - np.dot(r[:, 1], np.roll(r[:, 0], -1)))  # noqa: E731
+    return sorted(rings, key=area, reverse=True)
 
 
 def switches(exprs):
@@ -93,12 +162,10 @@ def numeric(e):
     return lambda p: np.broadcast_to(np.asarray(fn(p[:, 0], p[:, 1]), float), (len(p),))
 
 
-def samples(poly, funcs, rng, count=400):
+def samples(domain, funcs, rng, count=400):
     """Random points of the domain and points 1e-7 on either side of each switching curve."""
-    path = Path(poly)
-    lo, hi = poly.min(axis=0), poly.max(axis=0)
-    p = rng.uniform(lo, hi, (4 * count, 2))
-    p = p[path.contains_points(p)][:count]
+    p = rng.uniform(domain.lo, domain.hi, (4 * count, 2))
+    p = p[domain.inside(p)][:count]
     near = []
     for f in funcs:
         v = f(p)
@@ -112,7 +179,7 @@ def samples(poly, funcs, rng, count=400):
         d = (b - a) / np.maximum(np.linalg.norm(b - a, axis=1), 1e-300)[:, None]
         near += [a - 1e-7 * d, b + 1e-7 * d]
     q = np.concatenate([p] + near)
-    return q[path.contains_points(q)]
+    return q[domain.inside(q)]
 
 
 def resolve(e, point):
@@ -209,9 +276,9 @@ def regions(exprs, pts, funcs):
     return out
 
 
-def check_interior(e, mu, poly, funcs, rng, failures, how):
+def check_interior(e, mu, domain, funcs, rng, failures, how):
     """The PDEs, gradients, complementarity and sign conditions in every region."""
-    pts = samples(poly, funcs, rng)
+    pts = samples(domain, funcs, rng)
     for r, sel in regions(e, pts, funcs):
         for name, res in region_identities(r, mu).items():
             zero_check(name, res, sel, failures, how)
@@ -222,15 +289,11 @@ def check_interior(e, mu, poly, funcs, rng, failures, how):
     return len(pts)
 
 
-def check_boundary(e, poly, funcs, failures, how):
-    """u1 = g, u2 = 0 and g >= 0 on every edge of the boundary polygon."""
+def check_boundary(e, domain, funcs, failures, how):
+    """u1 = g, u2 = 0 and g >= 0 on every piece of the boundary."""
     t = np.linspace(0.0, 1.0, 201)[:, None]
-    for k in range(len(poly)):
-        p, q = poly[k], poly[(k + 1) % len(poly)]
-        pts = p + t * (q - p)
-        on_edge = {X: sp.nsimplify(p[0]) + T * sp.nsimplify(q[0] - p[0]),
-                   Y: sp.nsimplify(p[1]) + T * sp.nsimplify(q[1] - p[1])}
-        edge = "edge (%g, %g)-(%g, %g)" % (*p, *q)
+    for edge, at, on_edge in domain.pieces:
+        pts = at(t)
         for r, sel in regions({"u1 - g": e["u1"] - e["g"], "u2": e["u2"], "g": e["g"]}, pts, funcs):
             for name in ("u1 - g", "u2"):
                 if is_zero(r[name].subs(on_edge)):
@@ -250,10 +313,10 @@ def check(path):
     mu = (sp.nsimplify(case["mu1"]), sp.nsimplify(case["mu2"]))
     everything = [v for k in e for v in (e[k] if isinstance(e[k], list) else [e[k]])]
     funcs = [numeric(s) for s in switches(everything)]
-    poly = polygon(case)
+    domain = Domain(case, path)
     failures, how = [], {"symbolic": 0, "numeric": 0}
-    count = check_interior(e, mu, poly, funcs, np.random.default_rng(1), failures, how)
-    check_boundary(e, poly, funcs, failures, how)
+    count = check_interior(e, mu, domain, funcs, np.random.default_rng(1), failures, how)
+    check_boundary(e, domain, funcs, failures, how)
     how["points"] = count
     return failures, how
 

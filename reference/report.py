@@ -39,12 +39,12 @@ def header(tol, eoc_agreement, theory_margin):
 
 
 def field_table(result):
-    lines = ["| n | vertices | max Δu1 | max Δu2 | max Δgap | max Δλ | max Δλ2 | contact mismatches | Rust it. "
+    lines = ["| level | vertices | max Δu1 | max Δu2 | max Δgap | max Δλ | max Δλ2 | contact mismatches | Rust it. "
              "| SNES it. | mixed: max Δu | mixed: max Δλ, Δλ2 | mixed: mismatches | mixed it. |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for lv in result["levels"]:
         d, md = lv["diffs"], lv["mixed_diffs"]
-        lines.append("| %d | %d | %s | %s | %s | %s | %s | %d | %d | %d | %s | %s | %d | %d |" % (
+        lines.append("| %s | %d | %s | %s | %s | %s | %s | %d | %d | %d | %s | %s | %d | %d |" % (
             lv["n"], lv["vertices"], *(fmt(d[k][0]) for k in ("u1", "u2", "gap", "lambda", "lambda2")),
             lv["mismatch"], lv["rust_iterations"], lv["snes_iterations"],
             fmt(max(md[k][0] for k in ("u1", "u2", "gap"))), fmt(max(md[k][0] for k in ("lambda", "lambda2"))),
@@ -55,10 +55,10 @@ def field_table(result):
 def error_table(result):
     """Errors of both codes, EOCs, and the relative difference of the values with its tolerance."""
     keys = [(k, label) for k, label, _ in NORMS if k in result["rates"]]
-    lines = ["| n | h |" + "".join(" %s Rust | EOC | reference | EOC | value Δ (tol) |" % label for _, label in keys),
+    lines = ["| level | h |" + "".join(" %s Rust | EOC | reference | EOC | value Δ (tol) |" % label for _, label in keys),
              "|" + "---|" * (2 + 5 * len(keys))]
     for i, lv in enumerate(result["levels"]):
-        row = "| %d | %.4f |" % (lv["n"], lv["h"])
+        row = "| %s | %.4f |" % (lv["n"], lv["h"])
         for key, _ in keys:
             er, ef = result["rates"][key]
             rel, tol = lv["norm_checks"].get(key, (float("nan"), float("nan")))
@@ -71,12 +71,12 @@ def error_table(result):
 def flux_table(result):
     """The checks of the written fluxes per level."""
     has_error = "flux_1" in result["rates"]
-    lines = ["| n | normal jump t1h | normal jump t2h | conservation t1h | conservation t2h |"
+    lines = ["| level | normal jump t1h | normal jump t2h | conservation t1h | conservation t2h |"
              + (" ‖t1h+μ1∇u1‖ | EOC | ‖t2h+μ2∇u2‖ | EOC |" if has_error else ""),
              "|---|---|---|---|---|" + ("---|" * 4 if has_error else "")]
     for i, lv in enumerate(result["levels"]):
         f = lv["flux"]
-        row = "| %d | %s | %s | %s | %s |" % (lv["n"], fmt(f["jump_1"]), fmt(f["jump_2"]),
+        row = "| %s | %s | %s | %s | %s |" % (lv["n"], fmt(f["jump_1"]), fmt(f["jump_2"]),
                                              fmt(f["conservation_1"][0]), fmt(f["conservation_2"][0]))
         if has_error:
             row += " %s | %s | %s | %s |" % (fmt(f["error_1"]), eoc(result["rates"]["flux_1"][0], i),
@@ -130,7 +130,7 @@ def fields_plot(result, out):
         ax.set_aspect("equal")
         ax.set_title(field)
         fig.colorbar(im, ax=ax, shrink=0.8)
-    fig.suptitle("%s, n = %d (Rust)" % (result["name"], result["levels"][-1]["n"]))
+    fig.suptitle("%s, level %s (Rust)" % (result["name"], result["levels"][-1]["n"]))
     fig.tight_layout()
     name = result["name"] + "-fields.png"
     fig.savefig(os.path.join(out, name), dpi=90)

@@ -52,22 +52,34 @@ RUST_CONSERVATION = 1e-13  # the Rust code's own reported defect (flux_conservat
 FLUX_RATE = {True: 0.9, False: 2.0 / 3.0 - 0.1}  # minimal EOC of the flux error: convex / L-shape
 
 
-def run_level(path, name, n, binary, workdir, tol, failures, reuse=False):
+def levels_of(case):
+    """The validation levels of a case: [(option, value, label, file tag)] from `[validation] sizes`
+    (cells per side, `--n`) or `[validation] refine` (uniform refinements of any mesh, `--refine`)."""
+    v = case["validation"]
+    if "refine" in v:
+        return [("--refine", k, "refine %d" % k, "r%d" % k) for k in v["refine"]]
+    return [("--n", n, "%d" % n, "%d" % n) for n in v["sizes"]]
+
+
+def run_level(path, name, level, binary, workdir, tol, failures, reuse=False):
     """Solves one level with the Rust code (unless `reuse` and its result exists), then checks it."""
-    rust_dir = os.path.join(workdir, "rust-%d" % n)
+    option, value, label, tag = level
+    rust_dir = os.path.join(workdir, "rust-%s" % tag)
     t = time.perf_counter()
     if not (reuse and os.path.isdir(rust_dir)):
-        proc = subprocess.run([binary, "solve", path, "--n", str(n), "--hminus1", "--flux", "-o", rust_dir],
+        proc = subprocess.run([binary, "solve", path, option, str(value), "--hminus1", "--flux", "-o", rust_dir],
                               capture_output=True, text=True)
         if proc.returncode != 0:
-            failures.append("%s n=%d: Rust solver failed: %s" % (name, n, proc.stderr.strip()))
+            failures.append("%s %s: Rust solver failed: %s" % (name, label, proc.stderr.strip()))
             return None
-    return check_level("%s n=%d" % (name, n), n, rust_dir, workdir, tol, failures, time.perf_counter() - t)
+    return check_level("%s %s" % (name, label), (label, tag), rust_dir, workdir, tol, failures,
+                       time.perf_counter() - t)
 
 
-def check_level(label, n, rust_dir, workdir, tol, failures, rust_seconds):
-    """Solves the level of a Rust result with both references; checks fields, norm values, fluxes."""
-    ref_path, mixed_path = (os.path.join(workdir, "%s-%d.h5" % (k, n)) for k in ("reference", "mixed"))
+def check_level(label, level, rust_dir, workdir, tol, failures, rust_seconds):
+    """Solves the level (its table label and file tag) of a Rust result with both references; checks
+    fields, norm values, fluxes."""
+    ref_path, mixed_path = (os.path.join(workdir, "%s-%s.h5" % (k, level[1])) for k in ("reference", "mixed"))
     summary = solve_reference.solve_file(rust_dir, ref_path)
     mixed = solve_mixed.solve_file(rust_dir, mixed_path)
     rust, ref = common.read_result(rust_dir), common.read_reference(ref_path)
@@ -75,7 +87,7 @@ def check_level(label, n, rust_dir, workdir, tol, failures, rust_seconds):
     mixed_diffs, mixed_mismatch = compare.compare(rust, common.read_reference(mixed_path))
     field_failures(label, "", diffs, mismatch, tol, failures)
     field_failures(label, " from the mixed reference", mixed_diffs, mixed_mismatch, tol, failures)
-    level = {"n": n, "h": float(rust["attrs"]["h"]), "vertices": int(rust["attrs"]["vertices"]),
+    level = {"n": level[0], "h": float(rust["attrs"]["h"]), "vertices": int(rust["attrs"]["vertices"]),
              "diffs": diffs, "mismatch": mismatch, "rust_iterations": int(rust["attrs"]["iterations"]),
              "rust_seconds": rust_seconds, "snes_iterations": summary["snes_iterations"],
              "ref_seconds": summary["seconds"], "mixed_diffs": mixed_diffs, "mixed_mismatch": mixed_mismatch,
@@ -166,12 +178,13 @@ def run_case(path, binary, out, tol, failures, reuse=False):
     workdir = os.path.join(out, name)
     os.makedirs(workdir, exist_ok=True)
     levels = []
-    for n in case["validation"]["sizes"]:
-        level = run_level(path, name, n, binary, workdir, tol, failures, reuse)
+    for spec in levels_of(case):
+        level = run_level(path, name, spec, binary, workdir, tol, failures, reuse)
         if level is None:
             return None
         levels.append(level)
-    convex = case["mesh"]["kind"] == "rectangle"
+    mesh = case["mesh"]
+    convex = mesh["kind"] == "rectangle" or (mesh["kind"] == "disk" and "inner_radius" not in mesh)
     rates = rate_failures(name, levels, convex, failures) if "exact" in case else {}
     return {"name": name, "title": case.get("title", ""), "path": path, "levels": levels, "rates": rates,
             "convex": convex, "exact": "exact" in case}

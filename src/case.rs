@@ -4,7 +4,7 @@
 use crate::assembly::Quadrature;
 use crate::contact::SolverOptions;
 use crate::expr::{Expr, ExprError, Names};
-use crate::mesh::{self, Diagonal, Mesh};
+use crate::mesh::{self, Curves, Diagonal, Domain, Mesh};
 use crate::norms::Exact;
 use crate::problem::{self, Data};
 use crate::result::{Attr, Attribute, Describe};
@@ -76,6 +76,13 @@ struct MeshTable {
     diagonal: Option<Diagonal>,
     grading: Option<f64>,
     path: Option<PathBuf>,
+    boundary: Option<Vec<[f64; 2]>>,
+    holes: Option<Vec<Vec<[f64; 2]>>>,
+    centre: Option<[f64; 2]>,
+    radius: Option<f64>,
+    inner_radius: Option<f64>,
+    h: Option<f64>,
+    refine: Option<usize>,
 }
 
 /// `n = 8` or `n = [8, 4]`.
@@ -115,7 +122,8 @@ impl Default for SolverTable {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ValidationTable {
-    sizes: Vec<usize>,
+    sizes: Option<Vec<usize>>,
+    refine: Option<Vec<usize>>,
 }
 
 /// The mesh of a case.
@@ -139,11 +147,29 @@ pub enum MeshSpec {
         /// The grading exponent (Remark 10).
         grading: f64,
     },
+    /// A polygon with holes, a disk or an annulus, meshed to the size h.
+    Domain {
+        /// The domain.
+        domain: Domain,
+        /// The mesh size: boundary vertices at most h apart, triangles no larger than the
+        /// equilateral triangle of side h.
+        h: f64,
+    },
     /// A triangle mesh file (the path as given, relative to the case file).
     File {
         /// The path.
         path: PathBuf,
     },
+}
+
+/// The levels of a study or a validation: cells per side of a built-in mesh, or numbers of
+/// uniform refinements of the case's mesh (any kind).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Levels {
+    /// Cells per side (`--levels`, `[validation] sizes`).
+    Cells(Vec<usize>),
+    /// Refinements (`--refine`, `[validation] refine`).
+    Refine(Vec<usize>),
 }
 
 message_error!(
@@ -168,8 +194,11 @@ pub struct Case {
     pub mesh: MeshSpec,
     /// The settings of the active-set method.
     pub solver: SolverOptions,
-    /// Mesh sizes (cells per side) for `make validate` and studies.
-    pub validation_sizes: Option<Vec<usize>>,
+    /// Uniform refinements of the given mesh (`[mesh] refine`): the mesh solved on is the given
+    /// one refined this many times, and the coarser ones are the levels of nested iteration.
+    pub refine: usize,
+    /// The levels of `make validate` and studies, when the case names them.
+    pub validation: Option<Levels>,
     /// The case file, when read from one.
     path: Option<PathBuf>,
     base_dir: PathBuf,
@@ -246,17 +275,23 @@ impl Case {
                 })
             }
         };
+        let mesh = mesh_spec(&file.mesh).map_err(err)?;
+        let validation = (file.validation.as_ref())
+            .map(|v| validation_levels(v, &mesh))
+            .transpose()
+            .map_err(err)?;
         Ok(Case {
             origin: origin.to_string(),
             text: text.to_string(),
             title: file.title,
             data,
             exact,
-            mesh: mesh_spec(&file.mesh).map_err(err)?,
+            mesh,
             solver: SolverOptions {
                 max_iterations: file.solver.max_iterations,
             },
-            validation_sizes: file.validation.map(|v| v.sizes),
+            refine: file.mesh.refine.unwrap_or(0),
+            validation,
             path: None,
             base_dir,
         })
@@ -274,10 +309,26 @@ impl Case {
                 *n = cells.max(2);
                 Ok(())
             }
-            MeshSpec::File { .. } => Err(CaseError(format!(
-                "{}: the mesh is read from a file: its cells per side cannot be set",
-                self.origin
+            _ => Err(CaseError(format!(
+                "{}: the cells per side apply to built-in meshes (kind = \"rectangle\" or \"lshape\"), \
+                 not to kind = \"{}\": use --refine",
+                self.origin,
+                self.kind()
             ))),
+        }
+    }
+
+    /// The kind of the case's mesh, as the `[mesh]` table names it.
+    pub fn kind(&self) -> &'static str {
+        match &self.mesh {
+            MeshSpec::Rectangle { .. } => "rectangle",
+            MeshSpec::Lshape { .. } => "lshape",
+            MeshSpec::Domain {
+                domain: Domain::Polygon { .. },
+                ..
+            } => "polygon",
+            MeshSpec::Domain { .. } => "disk",
+            MeshSpec::File { .. } => "file",
         }
     }
 
@@ -296,12 +347,15 @@ impl Case {
         }
     }
 
-    /// Cells per side of a built-in mesh.
+    /// Cells per side of a built-in mesh, after refinement.
     pub fn cells(&self) -> Option<usize> {
+        let refined = |n: usize| {
+            n.saturating_mul(2usize.saturating_pow(u32::try_from(self.refine).unwrap_or(u32::MAX)))
+        };
         match &self.mesh {
-            MeshSpec::Rectangle { n, .. } => Some(n[0].max(n[1])),
-            MeshSpec::Lshape { n, .. } => Some(*n),
-            MeshSpec::File { .. } => None,
+            MeshSpec::Rectangle { n, .. } => Some(refined(n[0].max(n[1]))),
+            MeshSpec::Lshape { n, .. } => Some(refined(*n)),
+            MeshSpec::Domain { .. } | MeshSpec::File { .. } => None,
         }
     }
 
@@ -314,30 +368,84 @@ impl Case {
         files
     }
 
-    /// Builds or reads the mesh, after checking that a built-in one fits in memory.
+    /// The mesh solved on: the given mesh refined `refine` times.
     pub fn mesh(&self) -> Result<Mesh, CaseError> {
+        Ok(self.hierarchy(false)?.0)
+    }
+
+    /// The mesh solved on and, with `coarser`, the meshes of nested iteration below it, finest
+    /// first. With `refine` = k ≥ 1 they are the given mesh refined k − 1, …, 0 times: the
+    /// coarsest level is the given mesh, new boundary vertices lie on the curves of ∂ω. Otherwise
+    /// they are the built-in meshes of ⌈n/2⌉, ⌈n/4⌉, … cells down to [`COARSEST`] below a
+    /// built-in mesh of n cells per side, and none below a disk, polygon or file. Generated and
+    /// refined meshes are renumbered along a Z-order curve; built-in and file meshes keep theirs.
+    pub fn hierarchy(&self, coarser: bool) -> Result<(Mesh, Vec<Mesh>), CaseError> {
+        let mut levels = vec![self.given_mesh()?];
+        let curves = self.curves();
+        for k in 1..=self.refine {
+            let finer = (levels.last().expect("a level").refined(&curves)).map_err(|e| {
+                CaseError(format!(
+                    "{}: [mesh] refine = {}: level {k}: {e}",
+                    self.origin, self.refine
+                ))
+            })?;
+            levels.push(finer.renumbered());
+        }
+        let mesh = levels.pop().expect("the finest level");
+        levels.reverse();
+        let below = match (coarser, self.refine) {
+            (false, _) => Vec::new(),
+            (true, 0) => self.coarser_builtin()?,
+            (true, _) => levels,
+        };
+        Ok((mesh, below))
+    }
+
+    /// The curves of ∂ω, on which refinement places new boundary vertices.
+    pub fn curves(&self) -> Curves {
+        match &self.mesh {
+            MeshSpec::Domain { domain, .. } => domain.curves(),
+            _ => Curves::default(),
+        }
+    }
+
+    /// Builds or reads the mesh before refinement, after checking that it fits in memory once
+    /// refined (built-in meshes and domains before building them, files after reading them).
+    fn given_mesh(&self) -> Result<Mesh, CaseError> {
         let err = |m: String| CaseError(format!("{}: {m}", self.origin));
+        let refine = match self.refine {
+            0 => String::new(),
+            k => format!(", refine = {k}"),
+        };
         let keys = match &self.mesh {
-            MeshSpec::Rectangle { corners, n, .. } => format!("[mesh] corners = {corners:?}, n = {n:?}"),
-            MeshSpec::Lshape { n, grading, .. } => format!("[mesh] n = {n}, grading = {grading}"),
+            MeshSpec::Rectangle { corners, n, .. } => {
+                format!("[mesh] corners = {corners:?}, n = {n:?}{refine}")
+            }
+            MeshSpec::Lshape { n, grading, .. } => format!("[mesh] n = {n}, grading = {grading}{refine}"),
+            MeshSpec::Domain { h, .. } => format!("[mesh] kind = \"{}\", h = {h}{refine}", self.kind()),
             MeshSpec::File { path } => {
-                return mesh::file::read(&self.base_dir.join(path)).map_err(|e| CaseError(e.to_string()))
+                let mesh =
+                    mesh::file::read(&self.base_dir.join(path)).map_err(|e| CaseError(e.to_string()))?;
+                let refined = mesh.n_vertices().saturating_mul(self.refinement_factor());
+                mesh::check_memory(refined).map_err(|e| err(format!("{}{refine}: {e}", path.display())))?;
+                return Ok(mesh);
             }
         };
-        mesh::check_memory(self.vertices()).map_err(|e| err(format!("mesh: {e}")))?;
+        mesh::check_memory(self.estimated_vertices()).map_err(|e| err(format!("{keys}: {e}")))?;
         let built = match &self.mesh {
             MeshSpec::Rectangle { corners, n, diagonal } => {
                 Mesh::rectangle(corners[0], corners[1], n[0], n[1], *diagonal)
             }
             MeshSpec::Lshape { n, diagonal, grading } => Mesh::l_shape(*n, *diagonal, *grading),
+            MeshSpec::Domain { domain, h } => domain.mesh(*h).map(|m| m.renumbered()),
             MeshSpec::File { .. } => unreachable!("read above"),
         };
-        built.map_err(|e| err(format!("{keys}: the mesh is not valid in double precision: {e}")))
+        built.map_err(|e| err(format!("{keys}: the mesh is not valid: {e}")))
     }
 
     /// The meshes of nested iteration below a built-in mesh of n cells per side: ⌈n/2⌉, ⌈n/4⌉, …
-    /// cells, down to [`COARSEST`]; none for a mesh file.
-    pub fn coarser_meshes(&self) -> Result<Vec<Mesh>, CaseError> {
+    /// cells, down to [`COARSEST`]; none for the other kinds.
+    fn coarser_builtin(&self) -> Result<Vec<Mesh>, CaseError> {
         let Some(n) = self.cells() else {
             return Ok(Vec::new());
         };
@@ -378,9 +486,15 @@ impl Case {
         Ok(())
     }
 
-    /// Vertices of a built-in mesh (saturating), for the memory guard.
-    fn vertices(&self) -> usize {
-        match &self.mesh {
+    /// 4^refine (saturating): refinement multiplies the vertices by less than that.
+    fn refinement_factor(&self) -> usize {
+        4usize.saturating_pow(u32::try_from(self.refine).unwrap_or(u32::MAX))
+    }
+
+    /// The vertices of the mesh solved on (saturating; an estimate from above for disks and
+    /// polygons, 0 for files), for the memory guard.
+    pub fn estimated_vertices(&self) -> usize {
+        let given = match &self.mesh {
             MeshSpec::Rectangle { n, diagonal, .. } => {
                 let crossed = usize::from(*diagonal == Diagonal::Crossed);
                 (n[0].saturating_add(1))
@@ -388,8 +502,10 @@ impl Case {
                     .saturating_add(crossed.saturating_mul(n[0].saturating_mul(n[1])))
             }
             MeshSpec::Lshape { n, .. } => n.saturating_add(2).saturating_mul(n.saturating_add(2)),
+            MeshSpec::Domain { domain, h } => domain.estimated_vertices(*h),
             MeshSpec::File { .. } => 0,
-        }
+        };
+        given.saturating_mul(self.refinement_factor())
     }
 }
 
@@ -473,7 +589,8 @@ fn quote(key: &str, source: &str, error: &ExprError) -> String {
     format!("key '{key}' = \"{shown}\": {error}")
 }
 
-/// The typed mesh of a `[mesh]` table: the keys its kind takes, checked.
+/// The typed mesh of a `[mesh]` table: the keys its kind takes, checked (`refine` is taken by
+/// every kind).
 fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
     let given = [
         ("corners", t.corners.is_some()),
@@ -481,14 +598,22 @@ fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
         ("diagonal", t.diagonal.is_some()),
         ("grading", t.grading.is_some()),
         ("path", t.path.is_some()),
+        ("boundary", t.boundary.is_some()),
+        ("holes", t.holes.is_some()),
+        ("centre", t.centre.is_some()),
+        ("radius", t.radius.is_some()),
+        ("inner_radius", t.inner_radius.is_some()),
+        ("h", t.h.is_some()),
     ];
     let takes: &[&str] = match t.kind.as_str() {
-        "rectangle" => &["corners", "n", "diagonal"],
-        "lshape" => &["n", "diagonal", "grading"],
-        "file" => &["path"],
+        "rectangle" => &["corners", "n", "diagonal", "refine"],
+        "lshape" => &["n", "diagonal", "grading", "refine"],
+        "polygon" => &["boundary", "holes", "h", "refine"],
+        "disk" => &["centre", "radius", "inner_radius", "h", "refine"],
+        "file" => &["path", "refine"],
         other => {
             return Err(format!(
-                "key 'mesh.kind' = \"{other}\": the kinds are \"rectangle\", \"lshape\" and \"file\""
+                "key 'mesh.kind' = \"{other}\": the kinds are \"rectangle\", \"lshape\", \"polygon\", \"disk\" and \"file\""
             ))
         }
     };
@@ -499,43 +624,93 @@ fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
             takes.join(", ")
         ));
     }
-    let diagonal = t.diagonal.unwrap_or(Diagonal::Right);
     let need = |key: &str| format!("key 'mesh.{key}' is missing (kind = \"{}\")", t.kind);
     match t.kind.as_str() {
-        "rectangle" => {
-            let n = match t.n.ok_or_else(|| need("n"))? {
-                Cells::Square(n) => [n, n],
-                Cells::Sides(n) => n,
+        "rectangle" => rectangle_spec(t, need),
+        "lshape" => lshape_spec(t, need),
+        "polygon" | "disk" => {
+            let domain = match t.kind.as_str() {
+                "polygon" => Domain::Polygon {
+                    boundary: t.boundary.clone().ok_or_else(|| need("boundary"))?,
+                    holes: t.holes.clone().unwrap_or_default(),
+                },
+                _ => Domain::Disk {
+                    centre: t.centre.unwrap_or([0.0, 0.0]),
+                    radius: t.radius.ok_or_else(|| need("radius"))?,
+                    inner_radius: t.inner_radius,
+                },
             };
-            if n[0] == 0 || n[1] == 0 {
-                return Err(format!("key 'mesh.n' = {n:?}: need at least one cell each way"));
+            domain.check()?;
+            let h = t.h.ok_or_else(|| need("h"))?;
+            if !(h > 0.0 && h.is_finite()) {
+                return Err(format!("key 'mesh.h' = {h}: need a positive mesh size"));
             }
-            let corners = t.corners.unwrap_or([[0.0, 0.0], [1.0, 1.0]]);
-            let [c0, c1] = corners;
-            let extent = [c1[0] - c0[0], c1[1] - c0[1]];
-            if !(extent.iter().all(|e| *e > 0.0 && e.is_finite())) {
-                return Err(format!(
-                    "key 'mesh.corners' = {corners:?}: need [[x0, y0], [x1, y1]] with x0 < x1, y0 < y1 and a finite extent"
-                ));
-            }
-            Ok(MeshSpec::Rectangle { corners, n, diagonal })
-        }
-        "lshape" => {
-            let n = match t.n.ok_or_else(|| need("n"))? {
-                Cells::Square(n) if n >= 2 => n,
-                Cells::Square(n) => return Err(format!("key 'mesh.n' = {n}: need at least 2")),
-                Cells::Sides(n) => return Err(format!("key 'mesh.n' = {n:?}: the L-shape takes one number")),
-            };
-            let grading = t.grading.unwrap_or(1.0);
-            if !(grading >= 1.0 && grading.is_finite()) {
-                return Err(format!("key 'mesh.grading' = {grading}: need a number ≥ 1"));
-            }
-            Ok(MeshSpec::Lshape { n, diagonal, grading })
+            Ok(MeshSpec::Domain { domain, h })
         }
         _ => Ok(MeshSpec::File {
             path: t.path.clone().ok_or_else(|| need("path"))?,
         }),
     }
+}
+
+/// `kind = "rectangle"`: n, corners (default the unit square), diagonal.
+fn rectangle_spec(t: &MeshTable, need: impl Fn(&str) -> String) -> Result<MeshSpec, String> {
+    let n = match t.n.ok_or_else(|| need("n"))? {
+        Cells::Square(n) => [n, n],
+        Cells::Sides(n) => n,
+    };
+    if n[0] == 0 || n[1] == 0 {
+        return Err(format!("key 'mesh.n' = {n:?}: need at least one cell each way"));
+    }
+    let corners = t.corners.unwrap_or([[0.0, 0.0], [1.0, 1.0]]);
+    let [c0, c1] = corners;
+    let extent = [c1[0] - c0[0], c1[1] - c0[1]];
+    if !(extent.iter().all(|e| *e > 0.0 && e.is_finite())) {
+        return Err(format!(
+            "key 'mesh.corners' = {corners:?}: need [[x0, y0], [x1, y1]] with x0 < x1, y0 < y1 and a finite extent"
+        ));
+    }
+    let diagonal = t.diagonal.unwrap_or(Diagonal::Right);
+    Ok(MeshSpec::Rectangle { corners, n, diagonal })
+}
+
+/// `kind = "lshape"`: n (at least 2), diagonal, grading ≥ 1.
+fn lshape_spec(t: &MeshTable, need: impl Fn(&str) -> String) -> Result<MeshSpec, String> {
+    let n = match t.n.ok_or_else(|| need("n"))? {
+        Cells::Square(n) if n >= 2 => n,
+        Cells::Square(n) => return Err(format!("key 'mesh.n' = {n}: need at least 2")),
+        Cells::Sides(n) => return Err(format!("key 'mesh.n' = {n:?}: the L-shape takes one number")),
+    };
+    let grading = t.grading.unwrap_or(1.0);
+    if !(grading >= 1.0 && grading.is_finite()) {
+        return Err(format!("key 'mesh.grading' = {grading}: need a number ≥ 1"));
+    }
+    let diagonal = t.diagonal.unwrap_or(Diagonal::Right);
+    Ok(MeshSpec::Lshape { n, diagonal, grading })
+}
+
+/// The levels of a `[validation]` table: `sizes` (cells per side, built-in meshes only) or
+/// `refine` (refinements, any mesh), increasing.
+fn validation_levels(v: &ValidationTable, mesh: &MeshSpec) -> Result<Levels, String> {
+    let builtin = matches!(mesh, MeshSpec::Rectangle { .. } | MeshSpec::Lshape { .. });
+    let (key, levels) =
+        match (&v.sizes, &v.refine) {
+            (Some(_), Some(_)) => return Err("[validation] takes 'sizes' or 'refine', not both".into()),
+            (None, None) => {
+                return Err("[validation] needs 'sizes' (cells per side) or 'refine' (refinements)".into())
+            }
+            (Some(_), None) if !builtin => return Err(
+                "key 'validation.sizes' applies to built-in meshes: use 'validation.refine' (refinements)"
+                    .into(),
+            ),
+            (Some(s), None) => ("validation.sizes", Levels::Cells(s.clone())),
+            (None, Some(r)) => ("validation.refine", Levels::Refine(r.clone())),
+        };
+    let (Levels::Cells(l) | Levels::Refine(l)) = &levels;
+    if l.is_empty() || l.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(format!("key '{key}' = {l:?}: need increasing levels"));
+    }
+    Ok(levels)
 }
 
 #[cfg(test)]
@@ -568,6 +743,18 @@ mod tests {
             "{typo}"
         );
         assert!(err(&format!("{base}grading = 2\n")).contains("'mesh.grading' does not apply"));
+        assert!(err(&format!("{base}radius = 2\n")).contains("'mesh.radius' does not apply"));
+        let disk = base.replace(
+            "kind = \"rectangle\"\nn = [4, 4]",
+            "kind = \"disk\"\nradius = 1.0\nh = 0.2",
+        );
+        assert!(Case::parse(&disk, "t", PathBuf::new()).is_ok());
+        assert!(err(&disk.replace("h = 0.2", "h = 0")).contains("key 'mesh.h' = 0"));
+        assert!(err(&disk.replace("radius = 1.0", "radius = -1")).contains("key 'mesh.radius' = -1"));
+        assert!(err(&format!("{disk}n = 4\n")).contains("'mesh.n' does not apply to kind = \"disk\""));
+        assert!(err(&format!("{disk}[validation]\nsizes = [8]\n")).contains("validation.refine"));
+        let mut c = Case::parse(&disk, "t", PathBuf::new()).unwrap();
+        assert!(c.set_cells(8).unwrap_err().0.contains("use --refine"));
         let long = err(&base.replace("f1 = \"1\"", &format!("f1 = \"{}+\"", "x+".repeat(10_000))));
         assert!(long.len() < 300 && long.contains("20001 characters"), "{long}");
     }

@@ -172,8 +172,8 @@ impl Guess {
 /// ```
 /// use membrane_contact::{case::Case, contact, problem::DiscreteProblem};
 /// let case = Case::default_case();
-/// let problem = DiscreteProblem::new(case.mesh().unwrap(), &case.data).unwrap();
-/// let coarser = case.coarser_meshes().unwrap();
+/// let (mesh, coarser) = case.hierarchy(true).unwrap();
+/// let problem = DiscreteProblem::new(mesh, &case.data).unwrap();
 /// let solution = contact::solve(&problem, contact::Start::Nested, coarser, case.solver).unwrap();
 /// // The membranes touch where the gap w = u1h − u2h vanishes, and nowhere cross.
 /// assert!(solution.obstacle.contact.iter().any(|&c| c));

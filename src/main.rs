@@ -1,7 +1,7 @@
 //! The `membrane-contact` command line.
 
 use clap::{Parser, Subcommand};
-use membrane_contact::case::{Case, CaseError};
+use membrane_contact::case::{Case, CaseError, Levels};
 use membrane_contact::contact::Start;
 use membrane_contact::run;
 use membrane_contact::study::{self, StudyOptions};
@@ -29,9 +29,12 @@ enum Command {
         /// complete new result, and only if it is a result of this program.
         #[arg(short, long)]
         output: Option<PathBuf>,
-        /// Cells per side of a built-in mesh (overrides the case; an error with a mesh file).
+        /// Cells per side of a built-in mesh (overrides the case; an error for other kinds).
         #[arg(long)]
         n: Option<usize>,
+        /// Uniform refinements of the case's mesh, any kind (overrides `[mesh] refine`).
+        #[arg(long)]
+        refine: Option<usize>,
         /// Start the active-set method from no contact instead of nested iteration.
         #[arg(long)]
         cold: bool,
@@ -51,9 +54,13 @@ enum Command {
     Study {
         /// Case file (TOML); the built-in default case when omitted.
         case: Option<PathBuf>,
-        /// Cells per side on each level, e.g. 8,16,32,64 (default: the case's validation sizes).
-        #[arg(long, value_delimiter = ',')]
+        /// Cells per side on each level of a built-in mesh, e.g. 8,16,32,64 (default: the case's
+        /// validation levels, else 8,16,32,64 for built-in meshes and --refine 0,1,2,3 for others).
+        #[arg(long, value_delimiter = ',', conflicts_with = "refine")]
         levels: Option<Vec<usize>>,
+        /// Uniform refinements of the case's mesh on each level, any kind, e.g. 0,1,2,3.
+        #[arg(long, value_delimiter = ',')]
+        refine: Option<Vec<usize>>,
         /// Also solve every level from a cold start, to compare active-set iterations.
         #[arg(long)]
         cold: bool,
@@ -81,19 +88,24 @@ fn main() -> ExitCode {
             case,
             output,
             n,
+            refine,
             cold,
             hminus1,
             flux,
             ..
-        } => solve(case, output, n, cold, hminus1, flux),
+        } => solve(case, output, (n, refine), cold, hminus1, flux),
         Command::Study {
             case,
             levels,
+            refine,
             cold,
             grading,
             hminus1_max,
             output,
-        } => study(case, levels, cold, grading, hminus1_max, output),
+        } => {
+            let levels = levels.map(Levels::Cells).or(refine.map(Levels::Refine));
+            study(case, levels, cold, grading, hminus1_max, output)
+        }
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -133,7 +145,7 @@ fn output_dir(output: Option<PathBuf>, default: &str, name: &str) -> Result<Path
 fn solve(
     case_path: Option<PathBuf>,
     output: Option<PathBuf>,
-    n: Option<usize>,
+    (n, refine): (Option<usize>, Option<usize>),
     cold: bool,
     hminus1: bool,
     flux: bool,
@@ -142,6 +154,9 @@ fn solve(
     if let Some(n) = n {
         case.set_cells(n)
             .map_err(|e| CaseError(format!("--n {n}: {e}")))?;
+    }
+    if let Some(k) = refine {
+        case.refine = k;
     }
     let output = output_dir(output, "results", &name)?;
     if let Some(ext) = output.extension().filter(|e| *e == "h5" || *e == "xdmf") {
@@ -169,16 +184,17 @@ fn solve(
 
 fn study(
     case_path: Option<PathBuf>,
-    levels: Option<Vec<usize>>,
+    levels: Option<Levels>,
     cold: bool,
     grading: Option<Vec<f64>>,
     hminus1_max: usize,
     output: Option<PathBuf>,
 ) -> Result<(), Failure> {
     let (case, name) = read_case(&case_path)?;
-    let levels = levels
-        .or_else(|| case.validation_sizes.clone())
-        .unwrap_or_else(|| vec![8, 16, 32, 64]);
+    let levels = (levels.or_else(|| case.validation.clone())).unwrap_or_else(|| match case.cells() {
+        Some(_) => Levels::Cells(vec![8, 16, 32, 64]),
+        None => Levels::Refine(vec![0, 1, 2, 3]),
+    });
     let dir = output_dir(output, "study", &name)?;
     let options = StudyOptions {
         levels,

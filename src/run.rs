@@ -68,12 +68,8 @@ pub fn solve<'c>(case: &'c Case, options: &Options, target: &Path) -> Result<Run
 /// Computes a run without writing it.
 pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
     let mut clock = Clock(Instant::now());
-    let mesh = case.mesh()?;
+    let (mesh, coarser) = case.hierarchy(matches!(options.start, Start::Nested))?;
     case.check_on(&mesh)?;
-    let coarser = match options.start {
-        Start::Nested => case.coarser_meshes()?,
-        _ => Vec::new(),
-    };
     let mesh_seconds = clock.lap();
     let problem =
         DiscreteProblem::new(mesh, &case.data).map_err(|e| CaseError(format!("{}: {e}", case.origin)))?;

@@ -592,13 +592,14 @@ fn xdmf_dimensions_must_match_the_data() {
 #[test]
 fn unknown_mesh_file_extension_names_the_accepted_ones() {
     let e = fails(
-        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"mesh.msh\"\n"),
-        |d| std::fs::write(d.join("mesh.msh"), "$MeshFormat\n").unwrap(),
+        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"mesh.stl\"\n"),
+        |d| std::fs::write(d.join("mesh.stl"), "solid").unwrap(),
         &[],
         None,
     );
-    contains(&e, "unknown mesh file extension 'msh'");
+    contains(&e, "unknown mesh file extension 'stl'");
     contains(&e, ".xdmf");
+    contains(&e, ".msh (Gmsh, format 4.1)");
 }
 
 #[test]
@@ -611,7 +612,7 @@ fn cells_per_side_do_not_apply_to_a_mesh_file() {
         None,
     );
     contains(&e, "--n 8:");
-    contains(&e, "read from a file");
+    contains(&e, "not to kind = \"file\": use --refine");
 }
 
 #[test]
@@ -642,4 +643,133 @@ fn oversized_case_files_are_refused() {
         &case_fails(&format!("title = \"{title}\"\n{GOOD}{SQUARE}")),
         "at most 1048576 are read",
     );
+}
+
+/// A polygon case with the given `[mesh]` keys (after kind = "polygon").
+fn polygon_fails(keys: &str) -> String {
+    case_fails(&format!("{GOOD}[mesh]\nkind = \"polygon\"\n{keys}"))
+}
+
+#[test]
+fn bad_polygons() {
+    let e = polygon_fails("boundary = [[0, 0], [1, 1], [1, 0], [0, 1]]\nh = 0.1\n");
+    contains(&e, "key 'mesh.boundary': the edges");
+    contains(&e, "must not intersect or touch itself");
+    contains(
+        &polygon_fails("boundary = [[0, 0], [1, 0]]\nh = 0.1\n"),
+        "key 'mesh.boundary' has 2 vertices: a polygon needs at least 3",
+    );
+    let square = "boundary = [[0, 0], [1, 0], [1, 1], [0, 1]]\nh = 0.1\n";
+    contains(
+        &polygon_fails(&format!("{square}holes = [[[2, 2], [3, 2], [2, 3]]]\n")),
+        "key 'mesh.holes' (hole 1) lies outside key 'mesh.boundary'",
+    );
+    contains(
+        &polygon_fails(&format!("{square}holes = [[[0, 0.5], [0.5, 0.4], [0.5, 0.6]]]\n")),
+        "key 'mesh.holes' (hole 1) touches or crosses key 'mesh.boundary'",
+    );
+    contains(
+        &polygon_fails("boundary = [[0, 0], [1, 0], [1, 1]]\nh = 0\n"),
+        "key 'mesh.h' = 0: need a positive mesh size",
+    );
+    contains(
+        &polygon_fails("boundary = [[0, 0], [1, 0], [1, 1]]\nh = -1\n"),
+        "key 'mesh.h' = -1",
+    );
+    contains(
+        &polygon_fails(&format!("{square}radius = 1\n")),
+        "key 'mesh.radius' does not apply to kind = \"polygon\"",
+    );
+}
+
+#[test]
+fn bad_disks() {
+    let disk = |keys: &str| case_fails(&format!("{GOOD}[mesh]\nkind = \"disk\"\n{keys}"));
+    contains(
+        &disk("radius = 0\nh = 0.1\n"),
+        "key 'mesh.radius' = 0: need a positive radius",
+    );
+    contains(&disk("radius = -2\nh = 0.1\n"), "key 'mesh.radius' = -2");
+    contains(&disk("radius = 1\nh = 0\n"), "key 'mesh.h' = 0");
+    contains(
+        &disk("radius = 1\ninner_radius = 1.5\nh = 0.1\n"),
+        "key 'mesh.inner_radius' = 1.5: need 0 < inner_radius < radius = 1",
+    );
+    // Estimated from the area before meshing: nothing is built.
+    let e = disk("radius = 1\nh = 1e-6\n");
+    contains(&e, "[mesh] kind = \"disk\", h = 0.000001");
+    contains(&e, "use a coarser mesh");
+    let e = disk("radius = 1\nh = 0.1\nrefine = 12\n");
+    contains(&e, "h = 0.1, refine = 12:");
+    contains(&e, "use a coarser mesh");
+}
+
+#[test]
+fn options_that_do_not_apply_to_the_mesh() {
+    let disk = format!("{GOOD}[mesh]\nkind = \"disk\"\nradius = 1\nh = 0.2\n");
+    let e = fails(&disk, |_| {}, &["--n", "8"], None);
+    contains(&e, "--n 8:");
+    contains(&e, "not to kind = \"disk\": use --refine");
+}
+
+/// A case reading `mesh.msh` with the given text.
+fn msh_fails(text: &'static str) -> String {
+    fails(
+        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"mesh.msh\"\n"),
+        move |dir| std::fs::write(dir.join("mesh.msh"), text).unwrap(),
+        &[],
+        None,
+    )
+}
+
+/// Four nodes of the unit square and one element block (`{BLOCK}` replaced by the caller).
+const MSH_NODES: &str = "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 4 1 4\n2 1 0 4\n1\n2\n3\n4\n\
+                         0 0 0\n1 0 0\n1 1 0\n0 1 0\n$EndNodes\n";
+
+#[test]
+fn gmsh_files_without_triangles_or_of_old_versions() {
+    const QUADS: &str = concat!(
+        "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 4 1 4\n2 1 0 4\n1\n2\n3\n4\n",
+        "0 0 0\n1 0 0\n1 1 0\n0 1 0\n$EndNodes\n",
+        "$Elements\n1 1 1 1\n2 1 3 1\n1 1 2 3 4\n$EndElements\n"
+    );
+    const LINES: &str = concat!(
+        "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 4 1 4\n2 1 0 4\n1\n2\n3\n4\n",
+        "0 0 0\n1 0 0\n1 1 0\n0 1 0\n$EndNodes\n",
+        "$Elements\n1 2 1 2\n1 1 1 2\n1 1 2\n2 3 4\n$EndElements\n"
+    );
+    assert!(QUADS.starts_with(MSH_NODES) && LINES.starts_with(MSH_NODES));
+    let e = msh_fails(QUADS);
+    contains(
+        &e,
+        "mesh.msh: quadrilateral elements (Qua4, surface 1): the mesh must be made of triangles",
+    );
+    contains(&msh_fails(LINES), "mesh.msh: the file has no triangles");
+    contains(
+        &msh_fails("$MeshFormat\n2.2 0 8\n$EndMeshFormat\n"),
+        "mesh.msh: MSH format version 2.2 is not read: only version 4.1",
+    );
+    contains(
+        &msh_fails("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 2"),
+        "mesh.msh: not a readable MSH 4.1 file",
+    );
+    contains(&msh_fails("solid cube\n"), "mesh.msh: not a Gmsh MSH file");
+}
+
+#[test]
+fn a_refined_file_mesh_too_large_for_memory() {
+    // 98 vertices refined 14 times: about 2.6e10 vertices, refused after reading the file.
+    let case = format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"square.msh\"\nrefine = 14\n");
+    let e = fails(
+        &case,
+        |d| {
+            std::fs::copy("data/meshes/square.msh", d.join("square.msh"))
+                .map(|_| ())
+                .unwrap()
+        },
+        &[],
+        None,
+    );
+    contains(&e, "square.msh, refine = 14: 26306674688 vertices need about");
+    contains(&e, "use a coarser mesh");
 }

@@ -319,3 +319,51 @@ fn error_norms_have_their_closed_form_values() {
         "{hminus1} against {torsion}"
     );
 }
+
+#[test]
+fn nested_iteration_on_a_refined_disk() {
+    // The exact disk case refined 4 times: nested iteration on the refinement hierarchy (the
+    // given spade mesh the coarsest level) gives the cold start's solution in at most 4 global
+    // iterations per refined level, and the H¹ error halves with h.
+    let mut c = Case::read(std::path::Path::new("data/cases/disk_contact.toml")).unwrap();
+    c.refine = 4;
+    let warm = solve(&c, Start::Nested);
+    let s = &warm.solution.obstacle.stats;
+    assert_eq!(s.coarse_iterations.len(), 4, "{s:?}");
+    assert!(
+        s.coarse_iterations[1..]
+            .iter()
+            .chain([&s.iterations])
+            .all(|&i| i <= 4),
+        "{s:?}"
+    );
+    let cold = solve(&c, Start::Cold);
+    assert_eq!(warm.solution.obstacle.contact, cold.solution.obstacle.contact);
+    assert!(max_abs_diff(&warm.solution.u1, &cold.solution.u1) < 1e-12);
+    let mut coarser_case = c.clone();
+    coarser_case.refine = 3;
+    let coarser = solve(&coarser_case, Start::Nested);
+    let h1 = |r: &Run| r.errors.as_ref().unwrap().h1_u1.unwrap();
+    let ratio = h1(&coarser) / h1(&warm);
+    assert!((1.95..2.05).contains(&ratio), "H1 error ratio {ratio}");
+}
+
+#[test]
+fn annulus_and_polygon_with_hole_solve() {
+    // Membrane 1 pressed down onto membrane 2 between two circles, and around a square hole.
+    let data = "mu1 = 1.0\nmu2 = 1.0\nf1 = -10\nf2 = 0\ng = 0.05\n";
+    for mesh in [
+        "[mesh]\nkind = \"disk\"\ncentre = [1.0, 2.0]\nradius = 1.0\ninner_radius = 0.3\nh = 0.1\nrefine = 1\n",
+        "[mesh]\nkind = \"polygon\"\nboundary = [[0, 0], [1, 0], [1, 1], [0, 1]]\nholes = [[[0.4, 0.4], [0.6, 0.4], [0.6, 0.6], [0.4, 0.6]]]\nh = 0.1\n",
+    ] {
+        let c = Case::parse(&format!("{data}{mesh}"), "test case", PathBuf::new()).unwrap();
+        let r = solve(&c, Start::Nested);
+        let contact = r.solution.obstacle.contact.iter().filter(|&&x| x).count();
+        assert!(contact > 10, "{mesh}: contact at {contact} vertices");
+        // Both boundaries hold g and 0.
+        let m = &r.problem.mesh;
+        for a in (0..m.n_vertices()).filter(|&a| m.on_boundary[a]) {
+            assert!((r.solution.u1[a] - 0.05).abs() < 1e-15 && r.solution.u2[a].abs() < 1e-15);
+        }
+    }
+}

@@ -1,7 +1,7 @@
 //! Convergence studies: the paper's rates on every pair of levels after the first two, on convex
 //! and non-convex domains, the corner singularity and its cure by graded meshes, bounded iterations with nested iteration, and the files the command writes.
 
-use membrane_contact::case::Case;
+use membrane_contact::case::{Case, Levels};
 use membrane_contact::norms::Errors;
 use membrane_contact::study::{self, eoc, Level, StudyOptions};
 use std::path::Path;
@@ -9,7 +9,7 @@ use std::process::Command;
 
 fn levels(case: &Case, sizes: &[usize], cold: bool) -> Vec<Level> {
     let options = StudyOptions {
-        levels: sizes.to_vec(),
+        levels: Levels::Cells(sizes.to_vec()),
         cold,
         hminus1_max: 64,
         grading: None,
@@ -144,6 +144,7 @@ fn study_command_writes_tables_and_plots() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("study/study.json")).unwrap()).unwrap();
     assert_eq!(json[2]["cells"], 16);
+    assert!(json[2]["refine"].is_null());
     assert!(json[2]["errors"]["h1_u1"].as_f64().unwrap() > 0.0);
     // Bad levels are an error, not a panic.
     let bad = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
@@ -152,4 +153,52 @@ fn study_command_writes_tables_and_plots() {
         .unwrap();
     assert_eq!(bad.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("--levels must be increasing"));
+}
+
+#[test]
+fn disk_study_by_refinement_converges_at_rate_one() {
+    // Curved refinement: the polygonal ω_h converges to the disk, so the H¹ errors against the
+    // disk's exact solution fall at rate 1 and the L² errors at rate 2.
+    let dir = tempfile::tempdir().unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .args([
+            "study",
+            "data/cases/disk_contact.toml",
+            "--refine",
+            "0,1,2,3",
+            "-o",
+        ])
+        .arg(dir.path().join("study"))
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("study/study.json")).unwrap()).unwrap();
+    let level = |i: usize, key: &str| json[i]["errors"][key].as_f64().unwrap();
+    let rate = |key: &str| {
+        (level(2, key) / level(3, key)).ln()
+            / (json[2]["h"].as_f64().unwrap() / json[3]["h"].as_f64().unwrap()).ln()
+    };
+    let (h1, l2) = (rate("h1_u1"), rate("l2_u2"));
+    assert!(
+        (0.95..1.05).contains(&h1) && (1.9..2.1).contains(&l2),
+        "EOCs {h1}, {l2}"
+    );
+    assert_eq!(json[3]["refine"], 3);
+    assert!(
+        (1..4).all(|i| json[i]["iterations"].as_u64().unwrap() <= 4),
+        "{json}"
+    );
+    let csv = std::fs::read_to_string(dir.path().join("study/study.csv")).unwrap();
+    assert!(
+        csv.starts_with("refine,h,vertices") && csv.contains("\n3,"),
+        "{csv}"
+    );
+    // Cells per side do not apply to a disk.
+    let bad = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .args(["study", "data/cases/disk_contact.toml", "--levels", "8,16"])
+        .output()
+        .unwrap();
+    assert_eq!(bad.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("not of kind = \"disk\": use --refine"));
 }

@@ -73,7 +73,7 @@ fn centroid(points: &[[f64; 2]], t: &[usize; 3]) -> [f64; 2] {
 }
 
 /// Drops unused vertices and renumbers the rest, keeping their order.
-fn compact(points: Vec<[f64; 2]>, triangles: Vec<[usize; 3]>) -> (Vec<[f64; 2]>, Vec<[usize; 3]>) {
+pub(super) fn compact(points: Vec<[f64; 2]>, triangles: Vec<[usize; 3]>) -> (Vec<[f64; 2]>, Vec<[usize; 3]>) {
     let mut new_index = vec![usize::MAX; points.len()];
     for t in &triangles {
         for &v in t {

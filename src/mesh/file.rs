@@ -1,7 +1,8 @@
-//! Triangle meshes read from files: XDMF with HDF5 heavy data (as meshio and dolfinx write it), or
+//! Triangle meshes read from files: XDMF with HDF5 heavy data (as meshio and dolfinx write it),
 //! an HDF5 file with `/mesh/geometry` and `/mesh/topology` (a result of this program, or dolfinx's
-//! `/Mesh/mesh/…`). Every number is checked: coordinates finite and planar, vertex indices whole
-//! numbers in range, the sizes an XDMF file declares equal to the data.
+//! `/Mesh/mesh/…`), or a Gmsh MSH 4.1 file (read by the private module `msh`). Every number is
+//! checked: coordinates finite and planar, vertex indices whole numbers in range, the sizes an
+//! XDMF file declares equal to the data.
 
 use super::Mesh;
 use std::path::{Path, PathBuf};
@@ -12,8 +13,8 @@ message_error!(
 );
 
 /// The mesh file extensions read, for messages.
-const ACCEPTED: &str = ".xdmf (with HDF5 heavy data, as meshio or dolfinx write it) and .h5 \
-                        (a result of this program or a dolfinx mesh file)";
+const ACCEPTED: &str = ".xdmf (with HDF5 heavy data, as meshio or dolfinx write it), .h5 \
+                        (a result of this program or a dolfinx mesh file) and .msh (Gmsh, format 4.1)";
 
 /// Reads and checks the mesh in `path`, by its extension.
 ///
@@ -26,6 +27,7 @@ pub fn read(path: &Path) -> Result<Mesh, FileError> {
     let (points, cells) = match extension {
         "xdmf" => read_xdmf(path)?,
         "h5" | "hdf5" => read_h5_mesh(path)?,
+        "msh" => super::msh::read(path)?,
         _ => {
             return Err(FileError(format!(
                 "{}: unknown mesh file extension '{extension}': the mesh files read are {ACCEPTED}",
@@ -53,7 +55,8 @@ pub fn inputs(path: &Path) -> Vec<PathBuf> {
     files
 }
 
-type RawMesh = (Vec<[f64; 2]>, Vec<[usize; 3]>);
+/// Points and triangles as read, before the checks of [`Mesh::new`].
+pub(super) type RawMesh = (Vec<[f64; 2]>, Vec<[usize; 3]>);
 
 /// A heavy-data reference of an XDMF `DataItem`: the HDF5 file, the dataset and the declared
 /// dimensions.

@@ -1,14 +1,19 @@
 //! Conforming triangulations T_h of a polygon ω: the checks that make a set of triangles one,
-//! the boundary ∂ω, built-in meshes ([`builtin`]), mesh files ([`file`]), the dual submesh S_h
+//! the boundary ∂ω, built-in meshes ([`builtin`]), meshes of polygons and disks ([`domain`]),
+//! mesh files ([`file`](mod@file)), uniform refinement ([`refine`]), the dual submesh S_h
 //! ([`dual`]) and P1 transfer between meshes ([`transfer`]).
 
 mod buckets;
 pub mod builtin;
+pub mod domain;
 pub mod dual;
 pub mod file;
+mod msh;
+pub mod refine;
 pub mod transfer;
 
 pub use builtin::Diagonal;
+pub use domain::{Curves, Domain};
 pub use dual::DualMesh;
 pub use transfer::Prolongation;
 
@@ -73,6 +78,7 @@ pub enum MeshError {
         components: usize,
     },
     NoInteriorVertex,
+    Generation(String),
     TooLarge {
         vertices: usize,
         needed_gb: f64,
@@ -119,6 +125,7 @@ impl fmt::Display for MeshError {
                 write!(f, "the mesh has {components} separate components; ω must be connected")
             }
             MeshError::NoInteriorVertex => write!(f, "the mesh has no interior vertex: nothing to solve"),
+            MeshError::Generation(why) => write!(f, "the mesh could not be generated: {why}"),
             MeshError::TooLarge {
                 vertices,
                 needed_gb,

@@ -1,4 +1,5 @@
-//! Convergence studies: one case on a sequence of uniformly refined meshes, each level
+//! Convergence studies: one case on a sequence of meshes — built-in meshes of more and more cells
+//! per side, or any mesh refined uniformly more and more times — each level
 //! warm-started from the previous one (nested iteration), with error norms, experimental orders of
 //! convergence (EOC), iteration counts and timings, written as Markdown, CSV, JSON and PNG plots
 //! into one result directory, whole or not at all.
@@ -9,7 +10,7 @@
 mod plot;
 
 use crate::atomic::{OutputError, Staging};
-use crate::case::{Case, CaseError};
+use crate::case::{Case, CaseError, Levels};
 use crate::contact::Start;
 use crate::norms::Errors;
 use crate::run::{self, RunError};
@@ -20,8 +21,10 @@ use std::path::Path;
 /// One level of a study.
 #[derive(Debug, Clone, Serialize)]
 pub struct Level {
-    /// Cells per side.
-    pub cells: usize,
+    /// Cells per side of a built-in mesh.
+    pub cells: Option<usize>,
+    /// Uniform refinements of the case's mesh, in a study by refinement.
+    pub refine: Option<usize>,
     /// The mesh size.
     pub h: f64,
     /// The number of vertices N.
@@ -36,14 +39,35 @@ pub struct Level {
     pub seconds: f64,
 }
 
+impl Level {
+    /// The level's first column: its refinements in a study by refinement, else its cells.
+    fn column(&self) -> &'static str {
+        if self.refine.is_some() {
+            "refine"
+        } else {
+            "cells"
+        }
+    }
+
+    /// The level in tables: `n²` cells, or its refinements.
+    fn label(&self) -> String {
+        match (self.refine, self.cells) {
+            (Some(k), _) => k.to_string(),
+            (None, Some(n)) => format!("{n}²"),
+            (None, None) => "—".into(),
+        }
+    }
+}
+
 /// The settings of a study.
 #[derive(Debug, Clone)]
 pub struct StudyOptions {
-    /// Cells per side on each level, increasing.
-    pub levels: Vec<usize>,
+    /// Cells per side or refinements on each level, increasing.
+    pub levels: Levels,
     /// Also solve each level from a cold start, to compare iteration counts.
     pub cold: bool,
-    /// Largest level (cells per side) on which the H⁻¹ norm is computed (it costs a solve on S_h).
+    /// Largest level (cells per side; √N on other meshes) on which the H⁻¹ norm is computed (it
+    /// costs a solve on S_h).
     pub hminus1_max: usize,
     /// Grading exponents of an L-shaped mesh to compare (none: the case's own mesh).
     pub grading: Option<Vec<f64>>,
@@ -59,7 +83,8 @@ pub type Series = (String, Vec<Level>);
 /// ```
 /// use membrane_contact::{case::Case, study};
 /// let dir = tempfile::tempdir().unwrap();
-/// let options = study::StudyOptions { levels: vec![8, 16], cold: false, hminus1_max: 16, grading: None };
+/// let levels = membrane_contact::case::Levels::Cells(vec![8, 16]);
+/// let options = study::StudyOptions { levels, cold: false, hminus1_max: 16, grading: None };
 /// let series = study::study(&Case::default_case(), "default", &options, &dir.path().join("s")).unwrap();
 /// assert_eq!(series[0].1.len(), 2);
 /// assert!(dir.path().join("s/study.md").exists());
@@ -86,7 +111,7 @@ pub fn study(
         };
         let bar = progress(&format!("study {title}"), levels.len());
         let result = run_levels(levels, options, |_, l| {
-            bar.set_message(format!("{}²: {} iterations", l.cells, l.iterations));
+            bar.set_message(format!("{}: {} iterations", l.label(), l.iterations));
             bar.inc(1);
         })?;
         bar.finish_and_clear();
@@ -130,16 +155,23 @@ pub fn study(
 
 /// The cases of each variant and level, after checking every level's mesh and data.
 fn variants(case: &Case, options: &StudyOptions) -> Result<Vec<(String, Vec<Case>)>, CaseError> {
-    let levels = &options.levels;
-    if levels.is_empty() || levels.contains(&0) || levels.windows(2).any(|w| w[1] <= w[0]) {
+    let (option, levels) = match &options.levels {
+        Levels::Cells(l) => ("--levels", l),
+        Levels::Refine(l) => ("--refine", l),
+    };
+    let cells = matches!(options.levels, Levels::Cells(_));
+    if levels.is_empty() || (cells && levels.contains(&0)) || levels.windows(2).any(|w| w[1] <= w[0]) {
         return Err(CaseError(format!(
-            "--levels must be increasing positive sizes, got {levels:?}"
+            "{option} must be increasing{} levels, got {levels:?}",
+            if cells { " positive" } else { "" }
         )));
     }
-    if case.cells().is_none() {
+    if cells && case.cells().is_none() {
         return Err(CaseError(format!(
-            "{}: a study needs a built-in mesh (rectangle or lshape), not a mesh file",
-            case.origin
+            "{}: --levels sets the cells per side of built-in meshes (kind = \"rectangle\" or \"lshape\"), \
+             not of kind = \"{}\": use --refine 0,1,2,3",
+            case.origin,
+            case.kind()
         )));
     }
     let gradings: Vec<Option<f64>> = match &options.grading {
@@ -153,9 +185,13 @@ fn variants(case: &Case, options: &StudyOptions) -> Result<Vec<(String, Vec<Case
             base.set_grading(g)?;
         }
         let cases = (levels.iter())
-            .map(|&n| {
+            .map(|&k| {
                 let mut c = base.clone();
-                c.set_cells(n)?;
+                if cells {
+                    c.set_cells(k)?;
+                } else {
+                    c.refine = k;
+                }
                 c.check_on(&c.mesh()?)?;
                 Ok(c)
             })
@@ -174,13 +210,15 @@ pub fn run_levels(
 ) -> Result<Vec<Level>, RunError> {
     let mut out = Vec::new();
     let mut previous: Option<run::Run> = None;
+    let by_refinement = matches!(options.levels, Levels::Refine(_));
     for (i, c) in levels.iter().enumerate() {
-        let cells = c.cells().expect("study levels are built-in meshes");
+        // About √N: cells per side, or the root of the estimated vertices (0 for a file).
+        let side = (c.cells()).unwrap_or_else(|| (c.estimated_vertices() as f64).sqrt() as usize);
         let start = previous.as_ref().map_or(Start::Cold, |r| Start::From {
             mesh: &r.problem.mesh,
             obstacle: &r.solution.obstacle,
         });
-        let hminus1 = cells <= options.hminus1_max;
+        let hminus1 = side <= options.hminus1_max;
         let r = run::run(
             c,
             &run::Options {
@@ -195,7 +233,7 @@ pub fn run_levels(
             (true, Some(_)) => {
                 // A cold start needs about one iteration per ring of vertices the contact set spans.
                 let mut cold_case = c.clone();
-                cold_case.solver.max_iterations = cold_case.solver.max_iterations.max(4 * cells);
+                cold_case.solver.max_iterations = cold_case.solver.max_iterations.max(4 * side);
                 let options = run::Options {
                     start: Start::Cold,
                     hminus1: false,
@@ -206,7 +244,8 @@ pub fn run_levels(
         };
         let stats = &r.solution.obstacle.stats;
         let level = Level {
-            cells,
+            cells: c.cells(),
+            refine: by_refinement.then_some(c.refine),
             h: r.problem.mesh.h(),
             vertices: r.problem.mesh.n_vertices(),
             errors: r.errors.clone(),
@@ -276,7 +315,8 @@ pub fn markdown_table(title: &str, levels: &[Level]) -> String {
             .map(|q| q.0)
             .collect()
     });
-    s += "| cells | h | vertices |";
+    let first = levels.first().map_or("cells", Level::column);
+    let _ = write!(s, "| {first} | h | vertices |");
     for n in &names {
         let _ = write!(s, " {n} |{eoc_header}");
     }
@@ -284,7 +324,7 @@ pub fn markdown_table(title: &str, levels: &[Level]) -> String {
     s += &"---|".repeat(3 + eoc_columns * names.len() + 3);
     s += "\n";
     for (i, l) in levels.iter().enumerate() {
-        let _ = write!(s, "| {}² | {:.4e} | {} |", l.cells, l.h, l.vertices);
+        let _ = write!(s, "| {} | {:.4e} | {} |", l.label(), l.h, l.vertices);
         for (label, _, value) in quantities(l) {
             if !names.contains(&label) {
                 continue;
@@ -315,7 +355,7 @@ pub fn markdown_table(title: &str, levels: &[Level]) -> String {
 
 /// The study as CSV, one row per level, with EOCs against h.
 pub fn csv(levels: &[Level]) -> String {
-    let mut s = String::from("cells,h,vertices");
+    let mut s = format!("{},h,vertices", levels.first().map_or("cells", Level::column));
     if let Some(l) = levels.first() {
         for (_, name, _) in quantities(l) {
             let _ = write!(s, ",{name},eoc_{name}");
@@ -323,7 +363,8 @@ pub fn csv(levels: &[Level]) -> String {
     }
     s += ",iterations,cold_iterations,seconds\n";
     for (i, l) in levels.iter().enumerate() {
-        let _ = write!(s, "{},{:e},{}", l.cells, l.h, l.vertices);
+        let size = l.refine.or(l.cells).map_or(String::new(), |k| k.to_string());
+        let _ = write!(s, "{size},{:e},{}", l.h, l.vertices);
         for (k, (_, _, value)) in quantities(l).into_iter().enumerate() {
             let e = i
                 .checked_sub(1)

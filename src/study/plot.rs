@@ -147,24 +147,21 @@ pub fn iterations(path: &Path, title: &str, levels: &[Level]) -> Result<(), Stri
         .x_label_area_size(40)
         .y_label_area_size(50)
         .build_cartesian_2d(
-            (levels[0].cells as f64 / 1.5..levels[levels.len() - 1].cells as f64 * 1.5).log_scale(),
+            (root_n(&levels[0]) / 1.5..root_n(&levels[levels.len() - 1]) * 1.5).log_scale(),
             0.0..(max as f64 * 1.15 + 1.0),
         )
         .map_err(|e| err(&e))?;
     chart
         .configure_mesh()
-        .x_desc("cells per side")
+        .x_desc("√N (N vertices)")
         .y_desc("active-set iterations")
         .x_label_formatter(&|v| format!("{v:.0}"))
         .draw()
         .map_err(|e| err(&e))?;
-    let nested: Vec<(f64, f64)> = levels
-        .iter()
-        .map(|l| (l.cells as f64, l.iterations as f64))
-        .collect();
+    let nested: Vec<(f64, f64)> = levels.iter().map(|l| (root_n(l), l.iterations as f64)).collect();
     let cold: Vec<(f64, f64)> = levels
         .iter()
-        .filter_map(|l| Some((l.cells as f64, l.cold_iterations? as f64)))
+        .filter_map(|l| Some((root_n(l), l.cold_iterations? as f64)))
         .collect();
     for (name, points, color) in [("nested iteration", nested, BLUE), ("cold start", cold, RED)] {
         if points.is_empty() {
@@ -173,4 +170,9 @@ pub fn iterations(path: &Path, title: &str, levels: &[Level]) -> Result<(), Stri
         marked_line(&mut chart, name, &points, color.to_rgba())?;
     }
     finish(&mut chart, SeriesLabelPosition::UpperLeft).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// √N, N the vertices of a level: the x axis of the iteration plot, for every kind of mesh.
+fn root_n(level: &Level) -> f64 {
+    (level.vertices as f64).sqrt()
 }

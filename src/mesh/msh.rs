@@ -1,0 +1,269 @@
+//! Gmsh MSH files, format 4.1 (ASCII or binary, read by the `mshio` crate). ω is the union of
+//! all linear triangles of the file, whatever their entity or physical group; points and lines
+//! (physical or not) are ignored, since ∂ω is the boundary of the triangulation itself. Other
+//! surface elements (quadrilaterals, curved triangles) and volume elements are refused.
+
+use super::file::{FileError, RawMesh};
+use mshio::mshfile::ElementType;
+use std::collections::HashMap;
+use std::path::Path;
+
+/// The only MSH version read (Gmsh's default since 4.1).
+const VERSION: &str = "4.1";
+
+/// Reads the triangles of a MSH 4.1 file and the nodes they use (in the order of their tags).
+pub(super) fn read(path: &Path) -> Result<RawMesh, FileError> {
+    let err = |m: String| FileError(format!("{}: {m}", path.display()));
+    let bytes = std::fs::read(path).map_err(|e| match e.kind() {
+        std::io::ErrorKind::NotFound => err("no such file".into()),
+        _ => err(format!("cannot read: {e}")),
+    })?;
+    check_version(&bytes).map_err(err)?;
+    let msh = mshio::parse_msh_bytes(&bytes).map_err(|e| {
+        let trace = e.filtered_backtrace();
+        let kinds: Vec<String> = trace.iter().rev().map(|(_, k)| k.to_string()).collect();
+        err(format!("not a readable MSH {VERSION} file: {}", kinds.join(": ")))
+    })?;
+    let mut triangles = Vec::new();
+    for block in msh.data.elements.iter().flat_map(|e| &e.element_blocks) {
+        match (block.entity_dim, block.element_type) {
+            (0 | 1, _) => {}
+            (2, ElementType::Tri3) => triangles.extend(
+                block
+                    .elements
+                    .iter()
+                    .map(|e| [e.nodes[0], e.nodes[1], e.nodes[2]]),
+            ),
+            (2, ElementType::Qua4 | ElementType::Qua8 | ElementType::Qua9) => {
+                return Err(err(format!(
+                    "quadrilateral elements ({:?}, surface {}): the mesh must be made of triangles",
+                    block.element_type, block.entity_tag
+                )))
+            }
+            (dim, kind) => {
+                return Err(err(format!(
+                    "elements of type {kind:?} (dimension {dim}): only linear triangles (3 nodes) are read"
+                )))
+            }
+        }
+    }
+    if triangles.is_empty() {
+        return Err(err(
+            "the file has no triangles: the mesh must be made of triangles".into(),
+        ));
+    }
+    let coordinates = nodes(&msh, &node_tags(&bytes).map_err(err)?).map_err(err)?;
+    super::check_memory(coordinates.len()).map_err(|e| err(e.to_string()))?;
+    // Number the nodes the triangles use by increasing tag; ignore the others.
+    let mut used: Vec<u64> = triangles.iter().flatten().copied().collect();
+    used.sort_unstable();
+    used.dedup();
+    let index: HashMap<u64, usize> = used.iter().enumerate().map(|(i, &t)| (t, i)).collect();
+    let points = (used.iter())
+        .map(|tag| match coordinates.get(tag) {
+            Some(p) if p[2] != 0.0 => Err(err(format!(
+                "node {tag} has z = {}: the mesh must be planar",
+                p[2]
+            ))),
+            Some(p) => Ok([p[0], p[1]]),
+            None => Err(err(format!(
+                "a triangle refers to node {tag}, which the file does not define"
+            ))),
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok((
+        points,
+        triangles.iter().map(|t| t.map(|tag| index[&tag])).collect(),
+    ))
+}
+
+/// Refuses files that are not MSH 4.1, naming their version.
+fn check_version(bytes: &[u8]) -> Result<(), String> {
+    let head = String::from_utf8_lossy(&bytes[..bytes.len().min(64)]).to_string();
+    let mut lines = head.lines();
+    if lines.next().map(str::trim) != Some("$MeshFormat") {
+        return Err("not a Gmsh MSH file (it does not start with $MeshFormat)".into());
+    }
+    let version = lines
+        .next()
+        .and_then(|l| l.split_whitespace().next())
+        .unwrap_or("?");
+    if version != VERSION {
+        return Err(format!(
+            "MSH format version {version} is not read: only version {VERSION} (ASCII or binary) is; \
+             convert it with `gmsh FILE -save -format msh41 -o NEW.msh`"
+        ));
+    }
+    Ok(())
+}
+
+/// Node tag → (x, y, z): the coordinates mshio read, with the `tags` of the file in its order.
+fn nodes(msh: &mshio::MshFile<u64, i32, f64>, tags: &[u64]) -> Result<HashMap<u64, [f64; 3]>, String> {
+    let nodes = msh.data.nodes.as_ref().ok_or("the file has no $Nodes section")?;
+    let coordinates = nodes.node_blocks.iter().flat_map(|b| &b.nodes);
+    let map: HashMap<u64, [f64; 3]> = tags
+        .iter()
+        .copied()
+        .zip(coordinates.map(|n| [n.x, n.y, n.z]))
+        .collect();
+    if map.len() != tags.len() || tags.len() != nodes.node_blocks.iter().map(|b| b.nodes.len()).sum::<usize>()
+    {
+        return Err("the $Nodes section repeats a node tag".into());
+    }
+    Ok(map)
+}
+
+/// The node tags of the `$Nodes` section, in file order. mshio keeps them only when they are
+/// sparse, and otherwise takes the file order for the order of the tags, which Gmsh does not
+/// promise (a mesh saved again lists each entity's nodes, its end points included, in a block).
+fn node_tags(bytes: &[u8]) -> Result<Vec<u64>, String> {
+    let find = |what: &[u8], from: usize| {
+        (bytes.get(from..).unwrap_or_default().windows(what.len()))
+            .position(|w| w == what)
+            .map(|i| from + i + what.len())
+    };
+    let format = find(b"$MeshFormat\n", 0).ok_or("no $MeshFormat section")?;
+    let line_end = find(b"\n", format).ok_or("no $MeshFormat line")?;
+    let fields: Vec<String> = (String::from_utf8_lossy(&bytes[format..line_end]).split_whitespace())
+        .map(String::from)
+        .collect();
+    let start = find(b"\n$Nodes\n", line_end).ok_or("the file has no $Nodes section")?;
+    let mut cursor = if fields.get(1).map(String::as_str) == Some("1") {
+        let size_t = fields
+            .get(2)
+            .and_then(|s| s.parse().ok())
+            .filter(|&s| s == 4 || s == 8);
+        Cursor::Binary {
+            bytes,
+            at: start,
+            size_t: size_t.ok_or("the size of size_t is not 4 or 8")?,
+            // The header's binary 1 tells the byte order.
+            little: bytes.get(line_end..line_end + 4) == Some(&[1, 0, 0, 0][..]),
+        }
+    } else {
+        Cursor::Ascii(
+            std::str::from_utf8(&bytes[start..])
+                .map_err(|_| "the $Nodes section is not text")?
+                .split_ascii_whitespace(),
+        )
+    };
+    let blocks = cursor.next(true)?;
+    for _ in 0..3 {
+        cursor.next(true)?; // the number of nodes, the smallest and the largest tag
+    }
+    let mut tags = Vec::new();
+    for _ in 0..blocks {
+        for _ in 0..3 {
+            cursor.next(false)?; // dimension, entity, parametric (refused by mshio)
+        }
+        let count = cursor.next(true)?;
+        for _ in 0..count {
+            tags.push(cursor.next(true)?);
+        }
+        cursor.skip_coordinates(count)?;
+    }
+    Ok(tags)
+}
+
+/// Reads the numbers of a `$Nodes` section, ASCII or binary.
+enum Cursor<'a> {
+    Ascii(std::str::SplitAsciiWhitespace<'a>),
+    Binary {
+        bytes: &'a [u8],
+        at: usize,
+        size_t: usize,
+        little: bool,
+    },
+}
+
+impl Cursor<'_> {
+    /// The next whole number: a `size_t` or an `int` (4 bytes) in a binary file.
+    fn next(&mut self, size_t: bool) -> Result<u64, String> {
+        let truncated = || "the $Nodes section is truncated".to_string();
+        match self {
+            Cursor::Ascii(words) => {
+                let word = words.next().ok_or_else(truncated)?;
+                word.parse()
+                    .map_err(|_| format!("'{word}' in the $Nodes section is not a whole number"))
+            }
+            Cursor::Binary {
+                bytes,
+                at,
+                size_t: size,
+                little,
+            } => {
+                let width = if size_t { *size } else { 4 };
+                let chunk = bytes.get(*at..*at + width).ok_or_else(truncated)?;
+                *at += width;
+                let mut buffer = [0u8; 8];
+                Ok(if *little {
+                    buffer[..width].copy_from_slice(chunk);
+                    u64::from_le_bytes(buffer)
+                } else {
+                    buffer[8 - width..].copy_from_slice(chunk);
+                    u64::from_be_bytes(buffer)
+                })
+            }
+        }
+    }
+
+    /// Skips the coordinates (x, y, z) of `count` nodes.
+    fn skip_coordinates(&mut self, count: u64) -> Result<(), String> {
+        let values = usize::try_from(count.saturating_mul(3)).map_err(|_| "too many nodes")?;
+        match self {
+            _ if values == 0 => Ok(()),
+            Cursor::Ascii(words) => match words.nth(values - 1) {
+                Some(_) => Ok(()),
+                None => Err("the $Nodes section is truncated".into()),
+            },
+            Cursor::Binary { at, .. } => {
+                *at = at.saturating_add(values.saturating_mul(8));
+                Ok(())
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ascii_and_binary_files_give_the_same_mesh() {
+        let (p, t) = read(Path::new("data/meshes/square.msh")).unwrap();
+        let (q, s) = read(Path::new("tests/data/square-binary.msh")).unwrap();
+        assert_eq!((p.len(), t.len()), (98, 162));
+        // Gmsh writes 16 significant digits in ASCII, the full double in binary.
+        assert_eq!(t, s);
+        let worst = (p.iter().zip(&q))
+            .map(|(a, b)| (a[0] - b[0]).abs().max((a[1] - b[1]).abs()))
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-15, "{worst}");
+        // All triangles of the surface, and no node of the physical lines left over.
+        let mesh = crate::mesh::Mesh::new(p, t).unwrap();
+        assert!((mesh.measure() - 1.0).abs() < 1e-14);
+        let boundary = mesh.on_boundary.iter().filter(|&&b| b).count();
+        assert_eq!(boundary, 32, "8 edges per side of length 0.125");
+        // Saved again by Gmsh, the nodes are listed by entity, not by tag: the same mesh.
+        for again in [
+            "tests/data/square-resaved.msh",
+            "tests/data/square-resaved-binary.msh",
+        ] {
+            let (r, u) = read(Path::new(again)).unwrap();
+            let triangles = |points: &[[f64; 2]], t: &[[usize; 3]]| {
+                let mut k: Vec<[[u64; 2]; 3]> = (t.iter())
+                    .map(|t| t.map(|a| points[a].map(|x| (x * 1e12).round() as u64)))
+                    .map(|mut v| {
+                        v.sort_unstable();
+                        v
+                    })
+                    .collect();
+                k.sort_unstable();
+                k
+            };
+            assert_eq!(triangles(&r, &u), triangles(&q, &s), "{again}");
+        }
+        let old = read(Path::new("tests/data/square-v22.msh")).unwrap_err().0;
+        assert!(old.contains("MSH format version 2.2 is not read"), "{old}");
+    }
+}
