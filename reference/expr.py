@@ -338,9 +338,12 @@ def to_numpy(tree, x, y):
 
 def _ufl_floor(a):
     """floor(a) in UFL. UFL 2022.2 has no floor, but FFCx turns a plain MathFunction into a call
-    of the C function of its name; UFL rebuilds an operator as `type(o)(*operands)`, which a plain
-    MathFunction (name, argument) does not take, so its rebuild is taught to keep the name (the
-    subclasses, UFL's own functions, are rebuilt as before)."""
+    of the C function of its name. Two things a plain MathFunction lacks are added: UFL rebuilds
+    an operator as `type(o)(*operands)`, which MathFunction(name, argument) does not take, so its
+    rebuild keeps the name (UFL's own functions, its subclasses, are rebuilt as before); and the
+    derivative rules call `derivative()` of a function they have no rule for (the SNES Jacobian
+    differentiates the loads too), which is 0 for floor."""
+    import ufl
     from ufl.core.operator import Operator
     from ufl.mathfunctions import MathFunction
 
@@ -349,7 +352,13 @@ def _ufl_floor(a):
             return MathFunction(self._name, *operands)
         return Operator._ufl_expr_reconstruct_(self, *operands)
 
+    def derivative(self):
+        if self._name != "floor":
+            raise ExprError("no derivative of %s" % self._name)
+        return ufl.as_ufl(0.0)
+
     MathFunction._ufl_expr_reconstruct_ = rebuild
+    MathFunction.derivative = derivative
     return MathFunction("floor", a)
 
 
