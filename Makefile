@@ -9,10 +9,10 @@ export HDF5_DIR := /usr/lib/x86_64-linux-gnu/hdf5/serial
 DEBIAN_PACKAGES := libhdf5-dev pkg-config python3-dolfinx python3-petsc4py python3-meshio \
 	python3-h5py python3-paraview python3-matplotlib python3-sympy fonts-dejavu-core
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
-BENCH_SIZES ?= 256 512 1024
+BENCH_SIZES ?= 256 512 1024 disk-6
 BENCH_REPEAT ?= 3
 
-.PHONY: all deps build run test cargo-test validate bench bench-reference study fuzz lint mutants clean
+.PHONY: all deps build run test cargo-test validate bench bench-reference study fuzz lint mutants expr-property clean
 
 all: build
 
@@ -61,6 +61,10 @@ fuzz: deps
 	cd fuzz && for t in case expr mesh xdmf; do \
 		RUSTC_BOOTSTRAP=1 cargo fuzz run -O $$t -- -max_total_time=$(FUZZ_SECONDS) -max_len=4096 || exit 1; \
 	done
+
+# The random-expression property test with 200 000 expressions (make test runs 10 000).
+expr-property: deps
+	EXPR_CASES=200000 EXPR_SEED=2 cargo test --release --test expressions -- random_expressions
 
 # Mutation testing of the numerical core (hours; not in CI): every mutant must fail a test, or be
 # explained in docs/mutants.md. MUTANTS_FILES narrows it, e.g. MUTANTS_FILES=src/action.rs.

@@ -1,14 +1,15 @@
-//! `make bench`: time of each phase (writing the result included) and peak memory of the contact solve on the unit square with
-//! N × N cells, beside one scalar Poisson factorization + solve on the same mesh.
+//! `make bench`: time of each phase (writing the result included) and peak memory of the contact
+//! solve, beside one scalar Poisson factorization + solve on the same mesh: the default case on the
+//! unit square with N × N cells (`N`), or the disk case `data/cases/disk_contact.toml` with h = 0.14
+//! refined K times (`disk-K`: about 1.1M vertices at K = 6).
 //!
-//! Usage: `cargo bench --bench phases -- contact N` or `-- poisson N` (one process per figure, so
-//! that the peak resident memory is that of one run).
+//! Usage: `cargo bench --bench phases -- contact MESH` or `-- poisson MESH` (one process per figure,
+//! so that the peak resident memory is that of one run).
 
 use membrane_contact::assembly::Stiffness;
-use membrane_contact::case::Case;
+use membrane_contact::case::{Case, MeshSpec};
 use membrane_contact::contact::Start;
 use membrane_contact::linear::InteriorSystem;
-use membrane_contact::mesh::{Diagonal, Mesh};
 use membrane_contact::run;
 use std::time::Instant;
 
@@ -23,20 +24,38 @@ fn peak_mb() -> f64 {
         .map_or(f64::NAN, |kb| kb / 1024.0)
 }
 
-fn main() {
-    let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
-    let (what, n) = match args.as_slice() {
-        [w, n] => (w.as_str(), n.parse::<usize>().expect("N")),
-        _ => {
-            eprintln!("usage: phases contact|poisson N");
-            std::process::exit(2);
+/// The case of a bench mesh: `N` (the default case on N × N cells) or `disk-K`.
+fn case(mesh: &str) -> Case {
+    let mut case = match mesh.strip_prefix("disk-") {
+        Some(k) => {
+            let mut c =
+                Case::read(std::path::Path::new("data/cases/disk_contact.toml")).expect("the disk case");
+            if let MeshSpec::Domain { h, .. } = &mut c.mesh {
+                *h = 0.14;
+            }
+            c.refine = k.parse().expect("disk-K");
+            c
+        }
+        None => {
+            let mut c = Case::default_case();
+            c.set_cells(mesh.parse().expect("N or disk-K"))
+                .expect("a built-in mesh");
+            c
         }
     };
-    match what {
+    case.exact = None;
+    case
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).filter(|a| a != "--bench").collect();
+    let [what, mesh] = args.as_slice() else {
+        eprintln!("usage: phases contact|poisson N|disk-K");
+        std::process::exit(2);
+    };
+    let case = case(mesh);
+    match what.as_str() {
         "contact" => {
-            let mut case = Case::default_case();
-            case.set_cells(n).expect("a built-in mesh");
-            case.exact = None;
             let dir = tempfile::tempdir().expect("a temporary directory");
             let options = run::Options {
                 start: Start::Nested,
@@ -48,7 +67,7 @@ fn main() {
             let total = t.elapsed().as_secs_f64();
             let (tm, st) = (&r.timings, &r.solution.obstacle.stats);
             println!(
-                "contact {n} vertices={} mesh={:.3} assembly={:.3} coarse={:.3} symbolic={:.3} numeric={:.3} solve={:.3} postprocess={:.3} write={:.3} contact_solve={:.3} total={:.3} iterations={} local_iterations={} coarse_iterations={} factorizations={} peak_mb={:.0}",
+                "contact {mesh} vertices={} mesh={:.3} assembly={:.3} coarse={:.3} symbolic={:.3} numeric={:.3} solve={:.3} postprocess={:.3} write={:.3} contact_solve={:.3} total={:.3} iterations={} local_iterations={} coarse_iterations={} factorizations={} peak_mb={:.0}",
                 r.problem.mesh.n_vertices(),
                 tm.mesh,
                 tm.assembly,
@@ -68,10 +87,10 @@ fn main() {
             );
         }
         "poisson" => {
-            let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], n, n, Diagonal::Right).unwrap();
-            let k = Stiffness::assemble(&mesh);
+            let mesh_built = case.mesh().expect("the mesh");
+            let k = Stiffness::assemble(&mesh_built);
             let t = Instant::now();
-            let sys = InteriorSystem::new(&k, &mesh.on_boundary);
+            let sys = InteriorSystem::new(&k, &mesh_built.on_boundary);
             let symbolic = t.elapsed().as_secs_f64();
             let t = Instant::now();
             let mut factor = sys.factorization();
@@ -82,7 +101,7 @@ fn main() {
             factor.solve(&mut x);
             let solve = t.elapsed().as_secs_f64();
             println!(
-                "poisson {n} symbolic={symbolic:.3} numeric={numeric:.3} solve={solve:.3} total={:.3} peak_mb={:.0}",
+                "poisson {mesh} symbolic={symbolic:.3} numeric={numeric:.3} solve={solve:.3} total={:.3} peak_mb={:.0}",
                 symbolic + numeric + solve,
                 peak_mb()
             );

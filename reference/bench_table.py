@@ -14,7 +14,16 @@ import sys
 
 def parse(line):
     words = line.split()
-    return words[0], int(words[1]), dict(w.split("=", 1) for w in words[2:])
+    return words[0], words[1], dict(w.split("=", 1) for w in words[2:])
+
+
+def label(mesh):
+    """`1024` → 1024², `disk-6` → disk, refined 6 times."""
+    return mesh + "²" if mesh.isdigit() else "disk, refined %s times" % mesh.split("-")[1]
+
+
+def order(mesh):
+    return (not mesh.isdigit(), int(mesh.split("-")[-1]))
 
 
 def main():
@@ -23,12 +32,12 @@ def main():
         if line.startswith(("poisson ", "contact ")):
             kind, n, values = parse(line)
             runs.setdefault(n, {}).setdefault(kind, []).append(values)
-    cols = ("cells", "vertices", "runs", "mesh", "assembly", "coarse", "symbolic", "numeric", "solve",
+    cols = ("mesh", "vertices", "runs", "mesh", "assembly", "coarse", "symbolic", "numeric", "solve",
             "postprocess", "write", "contact solve", "iterations", "Poisson", "ratio", "median ratio", "peak MB",
             "Poisson MB")
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
-    for n in sorted(runs):
+    for n in sorted(runs, key=order):
         cs, ps = runs[n].get("contact"), runs[n].get("poisson")
         if not cs or not ps:
             continue
@@ -36,9 +45,9 @@ def main():
         p = min(ps, key=lambda r: float(r["total"]))
         c_med = statistics.median(float(r["contact_solve"]) for r in cs)
         p_med = statistics.median(float(r["total"]) for r in ps)
-        print("| %d² | %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s (median %.3f) | %s + %s local (coarse %s) "
+        print("| %s | %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s (median %.3f) | %s + %s local (coarse %s) "
               "| %s (median %.3f) | **%.2f** | %.2f | %s | %s |" % (
-                  n, c["vertices"], len(cs), c["mesh"], c["assembly"], c["coarse"], c["symbolic"], c["numeric"],
+                  label(n), c["vertices"], len(cs), c["mesh"], c["assembly"], c["coarse"], c["symbolic"], c["numeric"],
                   c["solve"], c["postprocess"], c["write"], c["contact_solve"], c_med, c["iterations"],
                   c["local_iterations"], c["coarse_iterations"], p["total"], p_med,
                   float(c["contact_solve"]) / float(p["total"]), c_med / p_med, max(r["peak_mb"] for r in cs), p["peak_mb"]))
