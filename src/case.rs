@@ -17,6 +17,9 @@ pub const DEFAULT_CASE: &str = include_str!("../data/cases/default.toml");
 /// The largest case file read.
 const MAX_CASE_BYTES: u64 = 1 << 20;
 
+/// The fewest vertices of a generated coarser level of nested iteration.
+const COARSEST_VERTICES: usize = 20;
+
 /// Coarsest level of nested iteration on built-in meshes, in cells per side.
 pub const COARSEST: usize = 8;
 
@@ -377,8 +380,9 @@ impl Case {
     /// first. With `refine` = k ≥ 1 they are the given mesh refined k − 1, …, 0 times: the
     /// coarsest level is the given mesh, new boundary vertices lie on the curves of ∂ω. Otherwise
     /// they are the built-in meshes of ⌈n/2⌉, ⌈n/4⌉, … cells down to [`COARSEST`] below a
-    /// built-in mesh of n cells per side, and none below a disk, polygon or file. Generated and
+    /// built-in mesh of n cells per side, and none below a file mesh. Generated and
     /// refined meshes are renumbered along a Z-order curve; built-in and file meshes keep theirs.
+    /// Below a disk or polygon come, last, the domain meshed with 2h, 4h, … (not nested).
     pub fn hierarchy(&self, coarser: bool) -> Result<(Mesh, Vec<Mesh>), CaseError> {
         let mut levels = vec![self.given_mesh()?];
         let curves = self.curves();
@@ -398,7 +402,12 @@ impl Case {
             (true, 0) => self.coarser_builtin()?,
             (true, _) => levels,
         };
-        Ok((mesh, below))
+        let generated = if coarser {
+            self.coarser_generated()
+        } else {
+            Vec::new()
+        };
+        Ok((mesh, below.into_iter().chain(generated).collect()))
     }
 
     /// The curves of ∂ω, on which refinement places new boundary vertices.
@@ -445,6 +454,25 @@ impl Case {
 
     /// The meshes of nested iteration below a built-in mesh of n cells per side: ⌈n/2⌉, ⌈n/4⌉, …
     /// cells, down to [`COARSEST`]; none for the other kinds.
+    /// Below a generated mesh of size h, for nested iteration: the domain meshed with 2h, 4h, …
+    /// while the mesh keeps [`COARSEST_VERTICES`] vertices. They are not nested in it, which a
+    /// guess does not need (transfers locate each vertex; restricted loads are approximate).
+    fn coarser_generated(&self) -> Vec<Mesh> {
+        let MeshSpec::Domain { domain, h } = &self.mesh else {
+            return Vec::new();
+        };
+        let mut meshes = Vec::new();
+        let mut size = 2.0 * h;
+        while let Ok(mesh) = domain.mesh(size) {
+            if mesh.n_vertices() < COARSEST_VERTICES {
+                break;
+            }
+            meshes.push(mesh.renumbered());
+            size *= 2.0;
+        }
+        meshes
+    }
+
     fn coarser_builtin(&self) -> Result<Vec<Mesh>, CaseError> {
         let Some(n) = self.cells() else {
             return Ok(Vec::new());
