@@ -111,11 +111,7 @@ def convergence_plot(result, out):
     ax.set_ylabel("error")
     ax.set_title(result["name"])
     ax.legend(fontsize=7)
-    fig.tight_layout()
-    name = result["name"] + "-convergence.png"
-    fig.savefig(os.path.join(out, name), dpi=110)
-    plt.close(fig)
-    return name
+    return save(fig, out, result["name"] + "-convergence.png", 110)
 
 
 def fields_plot(result, out):
@@ -131,9 +127,15 @@ def fields_plot(result, out):
         ax.set_title(field)
         fig.colorbar(im, ax=ax, shrink=0.8)
     fig.suptitle("%s, level %s (Rust)" % (result["name"], result["levels"][-1]["n"]))
+    return save(fig, out, result["name"] + "-fields.png", 90)
+
+
+def save(fig, out, name, dpi):
+    """Writes the figure to OUT/NAME and closes it; returns NAME."""
+    import matplotlib.pyplot as plt
+
     fig.tight_layout()
-    name = result["name"] + "-fields.png"
-    fig.savefig(os.path.join(out, name), dpi=90)
+    fig.savefig(os.path.join(out, name), dpi=dpi)
     plt.close(fig)
     return name
 

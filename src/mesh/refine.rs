@@ -79,7 +79,7 @@ fn spread(x: u32) -> u32 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::{Diagonal, Domain, Prolongation};
+    use crate::mesh::{Diagonal, Domain};
 
     #[test]
     fn refining_a_rectangle_gives_the_finer_rectangle() {
@@ -132,15 +132,7 @@ mod tests {
         let coarse = domain.mesh(0.25).unwrap();
         let fine = coarse.refined(&domain.curves()).unwrap();
         assert!((fine.measure() - coarse.measure()).abs() < 1e-14);
-        // (f, φ_A) = Pᵀ (f, φ_a): the degree-4 rule is exact for f φ on both meshes.
-        let f = crate::expr::Expr::parse("x*y - 2*y + 1").unwrap();
-        let quad = crate::assembly::Quadrature { degree: 4 };
-        let direct = crate::assembly::load(&coarse, &f, quad).unwrap();
-        let restricted =
-            Prolongation::new(&fine, &coarse).restrict(&crate::assembly::load(&fine, &f, quad).unwrap());
-        for (a, b) in direct.iter().zip(&restricted) {
-            assert!((a - b).abs() < 1e-14, "{a} vs {b}");
-        }
+        crate::mesh::transfer::tests::assert_loads_restrict_exactly(&coarse, &fine, "x*y - 2*y + 1");
     }
 
     #[test]

@@ -98,7 +98,7 @@ fn barycentric([p, q, r]: [[f64; 2]; 3], x: [f64; 2]) -> [f64; 3] {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::mesh::Diagonal;
 
@@ -115,20 +115,26 @@ mod tests {
         }
     }
 
+    /// (f, φ_A) on `coarse` equals Pᵀ (f, φ_a) on `fine` when the meshes are nested: the
+    /// degree-4 rule is exact for f φ on both.
+    pub(crate) fn assert_loads_restrict_exactly(coarse: &Mesh, fine: &Mesh, f: &str) {
+        let f = crate::expr::Expr::parse(f).unwrap();
+        let quad = crate::assembly::Quadrature { degree: 4 };
+        let direct = crate::assembly::load(coarse, &f, quad).unwrap();
+        let restricted =
+            Prolongation::new(fine, coarse).restrict(&crate::assembly::load(fine, &f, quad).unwrap());
+        for (a, b) in direct.iter().zip(&restricted) {
+            assert!((a - b).abs() < 1e-14, "{a} vs {b}");
+        }
+    }
+
     #[test]
     fn restriction_of_nested_loads_is_exact() {
-        // (f, φ_A) on the coarse mesh = Pᵀ (f, φ_a) on its uniform refinement, for every diagonal.
+        // On a rectangle and its uniform refinement, for every diagonal.
         for diagonal in [Diagonal::Right, Diagonal::Left, Diagonal::Crossed] {
             let coarse = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 3, 2, diagonal).unwrap();
             let fine = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 6, 4, diagonal).unwrap();
-            let f = crate::expr::Expr::parse("x*y + 1").unwrap();
-            let quad = crate::assembly::Quadrature { degree: 4 };
-            let direct = crate::assembly::load(&coarse, &f, quad).unwrap();
-            let restricted =
-                Prolongation::new(&fine, &coarse).restrict(&crate::assembly::load(&fine, &f, quad).unwrap());
-            for (a, b) in direct.iter().zip(&restricted) {
-                assert!((a - b).abs() < 1e-14, "{a} vs {b}");
-            }
+            assert_loads_restrict_exactly(&coarse, &fine, "x*y + 1");
         }
     }
 }
