@@ -773,3 +773,13 @@ fn a_refined_file_mesh_too_large_for_memory() {
     contains(&e, "square.msh, refine = 14: 26306674688 vertices need about");
     contains(&e, "use a coarser mesh");
 }
+
+#[test]
+fn a_nan_exact_gradient_is_refused() {
+    // Gradients are checked through the norms they give (they may be singular at a vertex).
+    let exact = "[exact]\nu1 = 0\nu2 = 0\nlambda = 0\ngrad_u1 = [\"sqrt(x - 0.5)\", \"0\"]\n";
+    contains(
+        &case_fails(&format!("{GOOD}{exact}{SQUARE}")),
+        "an error norm is not finite",
+    );
+}
