@@ -61,6 +61,7 @@ fn main() {
                 start: Start::Nested,
                 hminus1: false,
                 flux: false,
+                estimate: false,
             };
             let t = Instant::now();
             let r = run::solve(&case, &options, &dir.path().join("bench")).expect("solve");

@@ -31,6 +31,7 @@
 //! | the contact set | `contact` |
 //! | t_ih (4.13) | `Flux`, the fields `t1_x`, `t1_y`, `div_t1`, … |
 //! | ‖λ − λ_h‖_H⁻¹ | `hminus1_lambda` (`--hminus1`) |
+//! | η, η_K (docs/a-posteriori.md) | `Estimate`, the attribute and cell field `estimator` (`--estimate`) |
 
 #![warn(missing_docs)]
 
@@ -56,6 +57,7 @@ pub mod assembly;
 pub mod atomic;
 pub mod case;
 pub mod contact;
+pub mod estimator;
 pub mod expr;
 pub mod flux;
 pub mod linear;

@@ -45,6 +45,10 @@ enum Command {
         /// conservation and write t_ih and div t_ih as its cell data.
         #[arg(long)]
         flux: bool,
+        /// Also compute the guaranteed a posteriori bound η of the energy error and its
+        /// indicators per triangle (cell data `estimator`, …; docs/a-posteriori.md).
+        #[arg(long)]
+        estimate: bool,
         /// Print the built-in default case and exit.
         #[arg(long)]
         print_default: bool,
@@ -92,8 +96,9 @@ fn main() -> ExitCode {
             cold,
             hminus1,
             flux,
+            estimate,
             ..
-        } => solve(case, output, (n, refine), cold, hminus1, flux),
+        } => solve(case, output, (n, refine), cold, [hminus1, flux, estimate]),
         Command::Study {
             case,
             levels,
@@ -147,8 +152,7 @@ fn solve(
     output: Option<PathBuf>,
     (n, refine): (Option<usize>, Option<usize>),
     cold: bool,
-    hminus1: bool,
-    flux: bool,
+    [hminus1, flux, estimate]: [bool; 3],
 ) -> Result<(), Failure> {
     let (mut case, name) = read_case(&case_path)?;
     if let Some(n) = n {
@@ -173,7 +177,13 @@ fn solve(
         title => println!("case        {} — {title}", case.origin),
     }
     let start = if cold { Start::Cold } else { Start::Nested };
-    let r = run::solve(&case, &run::Options { start, hminus1, flux }, &output)?;
+    let options = run::Options {
+        start,
+        hminus1,
+        flux,
+        estimate,
+    };
+    let r = run::solve(&case, &options, &output)?;
     print!("{}", r.summary());
     println!(
         "result      {0} — open {0}/solution.xdmf and {0}/dual.xdmf in ParaView (Xdmf3 reader)",

@@ -23,6 +23,8 @@ pub const SOLUTION_H5: &str = "solution.h5";
 pub enum Place {
     /// One value per vertex of T_h (a P1 field).
     Vertices,
+    /// One value per triangle of T_h (e.g. an error indicator).
+    Cells,
     /// One value per cell of S_h (constant on each, e.g. on each D_a).
     DualCells,
 }
@@ -112,22 +114,20 @@ pub fn write(
             xdmf: "solution.xdmf",
             points: &mesh.points,
             triangles: &mesh.triangles,
-            center: "Node",
-            place: Place::Vertices,
+            places: &[Place::Vertices, Place::Cells],
         },
         Grid {
             name: "dual",
             xdmf: "dual.xdmf",
             points: &dual.points,
             triangles: &dual.triangles,
-            center: "Cell",
-            place: Place::DualCells,
+            places: &[Place::DualCells],
         },
     ];
     check_space(dir, &grids, fields)?;
     write_hdf5(&dir.join(SOLUTION_H5), &grids, fields, attrs).map_err(|e| no_space_hint(dir, e))?;
     for g in &grids {
-        let text = xdmf(g, fields.iter().filter(|f| f.place == g.place));
+        let text = xdmf(g, fields.iter().filter(|f| g.places.contains(&f.place)));
         std::fs::write(dir.join(g.xdmf), text).map_err(|e| format!("{}: {e}", g.xdmf))?;
     }
     Ok(())
@@ -139,17 +139,16 @@ struct Grid<'a> {
     xdmf: &'static str,
     points: &'a [[f64; 2]],
     triangles: &'a [[usize; 3]],
-    /// XDMF's name for where its fields live.
-    center: &'static str,
-    place: Place,
+    /// Where the fields of this grid live.
+    places: &'static [Place],
 }
 
 impl Grid<'_> {
-    /// Values per field.
-    fn len(&self) -> usize {
-        match self.place {
-            Place::Vertices => self.points.len(),
-            Place::DualCells => self.triangles.len(),
+    /// Values per field at `place`, and XDMF's name for it.
+    fn layout(&self, place: Place) -> (usize, &'static str) {
+        match place {
+            Place::Vertices => (self.points.len(), "Node"),
+            Place::Cells | Place::DualCells => (self.triangles.len(), "Cell"),
         }
     }
 }
@@ -210,10 +209,10 @@ fn write_hdf5(path: &Path, grids: &[Grid], fields: &[Field], attrs: &[Attribute]
             .with_data(&cells)
             .create("topology")
             .map_err(named)?;
-        for f in fields.iter().filter(|f| f.place == grid.place) {
+        for f in fields.iter().filter(|f| grid.places.contains(&f.place)) {
             assert_eq!(
                 f.values.len(),
-                grid.len(),
+                grid.layout(f.place).0,
                 "field {} has one value per item",
                 f.name
             );
@@ -271,12 +270,12 @@ fn xdmf<'a>(g: &Grid, fields: impl Iterator<Item = &'a Field<'a>>) -> String {
         item(format!("{np} 2"), "Float", format!("/{}/geometry", g.name))
     );
     for f in fields {
+        let (len, center) = g.layout(f.place);
         let _ = writeln!(
             s,
-            "      <Attribute Name=\"{}\" AttributeType=\"Scalar\" Center=\"{}\">\n        {}\n      </Attribute>",
+            "      <Attribute Name=\"{}\" AttributeType=\"Scalar\" Center=\"{center}\">\n        {}\n      </Attribute>",
             f.name,
-            g.center,
-            item(g.len().to_string(), "Float", format!("/{}/{}", g.name, f.name))
+            item(len.to_string(), "Float", format!("/{}/{}", g.name, f.name))
         );
     }
     s.push_str("    </Grid>\n  </Domain>\n</Xdmf>\n");

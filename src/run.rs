@@ -1,11 +1,12 @@
 //! One run, told as the paper tells it: case → mesh T_h → discrete problem (3.4) → its solution →
 //! the action λ_h (4.5) and its checks → errors against an exact solution → the flux t_ih (4.13)
-//! → a result directory, written whole.
+//! → the a posteriori estimator → a result directory, written whole.
 
 use crate::action::{Action, CheckError};
 use crate::atomic::{OutputError, Staging};
 use crate::case::{Case, CaseError};
 use crate::contact::{self, Solution, SolveError, Start};
+use crate::estimator::Estimate;
 use crate::flux::Fluxes;
 use crate::mesh::DualMesh;
 use crate::norms::Errors;
@@ -24,6 +25,8 @@ pub struct Options<'a> {
     pub hminus1: bool,
     /// The fluxes t_1h, t_2h (4.13) and their local conservation (Lemma 17).
     pub flux: bool,
+    /// The guaranteed error bound and its indicators (docs/a-posteriori.md).
+    pub estimate: bool,
 }
 
 /// The result of one run.
@@ -42,6 +45,8 @@ pub struct Run<'c> {
     pub errors: Option<Errors>,
     /// t_1h, t_2h, when asked for.
     pub flux: Option<Fluxes>,
+    /// The a posteriori estimator, when asked for.
+    pub estimate: Option<Estimate>,
     /// Wall-clock seconds of the phases.
     pub timings: Timings,
 }
@@ -53,9 +58,10 @@ pub struct Run<'c> {
 /// use membrane_contact::{case::Case, contact::Start, run};
 /// let case = Case::default_case();
 /// let dir = tempfile::tempdir().unwrap();
-/// let options = run::Options { start: Start::Nested, hminus1: false, flux: true };
+/// let options = run::Options { start: Start::Nested, hminus1: false, flux: true, estimate: true };
 /// let r = run::solve(&case, &options, &dir.path().join("default")).unwrap();
 /// assert!(r.action.total > 0.0 && dir.path().join("default/solution.xdmf").exists());
+/// assert!(r.estimate.unwrap().total >= r.errors.unwrap().energy.unwrap());
 /// ```
 pub fn solve<'c>(case: &'c Case, options: &Options, target: &Path) -> Result<Run<'c>, RunError> {
     let inputs = case.inputs();
@@ -92,10 +98,13 @@ pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
     let flux = options
         .flux
         .then(|| Fluxes::reconstruct(&problem, &dual, &solution, &action));
+    let postprocess = clock.lap();
+    let estimate = (options.estimate).then(|| Estimate::compute(&problem, &dual, &solution, &action));
     let timings = Timings {
         mesh: mesh_seconds,
         assembly,
-        postprocess: clock.lap(),
+        postprocess,
+        estimate: clock.lap(),
         write: 0.0,
     };
     Ok(Run {
@@ -106,6 +115,7 @@ pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
         dual,
         errors,
         flux,
+        estimate,
         timings,
     })
 }
@@ -167,6 +177,20 @@ impl Run<'_> {
                 show(e.h1_u1), show(e.h1_u2), e.l2_u1, e.l2_u2, e.l2_lambda, show(e.hminus1_lambda)
             );
         }
+        if let Some(e) = &self.estimate {
+            out += &format!(
+                "estimator   |||u − u_h||| ≤ η = {:.4e} (membranes {:.3e}, {:.3e}, boundary data {:.2e}, contact {:.2e}){}; \
+                 ‖λ − λ_h‖_H⁻¹ ≤ {:.4e}\n",
+                e.total,
+                e.membranes[0],
+                e.membranes[1],
+                e.boundary_total,
+                e.contact_total,
+                self.effectivity()
+                    .map_or(String::new(), |x| format!(", effectivity η/error {x:.3}")),
+                e.lambda
+            );
+        }
         if let Some(f) = &self.flux {
             out += &format!(
                 "flux        t1h, t2h on S_h (4.13); local conservation on the D_a (Lemma 17): relative defect {:.2e}, {:.2e}\n",
@@ -175,11 +199,19 @@ impl Run<'_> {
         }
         out += &format!(
             "seconds     mesh {:.3}, assembly {:.3}, contact solve {:.3} (coarse levels {:.3}, symbolic {:.3}, \
-             numeric {:.3} + solves {:.3} summed over v and w), postprocess {:.3}, write {:.3}\n",
+             numeric {:.3} + solves {:.3} summed over v and w), postprocess {:.3}, estimate {:.3}, write {:.3}\n",
             t.mesh, t.assembly, s.wall_seconds, s.coarse_seconds, s.symbolic_seconds, s.numeric_seconds,
-            s.solve_seconds, t.postprocess, t.write
+            s.solve_seconds, t.postprocess, t.estimate, t.write
         );
         out
+    }
+}
+
+impl Run<'_> {
+    /// η / |||u − u_h|||, when both are known.
+    pub fn effectivity(&self) -> Option<f64> {
+        let error = self.errors.as_ref()?.energy?;
+        Some(self.estimate.as_ref()?.total / error)
     }
 }
 
@@ -200,6 +232,7 @@ impl Describe for Run<'_> {
         if let Some(flux) = &self.flux {
             fields.extend(flux.fields(&self.dual));
         }
+        fields.extend(self.estimate.iter().flat_map(Describe::fields));
         fields
     }
 
@@ -215,6 +248,8 @@ impl Describe for Run<'_> {
         attrs.extend(self.action.attributes());
         attrs.extend(self.errors.iter().flat_map(Describe::attributes));
         attrs.extend(self.flux.iter().flat_map(Describe::attributes));
+        attrs.extend(self.estimate.iter().flat_map(Describe::attributes));
+        attrs.extend(self.effectivity().map(|x| ("effectivity", x.into())));
         attrs.extend(self.timings.attributes());
         attrs
     }
@@ -229,6 +264,8 @@ pub struct Timings {
     pub assembly: f64,
     /// The action, its checks, the errors and the flux.
     pub postprocess: f64,
+    /// The estimator.
+    pub estimate: f64,
     /// Writing the result.
     pub write: f64,
 }
@@ -239,6 +276,7 @@ impl Describe for Timings {
             ("seconds_mesh", self.mesh.into()),
             ("seconds_assembly", self.assembly.into()),
             ("seconds_postprocess", self.postprocess.into()),
+            ("seconds_estimate", self.estimate.into()),
         ]
     }
 }

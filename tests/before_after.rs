@@ -21,6 +21,7 @@ fn compare(case_file: &str, before: &str) {
         start: Start::Nested,
         hminus1: true,
         flux: true,
+        estimate: false,
     };
     run::solve(&case, &options, &target).unwrap();
     let old = hdf5::File::open(before).unwrap();

@@ -25,6 +25,7 @@ fn solve<'c>(c: &'c Case, start: Start<'c>) -> Run<'c> {
         start,
         hminus1: false,
         flux: false,
+        estimate: false,
     };
     run::run(c, &options).unwrap()
 }
@@ -251,6 +252,7 @@ fn flux_reconstruction_is_conservative_and_converges() {
             start: Start::Nested,
             hminus1: false,
             flux: true,
+            estimate: false,
         };
         let r = run::run(&c, &options).unwrap();
         let flux = r.flux.as_ref().unwrap();
@@ -290,6 +292,7 @@ fn error_norms_have_their_closed_form_values() {
         start: Start::Cold,
         hminus1: true,
         flux: false,
+        estimate: false,
     };
     let e = run::run(&c, &options).unwrap().errors.unwrap();
     let pi = std::f64::consts::PI;

@@ -225,6 +225,7 @@ pub fn run_levels(
                 start,
                 hminus1,
                 flux: false,
+                estimate: true,
             },
         )?;
         let cold_iterations = match (options.cold, &previous) {
@@ -238,6 +239,7 @@ pub fn run_levels(
                     start: Start::Cold,
                     hminus1: false,
                     flux: false,
+                    estimate: false,
                 };
                 Some(run::run(&cold_case, &options)?.solution.obstacle.stats.iterations)
             }

@@ -1,0 +1,204 @@
+//! The lifting ψ of the boundary mismatch g − g_h (docs/a-posteriori.md §5): on a triangle K with
+//! a boundary edge e = [p, q] and third vertex c, with s = λ_p + λ_q = 1 − λ_c and τ = λ_q / s,
+//!
+//! ```text
+//! ψ_e = s δ(τ),   δ(τ) = g(p + τ(q − p)) − [(1 − τ) g(p) + τ g(q)],
+//! ```
+//!
+//! zero on the two other edges, so ψ = Σ_e ψ_e ∈ H¹(ω) with ψ = g − g_h on ∂ω, and w_h + ψ ≥ 0
+//! (w_h + ψ_e = (1 − s) w_h(c) + s g ≥ 0 on K). In the coordinates (s, τ) ∈ [0, 1]²,
+//! dx = 2|K| s ds dτ and ∇ψ_e = δ(τ) ∇s + δ'(τ)(∇λ_q − τ∇s) does not depend on s, so
+//! ‖∇ψ_e‖²_K = |K| ∫_0^1 |δ∇s + δ'(∇λ_q − τ∇s)|² dτ, and ∫_K λ_h ψ_e = λ_c 2|K| ∫_0^1 δ s*³/3 dτ
+//! with s* = 1 / (1 + max(τ, 1 − τ)) bounding D_c ∩ K (λ_h = 0 on the cells of p and q).
+//! The integrals in τ: Gauss–Legendre on [0, ½] and [½, 1] (s* has a kink at ½).
+
+use crate::assembly::gradients;
+use crate::expr::Expr;
+use crate::mesh::Mesh;
+
+/// Gauss–Legendre points per half of [0, 1].
+const POINTS: usize = 12;
+/// The step, in τ, of the difference quotient for δ'(τ) (fourth order: error O(step⁴ g⁽⁵⁾)).
+const STEP: f64 = 1e-3;
+
+/// The lifting's contribution on one triangle.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct OnTriangle {
+    /// ‖∇ψ‖_K.
+    pub grad_norm: f64,
+    /// ∫_K λ_h ψ.
+    pub with_lambda: f64,
+}
+
+/// ψ on every triangle of `mesh` (zero on those without a boundary edge). `neighbour[t][j]` is
+/// `usize::MAX` when the edge (t[j], t[j + 1]) lies on ∂ω; `lambda` is λ_a, `gap` is w_h.
+pub fn lifting(
+    mesh: &Mesh,
+    neighbour: &[[usize; 3]],
+    g: &Expr,
+    lambda: &[f64],
+    gap: &[f64],
+) -> Vec<OnTriangle> {
+    let rule = gauss_legendre_halves();
+    (0..mesh.triangles.len())
+        .map(|t| {
+            let on_boundary: Vec<usize> = (0..3).filter(|&j| neighbour[t][j] == usize::MAX).collect();
+            let edge = |j: usize| on_edge(mesh, t, j, g, lambda, &rule);
+            match on_boundary[..] {
+                [] => OnTriangle::default(),
+                [j] => edge(j).0,
+                [i, j] => corner(mesh, t, [edge(i), edge(j)], gap),
+                _ => unreachable!("a mesh with an interior vertex has no triangle bounded by ∂ω alone"),
+            }
+        })
+        .collect()
+}
+
+/// ψ_e on K for the boundary edge j of triangle t, and min δ along it.
+fn on_edge(
+    mesh: &Mesh,
+    t: usize,
+    j: usize,
+    g: &Expr,
+    lambda: &[f64],
+    rule: &[(f64, f64)],
+) -> (OnTriangle, f64) {
+    let tri = mesh.triangles[t];
+    let corners = mesh.corners(t);
+    let (p, q, c) = (corners[j], corners[(j + 1) % 3], corners[(j + 2) % 3]);
+    let grads = gradients(corners);
+    let (grad_q, grad_s) = (grads[(j + 1) % 3], grads[(j + 2) % 3].map(|x| -x));
+    let area = 0.5 * crate::mesh::orient(p, q, c);
+    let along = |tau: f64| g.eval(p[0] + tau * (q[0] - p[0]), p[1] + tau * (q[1] - p[1]));
+    let (gp, gq) = (along(0.0), along(1.0));
+    let lambda_c = lambda[tri[(j + 2) % 3]];
+    let (mut grad2, mut with_lambda, mut min_delta) = (0.0, 0.0, 0.0_f64);
+    for &(tau, w) in rule {
+        let delta = along(tau) - ((1.0 - tau) * gp + tau * gq);
+        let derivative = (8.0 * (along(tau + STEP) - along(tau - STEP)) - along(tau + 2.0 * STEP)
+            + along(tau - 2.0 * STEP))
+            / (12.0 * STEP);
+        let d1 = derivative - (gq - gp);
+        let v = [0, 1].map(|k| delta * grad_s[k] + d1 * (grad_q[k] - tau * grad_s[k]));
+        grad2 += w * (v[0] * v[0] + v[1] * v[1]);
+        let s_star = 1.0 / (1.0 + tau.max(1.0 - tau));
+        with_lambda += w * delta * s_star.powi(3) / 3.0;
+        min_delta = min_delta.min(delta);
+    }
+    let on = OnTriangle {
+        grad_norm: (area * grad2).sqrt(),
+        with_lambda: lambda_c * 2.0 * area * with_lambda,
+    };
+    (on, min_delta)
+}
+
+/// A triangle with two boundary edges (all its vertices on ∂ω, so λ_h = 0 on it): ψ_0 = ψ_e1 +
+/// ψ_e2, bounded by the triangle inequality; where ψ_0 might dip below −w_h (g small at the
+/// vertices, δ negative), ψ = max(ψ_0, −w_h) instead, with |∇ψ|² ≤ |∇ψ_0|² + |∇w_h|².
+fn corner(mesh: &Mesh, t: usize, edges: [(OnTriangle, f64); 2], gap: &[f64]) -> OnTriangle {
+    let norm0 = edges[0].0.grad_norm + edges[1].0.grad_norm;
+    let tri = mesh.triangles[t];
+    let lowest = tri.iter().map(|&a| gap[a]).fold(f64::INFINITY, f64::min);
+    let dip: f64 = edges.iter().map(|e| (-e.1).max(0.0)).sum();
+    let grad_norm = if lowest >= dip {
+        norm0
+    } else {
+        let g = gradients(mesh.corners(t));
+        let gw = [0, 1].map(|k| (0..3).map(|i| g[i][k] * gap[tri[i]]).sum::<f64>());
+        (norm0 * norm0 + mesh.area(t) * (gw[0] * gw[0] + gw[1] * gw[1])).sqrt()
+    };
+    OnTriangle {
+        grad_norm,
+        with_lambda: 0.0,
+    }
+}
+
+/// Gauss–Legendre points and weights on [0, ½] and on [½, 1].
+fn gauss_legendre_halves() -> Vec<(f64, f64)> {
+    let unit = gauss_legendre(POINTS);
+    [0.0, 0.5]
+        .iter()
+        .flat_map(|&left| {
+            unit.iter()
+                .map(move |&(x, w)| (left + 0.25 * (x + 1.0), 0.25 * w))
+        })
+        .collect()
+}
+
+/// The n-point Gauss–Legendre rule on [−1, 1]: the roots of P_n by Newton's method from
+/// Chebyshev guesses, weights 2 / ((1 − x²) P_n'(x)²).
+fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
+    (0..n)
+        .map(|i| {
+            let mut x = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
+            let mut derivative = 0.0;
+            for _ in 0..100 {
+                let (mut p0, mut p1) = (1.0, x);
+                for k in 2..=n {
+                    (p0, p1) = (p1, ((2 * k - 1) as f64 * x * p1 - (k - 1) as f64 * p0) / k as f64);
+                }
+                derivative = n as f64 * (x * p1 - p0) / (x * x - 1.0);
+                let dx = p1 / derivative;
+                x -= dx;
+                if dx.abs() < 1e-16 {
+                    break;
+                }
+            }
+            (x, 2.0 / ((1.0 - x * x) * derivative * derivative))
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gauss_legendre_integrates_degree_2n_minus_1() {
+        let rule = gauss_legendre_halves();
+        assert_eq!(rule.len(), 2 * POINTS);
+        for k in 0..2 * POINTS {
+            let integral: f64 = rule.iter().map(|&(x, w)| w * x.powi(k as i32)).sum();
+            assert!((integral - 1.0 / (k as f64 + 1.0)).abs() < 1e-14, "x^{k}");
+        }
+    }
+
+    /// K = (0,0), (1,0), (0,1), the edge y = 0 on ∂ω, g = x²: ψ = x²/(1 − y) − x, and by hand
+    /// ∫_K |∇ψ|² = ½ ∫_0^1 (2τ − 1)² + τ⁴ dτ = 4/15.
+    #[test]
+    fn the_lifting_of_a_parabola_has_its_closed_form_norm() {
+        let mesh = Mesh {
+            points: vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
+            triangles: vec![[0, 1, 2]],
+            on_boundary: vec![true; 3],
+        };
+        let neighbour = [[usize::MAX, 0, 0]];
+        let g = Expr::parse("x^2").unwrap();
+        let on = lifting(&mesh, &neighbour, &g, &[0.0, 0.0, 2.0], &[0.0; 3]);
+        assert!(
+            (on[0].grad_norm.powi(2) - 4.0 / 15.0).abs() < 1e-12,
+            "{}",
+            on[0].grad_norm
+        );
+        // ∫_K λ_h ψ with λ_h = 2 on D_c ∩ K = {y ≥ x, y ≥ 1 − x − y}: by the (s, τ) formula,
+        // 2 · 2|K| ∫ (τ² − τ) s*³/3 dτ; against a brute-force sum over a fine grid of K.
+        let (mut brute, n) = (0.0, 2000);
+        let cell = 1.0 / n as f64;
+        // The grid's lower and upper triangles inside K, by their centroids.
+        for i in 0..n {
+            for j in 0..n - i {
+                for (shift, inside) in [(1.0 / 3.0, true), (2.0 / 3.0, i + j + 2 <= n)] {
+                    let (x, y) = ((i as f64 + shift) * cell, (j as f64 + shift) * cell);
+                    if inside && y >= x && y >= 1.0 - x - y {
+                        brute += 2.0 * (x * x / (1.0 - y) - x) * 0.5 * cell * cell;
+                    }
+                }
+            }
+        }
+        assert!(
+            (on[0].with_lambda - brute).abs() < 2e-3 * brute.abs(),
+            "{} vs {brute}",
+            on[0].with_lambda
+        );
+    }
+}

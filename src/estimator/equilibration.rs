@@ -1,0 +1,414 @@
+//! The patch-equilibrated fluxes τ_i of docs/a-posteriori.md §7(c) (Braess–Schöberl,
+//! Ern–Vohralík, here in RT0 on the submesh S_h of Section 4.2). For every vertex a of T_h, on the
+//! cells of S_h in the patch ω_a = supp φ_a:
+//!
+//! ```text
+//! τ_{i,a} = argmin ‖Π_RT(φ_a μ_i ∇u_ih) + τ‖_{ω_a}   over τ ∈ RT0(S_h|ω_a),  τ·n = 0 on ∂ω_a \ ∂ω,
+//! div τ = Π(f_i φ_a) − μ_i ∇u_ih·∇φ_a ± λ_a χ_{D_a} − c_{i,a} χ_{D_a}   on each cell κ ⊂ ω_a,
+//! ```
+//!
+//! (+ for membrane 1, − for membrane 2; c_{i,a} the quadrature defect of the loads, §4(c)). At an
+//! interior vertex the divergence has zero mean by (4.5) — the definition of λ_a by the lumped
+//! pairing (4.3) — and at a boundary vertex the flux through ∂ω is free. Since Σ_a φ_a = 1,
+//! τ_i = Σ_a τ_{i,a} lies in H(div, ω) with div τ_i = Π f_i ± λ_h − c_i on every cell.
+//!
+//! Each local problem is solved in two steps: a particular solution by a sweep over a spanning
+//! tree of the patch's cells (the flux through each tree link is what the cells beyond it need),
+//! then the divergence-free correction curl ψ, ψ a P1 function on S_h|ω_a vanishing on the closed
+//! part of ∂ω_a. Curls of P1 functions are constant on each cell and ‖curl ψ‖ = ‖∇ψ‖, so the
+//! correction solves the P1 stiffness system of S_h|ω_a: 2k + 1 unknowns at an interior vertex
+//! with k triangles (a, the k midpoints of its edges, the k barycentres), 2k + 2 at a boundary one.
+//! The system depends on the geometry only: one factorization serves both membranes.
+
+use crate::assembly::gradients;
+use crate::flux::Flux;
+use crate::mesh::{orient, DualMesh, Mesh};
+
+/// No neighbour (a boundary edge) or no stream-function unknown (a vertex of S_h where ψ = 0).
+const NONE: usize = usize::MAX;
+
+/// The triangles around each vertex and the neighbour across each edge, for the patch problems.
+pub struct Patches {
+    /// CSR offsets of `star`.
+    start: Vec<usize>,
+    /// For each vertex a, the triangles containing it, with a's position in each.
+    star: Vec<(usize, usize)>,
+    /// Across edge j = (t[j], t[j + 1]) of each triangle: the neighbour, or NONE on ∂ω.
+    pub neighbour: Vec<[usize; 3]>,
+}
+
+impl Patches {
+    /// The patches of `mesh`.
+    pub fn new(mesh: &Mesh) -> Self {
+        let n = mesh.n_vertices();
+        let mut start = vec![0; n + 1];
+        for tri in &mesh.triangles {
+            for &a in tri {
+                start[a + 1] += 1;
+            }
+        }
+        for a in 0..n {
+            start[a + 1] += start[a];
+        }
+        let mut fill = start.clone();
+        let mut star = vec![(0, 0); start[n]];
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            for (k, &a) in tri.iter().enumerate() {
+                star[fill[a]] = (t, k);
+                fill[a] += 1;
+            }
+        }
+        let mut halves: Vec<((usize, usize), usize, usize)> = (mesh.triangles.iter().enumerate())
+            .flat_map(|(t, tri)| {
+                (0..3).map(move |j| {
+                    let (a, b) = (tri[j], tri[(j + 1) % 3]);
+                    ((a.min(b), a.max(b)), t, j)
+                })
+            })
+            .collect();
+        halves.sort_unstable();
+        let mut neighbour = vec![[NONE; 3]; mesh.triangles.len()];
+        for pair in halves.chunk_by(|x, y| x.0 == y.0) {
+            if let [(_, s, i), (_, t, j)] = *pair {
+                neighbour[s][i] = t;
+                neighbour[t][j] = s;
+            }
+        }
+        Patches {
+            start,
+            star,
+            neighbour,
+        }
+    }
+
+    /// The triangles containing `a`, with a's position in each.
+    pub fn around(&self, a: usize) -> &[(usize, usize)] {
+        &self.star[self.start[a]..self.start[a + 1]]
+    }
+}
+
+/// The data of the local problems of one membrane.
+pub struct Membrane<'a> {
+    /// μ_i.
+    pub mu: f64,
+    /// u_ih at the vertices.
+    pub u: &'a [f64],
+    /// ∫_κ f_i φ_j on every cell κ of S_h, for the three vertices j of its triangle (in order).
+    pub f_phi: &'a [[f64; 3]],
+    /// ±λ_a − c_{i,a} at every vertex: the constant part of the divergence on D_a.
+    pub on_dual_cell: &'a [f64],
+}
+
+/// τ_1, τ_2 = Σ_a τ_{i,a}, by their normal fluxes on the cells of S_h (the convention of [`Flux`]).
+pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: [&Membrane; 2]) -> [Flux; 2] {
+    let mut tau = [0, 1].map(|_| Flux {
+        edge_flux: vec![[0.0; 3]; dual.triangles.len()],
+    });
+    let grad_u: Vec<[[f64; 2]; 2]> = (0..mesh.triangles.len())
+        .map(|t| {
+            let g = gradients(mesh.corners(t));
+            let tri = mesh.triangles[t];
+            membranes.map(|m| [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()))
+        })
+        .collect();
+    let mut work = Patch::default();
+    for a in 0..mesh.n_vertices() {
+        work.build(mesh, dual, patches, a);
+        for (i, m) in membranes.iter().enumerate() {
+            work.solve(a, m, |t| grad_u[t][i], &mut tau[i]);
+        }
+    }
+    tau
+}
+
+/// One cell of S_h in a patch.
+#[derive(Clone, Copy, Default)]
+struct Cell {
+    /// Its index in S_h.
+    index: usize,
+    /// Its triangle of T_h, and the position of a in it.
+    triangle: usize,
+    position: usize,
+    corners: [[f64; 2]; 3],
+    area: f64,
+    /// The stream-function unknown at each corner, or NONE.
+    stream: [usize; 3],
+    /// φ_a at each corner.
+    phi: [f64; 3],
+    /// Whether the cell lies in D_a.
+    own: bool,
+    /// ∇φ_a on the triangle.
+    grad_phi: [f64; 2],
+}
+
+/// A link of the patch's cell graph: two (node, edge) sides; node `ground` stands for ∂ω.
+#[derive(Clone, Copy)]
+struct Link([(usize, usize); 2]);
+
+/// The workspace of one patch, reused from vertex to vertex.
+#[derive(Default)]
+struct Patch {
+    cells: Vec<Cell>,
+    links: Vec<Link>,
+    /// Node = cell index in the patch, or `cells.len()` for the ground (∂ω).
+    ground: bool,
+    /// Spanning tree: BFS order and the link to the parent of each node.
+    order: Vec<usize>,
+    parent: Vec<usize>,
+    adjacency: Vec<Vec<usize>>,
+    unknowns: usize,
+    /// The P1 stiffness matrix of S_h|ω_a on the stream unknowns, factorized (LLᵀ).
+    factor: Vec<f64>,
+    flux: Vec<[f64; 3]>,
+    accumulated: Vec<f64>,
+    rhs: Vec<f64>,
+}
+
+impl Patch {
+    /// The cells, links, spanning tree and stream-function system of the patch of `a`.
+    fn build(&mut self, mesh: &Mesh, dual: &DualMesh, patches: &Patches, a: usize) {
+        let star = patches.around(a);
+        let mut others: Vec<usize> = (star.iter())
+            .flat_map(|&(t, k)| [1, 2].map(|d| mesh.triangles[t][(k + d) % 3]))
+            .collect();
+        others.sort_unstable();
+        others.dedup();
+        let midpoint_unknown = |v: usize| 1 + others.binary_search(&v).expect("a neighbour of a");
+        self.cells.clear();
+        for (i, &(t, k)) in star.iter().enumerate() {
+            let tri = mesh.triangles[t];
+            let grad_phi = gradients(mesh.corners(t))[k];
+            let centre = 1 + others.len() + i;
+            for c in 0..6 {
+                let j = c / 2;
+                let (v, w) = if c % 2 == 0 {
+                    (tri[j], tri[(j + 1) % 3])
+                } else {
+                    (tri[j], tri[(j + 2) % 3])
+                };
+                // The corners of cell c: [v, m_vw, g] or [v, g, m_wv] (DualMesh::new).
+                let vertex = (usize::from(v != a) * NONE, f64::from(u8::from(v == a)));
+                let mid = if v == a {
+                    (midpoint_unknown(w), 0.5)
+                } else if w == a {
+                    (midpoint_unknown(v), 0.5)
+                } else {
+                    (NONE, 0.0)
+                };
+                let centroid = (centre, 1.0 / 3.0);
+                let corners3 = if c % 2 == 0 {
+                    [vertex, mid, centroid]
+                } else {
+                    [vertex, centroid, mid]
+                };
+                let index = 6 * t + c;
+                let corners = dual.triangles[index].map(|p| dual.points[p]);
+                self.cells.push(Cell {
+                    index,
+                    triangle: t,
+                    position: k,
+                    corners,
+                    area: 0.5 * orient(corners[0], corners[1], corners[2]),
+                    stream: corners3.map(|x| x.0),
+                    phi: corners3.map(|x| x.1),
+                    own: v == a,
+                    grad_phi,
+                });
+            }
+        }
+        self.links.clear();
+        self.ground = false;
+        let ground = self.cells.len();
+        let local = |t: usize| star.iter().position(|&(s, _)| s == t).expect("in the patch");
+        for (i, &(t, k)) in star.iter().enumerate() {
+            let n = |c: usize| 6 * i + c;
+            for j in 0..3 {
+                self.links.push(Link([(n(2 * j), 2), (n(2 * j + 1), 0)]));
+                self.links
+                    .push(Link([(n(2 * j), 1), (n(2 * ((j + 1) % 3) + 1), 1)]));
+            }
+            // The halves of the edge ab (next after a) at a and at b; of ca at a and at c.
+            let (at_a_ab, at_b_ab) = ((n(2 * k), 0), (n(2 * ((k + 1) % 3) + 1), 2));
+            let (at_a_ca, at_c_ca) = ((n(2 * k + 1), 2), (n(2 * ((k + 2) % 3)), 0));
+            match patches.neighbour[t][k] {
+                NONE => {
+                    self.links.push(Link([at_a_ab, (ground, 0)]));
+                    self.links.push(Link([at_b_ab, (ground, 0)]));
+                    self.ground = true;
+                }
+                s => {
+                    let (ii, kk) = (local(s), star[local(s)].1);
+                    self.links.push(Link([at_a_ab, (6 * ii + 2 * kk + 1, 2)]));
+                    self.links.push(Link([at_b_ab, (6 * ii + 2 * ((kk + 2) % 3), 0)]));
+                }
+            }
+            if patches.neighbour[t][(k + 2) % 3] == NONE {
+                self.links.push(Link([at_a_ca, (ground, 0)]));
+                self.links.push(Link([at_c_ca, (ground, 0)]));
+                self.ground = true;
+            }
+        }
+        self.spanning_tree();
+        self.unknowns = 1 + others.len() + star.len();
+        self.factorize();
+    }
+
+    /// A breadth-first spanning tree of the cell graph, rooted at the ground when there is one.
+    fn spanning_tree(&mut self) {
+        let nodes = self.cells.len() + 1;
+        self.adjacency.resize_with(nodes, Vec::new);
+        for adj in &mut self.adjacency {
+            adj.clear();
+        }
+        for (l, link) in self.links.iter().enumerate() {
+            self.adjacency[link.0[0].0].push(l);
+            self.adjacency[link.0[1].0].push(l);
+        }
+        let root = if self.ground { self.cells.len() } else { 0 };
+        self.parent.clear();
+        self.parent.resize(nodes, NONE);
+        self.order.clear();
+        self.order.push(root);
+        let mut seen = vec![false; nodes];
+        seen[root] = true;
+        let mut next = 0;
+        while next < self.order.len() {
+            let node = self.order[next];
+            next += 1;
+            for &l in &self.adjacency[node] {
+                let other = self.links[l].other(node).0;
+                if !seen[other] {
+                    seen[other] = true;
+                    self.parent[other] = l;
+                    self.order.push(other);
+                }
+            }
+        }
+        debug_assert_eq!(self.order.len(), nodes - usize::from(!self.ground));
+    }
+
+    /// Assembles and factorizes the P1 stiffness matrix of S_h|ω_a on the stream unknowns.
+    fn factorize(&mut self) {
+        let n = self.unknowns;
+        self.factor.clear();
+        self.factor.resize(n * n, 0.0);
+        for cell in &self.cells {
+            let g = gradients(cell.corners);
+            for p in 0..3 {
+                for q in 0..3 {
+                    let (i, j) = (cell.stream[p], cell.stream[q]);
+                    if i != NONE && j != NONE {
+                        self.factor[i * n + j] += cell.area * (g[p][0] * g[q][0] + g[p][1] * g[q][1]);
+                    }
+                }
+            }
+        }
+        cholesky(&mut self.factor, n);
+    }
+
+    /// τ_{i,a} for one membrane, added to `tau`; `grad` gives μ_i ∇u_ih on a triangle.
+    fn solve(&mut self, a: usize, m: &Membrane, grad: impl Fn(usize) -> [f64; 2], tau: &mut Flux) {
+        let nodes = self.cells.len() + usize::from(self.ground);
+        self.flux.clear();
+        self.flux.resize(self.cells.len(), [0.0; 3]);
+        self.accumulated.clear();
+        self.accumulated.resize(nodes, 0.0);
+        // The divergence, integrated over each cell.
+        for (node, cell) in self.cells.iter().enumerate() {
+            let (du, g) = (grad(cell.triangle), cell.grad_phi);
+            let mut d = m.f_phi[cell.index][cell.position] - cell.area * (du[0] * g[0] + du[1] * g[1]);
+            if cell.own {
+                d += cell.area * m.on_dual_cell[a];
+            }
+            self.accumulated[node] = d;
+        }
+        // The particular solution: leaves first, each node's net outflow through its parent link.
+        for &node in self.order.iter().skip(1).rev() {
+            let link = self.links[self.parent[node]];
+            let (mine, theirs) = link.sides(node);
+            let out = self.accumulated[node];
+            self.flux[node][mine.1] += out;
+            if theirs.0 < self.cells.len() {
+                self.flux[theirs.0][theirs.1] -= out;
+                self.accumulated[theirs.0] += out;
+            }
+        }
+        // The correction: min ‖q + τ_p + curl ψ‖, q = Π_RT(φ_a μ ∇u_h).
+        let n = self.unknowns;
+        self.rhs.clear();
+        self.rhs.resize(n, 0.0);
+        for (node, cell) in self.cells.iter().enumerate() {
+            let du = grad(cell.triangle);
+            let p = cell.corners;
+            let q: [f64; 3] = std::array::from_fn(|e| {
+                let (s, t) = (p[e], p[(e + 1) % 3]);
+                0.5 * (cell.phi[e] + cell.phi[(e + 1) % 3]) * (du[0] * (t[1] - s[1]) - du[1] * (t[0] - s[0]))
+            });
+            let total: [f64; 3] = std::array::from_fn(|e| q[e] + self.flux[node][e]);
+            let v = at_centroid(&p, cell.area, &total);
+            let g = gradients(p);
+            for (k, &i) in cell.stream.iter().enumerate() {
+                if i != NONE {
+                    // curl φ = (∂_y φ, −∂_x φ), constant on the cell.
+                    self.rhs[i] -= cell.area * (g[k][1] * v[0] - g[k][0] * v[1]);
+                }
+            }
+        }
+        cholesky_solve(&self.factor, n, &mut self.rhs);
+        for (node, cell) in self.cells.iter().enumerate() {
+            let psi = cell.stream.map(|i| if i == NONE { 0.0 } else { self.rhs[i] });
+            for e in 0..3 {
+                // The flux of curl ψ through the edge from corner e to e + 1.
+                let f = self.flux[node][e] + psi[(e + 1) % 3] - psi[e];
+                tau.edge_flux[cell.index][e] += f;
+            }
+        }
+    }
+}
+
+impl Link {
+    /// The far side of the link from `node`.
+    fn other(&self, node: usize) -> (usize, usize) {
+        self.sides(node).1
+    }
+
+    /// (the side at `node`, the other side).
+    fn sides(&self, node: usize) -> ((usize, usize), (usize, usize)) {
+        if self.0[0].0 == node {
+            (self.0[0], self.0[1])
+        } else {
+            (self.0[1], self.0[0])
+        }
+    }
+}
+
+/// An RT0 field at the centroid of a cell, from its outward fluxes (edge e from corner e to
+/// e + 1, basis function (x − p_{e+2}) / (2|κ|)).
+pub fn at_centroid(p: &[[f64; 2]; 3], area: f64, flux: &[f64; 3]) -> [f64; 2] {
+    let c = [0, 1].map(|i| (p[0][i] + p[1][i] + p[2][i]) / 3.0);
+    [0, 1].map(|i| (0..3).map(|e| flux[e] * (c[i] - p[(e + 2) % 3][i])).sum::<f64>() / (2.0 * area))
+}
+
+/// In-place Cholesky factorization LLᵀ of the SPD n×n row-major matrix `m` (lower triangle).
+fn cholesky(m: &mut [f64], n: usize) {
+    for j in 0..n {
+        let d = m[j * n + j] - (0..j).map(|k| m[j * n + k] * m[j * n + k]).sum::<f64>();
+        debug_assert!(d > 0.0, "the stream-function system is positive definite");
+        let d = d.sqrt();
+        m[j * n + j] = d;
+        for i in j + 1..n {
+            let s = m[i * n + j] - (0..j).map(|k| m[i * n + k] * m[j * n + k]).sum::<f64>();
+            m[i * n + j] = s / d;
+        }
+    }
+}
+
+/// Solves LLᵀx = b in place with the factor of [`cholesky`].
+fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
+    for i in 0..n {
+        b[i] = (b[i] - (0..i).map(|k| l[i * n + k] * b[k]).sum::<f64>()) / l[i * n + i];
+    }
+    for i in (0..n).rev() {
+        b[i] = (b[i] - (i + 1..n).map(|k| l[k * n + i] * b[k]).sum::<f64>()) / l[i * n + i];
+    }
+}
