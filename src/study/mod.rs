@@ -31,6 +31,8 @@ pub struct Level {
     pub vertices: usize,
     /// The errors, for a case with an exact solution.
     pub errors: Option<Errors>,
+    /// The guaranteed bound η of the energy error (docs/a-posteriori.md).
+    pub estimator: Option<f64>,
     /// Active-set iterations with nested iteration (warm start from the previous level).
     pub iterations: usize,
     /// Active-set iterations from a cold start (no contact), when asked for.
@@ -40,6 +42,11 @@ pub struct Level {
 }
 
 impl Level {
+    /// η / |||u − u_h|||, when both are known.
+    pub fn effectivity(&self) -> Option<f64> {
+        Some(self.estimator? / self.errors.as_ref()?.energy?)
+    }
+
     /// The level's first column: its refinements in a study by refinement, else its cells.
     fn column(&self) -> &'static str {
         if self.refine.is_some() {
@@ -251,6 +258,7 @@ pub fn run_levels(
             h: r.problem.mesh.h(),
             vertices: r.problem.mesh.n_vertices(),
             errors: r.errors.clone(),
+            estimator: r.estimate.as_ref().map(|e| e.total),
             iterations: stats.iterations,
             cold_iterations,
             seconds: stats.wall_seconds + r.timings.assembly + r.timings.mesh,
@@ -283,6 +291,7 @@ pub(crate) fn quantities(level: &Level) -> Vec<(&'static str, &'static str, Opti
         ("|u1−u1h|_H1", "h1_u1", e.and_then(|e| e.h1_u1)),
         ("|u2−u2h|_H1", "h1_u2", e.and_then(|e| e.h1_u2)),
         ("energy", "energy", e.and_then(|e| e.energy)),
+        ("η (bound of energy)", "estimator", level.estimator),
         ("‖u1−u1h‖_L2", "l2_u1", e.map(|e| e.l2_u1)),
         ("‖u2−u2h‖_L2", "l2_u2", e.map(|e| e.l2_u2)),
         ("‖λ−λh‖_L2", "l2_lambda", e.map(|e| e.l2_lambda)),
@@ -322,8 +331,8 @@ pub fn markdown_table(title: &str, levels: &[Level]) -> String {
     for n in &names {
         let _ = write!(s, " {n} |{eoc_header}");
     }
-    s += " iterations (nested) | iterations (cold) | seconds |\n|";
-    s += &"---|".repeat(3 + eoc_columns * names.len() + 3);
+    s += " effectivity η/energy | iterations (nested) | iterations (cold) | seconds |\n|";
+    s += &"---|".repeat(3 + eoc_columns * names.len() + 4);
     s += "\n";
     for (i, l) in levels.iter().enumerate() {
         let _ = write!(s, "| {} | {:.4e} | {} |", l.label(), l.h, l.vertices);
@@ -346,7 +355,8 @@ pub fn markdown_table(title: &str, levels: &[Level]) -> String {
         }
         let _ = writeln!(
             s,
-            " {} | {} | {:.3} |",
+            " {} | {} | {} | {:.3} |",
+            l.effectivity().map_or("—".into(), |x| format!("{x:.3}")),
             l.iterations,
             l.cold_iterations.map_or("—".into(), |c| c.to_string()),
             l.seconds
@@ -363,7 +373,7 @@ pub fn csv(levels: &[Level]) -> String {
             let _ = write!(s, ",{name},eoc_{name}");
         }
     }
-    s += ",iterations,cold_iterations,seconds\n";
+    s += ",effectivity,iterations,cold_iterations,seconds\n";
     for (i, l) in levels.iter().enumerate() {
         let size = l.refine.or(l.cells).map_or(String::new(), |k| k.to_string());
         let _ = write!(s, "{size},{:e},{}", l.h, l.vertices);
@@ -379,7 +389,8 @@ pub fn csv(levels: &[Level]) -> String {
             );
         }
         let cold = l.cold_iterations.map_or(String::new(), |c| c.to_string());
-        let _ = writeln!(s, ",{},{cold},{:.4}", l.iterations, l.seconds);
+        let effectivity = l.effectivity().map_or(String::new(), |x| format!("{x:.4}"));
+        let _ = writeln!(s, ",{effectivity},{},{cold},{:.4}", l.iterations, l.seconds);
     }
     s
 }
