@@ -46,6 +46,8 @@ struct CaseFile {
     solver: SolverTable,
     #[serde(default)]
     validation: Option<ValidationTable>,
+    #[serde(default)]
+    adapt: AdaptTable,
 }
 
 /// An expression: a string in the case language, or a plain number.
@@ -180,6 +182,59 @@ message_error!(
     CaseError
 );
 
+/// The `[adapt]` table: the settings of `membrane-contact adapt`.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AdaptTable {
+    theta: Option<f64>,
+    target: Option<f64>,
+    max_vertices: Option<usize>,
+    steps: Option<usize>,
+}
+
+/// The settings of adaptive refinement (solve → estimate → mark → refine → …).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Adaptivity {
+    /// Dörfler's bulk parameter θ ∈ (0, 1]: the marked triangles carry at least θ of Σ η_K².
+    pub theta: f64,
+    /// Stop once η ≤ target.
+    pub target: Option<f64>,
+    /// Stop before a mesh with more vertices than this.
+    pub max_vertices: usize,
+    /// Stop after this many refinements.
+    pub steps: usize,
+}
+
+impl Default for Adaptivity {
+    fn default() -> Self {
+        Adaptivity {
+            theta: 0.5,
+            target: None,
+            max_vertices: 100_000,
+            steps: 40,
+        }
+    }
+}
+
+impl Adaptivity {
+    /// Checks the settings; `key` names each as the user gave it (a case key or a CLI option).
+    pub fn check(&self, key: impl Fn(&str) -> String) -> Result<(), String> {
+        if !(self.theta > 0.0 && self.theta <= 1.0) {
+            return Err(format!("{} = {}: θ must lie in (0, 1]", key("theta"), self.theta));
+        }
+        if let Some(t) = self.target.filter(|t| !(*t > 0.0 && t.is_finite())) {
+            return Err(format!("{} = {t}: the target estimate must be a positive number", key("target")));
+        }
+        if self.max_vertices == 0 {
+            return Err(format!("{} must be positive", key("max_vertices")));
+        }
+        if self.steps == 0 {
+            return Err(format!("{} must be at least 1", key("steps")));
+        }
+        Ok(())
+    }
+}
+
 /// A checked case: parsed expressions and settings.
 #[derive(Debug, Clone)]
 pub struct Case {
@@ -202,6 +257,8 @@ pub struct Case {
     pub refine: usize,
     /// The levels of `make validate` and studies, when the case names them.
     pub validation: Option<Levels>,
+    /// The settings of `adapt`.
+    pub adapt: Adaptivity,
     /// The case file, when read from one.
     path: Option<PathBuf>,
     base_dir: PathBuf,
@@ -283,6 +340,14 @@ impl Case {
             .map(|v| validation_levels(v, &mesh))
             .transpose()
             .map_err(err)?;
+        let defaults = Adaptivity::default();
+        let adapt = Adaptivity {
+            theta: file.adapt.theta.unwrap_or(defaults.theta),
+            target: file.adapt.target,
+            max_vertices: file.adapt.max_vertices.unwrap_or(defaults.max_vertices),
+            steps: file.adapt.steps.unwrap_or(defaults.steps),
+        };
+        adapt.check(|k| format!("key 'adapt.{k}'")).map_err(err)?;
         Ok(Case {
             origin: origin.to_string(),
             text: text.to_string(),
@@ -295,6 +360,7 @@ impl Case {
             },
             refine: file.mesh.refine.unwrap_or(0),
             validation,
+            adapt,
             path: None,
             base_dir,
         })

@@ -12,7 +12,7 @@
 //! by [`assembly`]) → [`contact`] (its solution, by [`linear`] solves) → [`action`] (λ_h by the local
 //! postprocessing (4.5)) → [`norms`] and [`flux`] (the H(div) reconstruction (4.13)) → [`result`],
 //! put in place whole by [`atomic`]. [`run`] strings them together; [`study`] repeats a run over
-//! refined meshes.
+//! refined meshes; [`estimator`] bounds the error of a run, and [`adapt`] refines where it says.
 //!
 //! ## Glossary: the paper's symbols and their names here
 //!
@@ -53,6 +53,7 @@ macro_rules! message_error {
 }
 
 pub mod action;
+pub mod adapt;
 pub mod assembly;
 pub mod atomic;
 pub mod case;

@@ -78,6 +78,31 @@ enum Command {
         #[arg(short, long)]
         output: Option<PathBuf>,
     },
+    /// Adaptive refinement: solve, estimate the error per triangle, refine where it is large
+    /// (Dörfler marking, newest-vertex bisection), solve again warm-started, … (settings from the
+    /// case's `[adapt]` table unless given here).
+    Adapt {
+        /// Case file (TOML); the built-in default case when omitted.
+        case: Option<PathBuf>,
+        /// Cells per side of a built-in initial mesh (overrides the case; an error for other kinds).
+        #[arg(long)]
+        n: Option<usize>,
+        /// Dörfler's θ in (0, 1]: refine the fewest triangles carrying this share of η².
+        #[arg(long)]
+        theta: Option<f64>,
+        /// Stop once the estimate η is at most this.
+        #[arg(long)]
+        target: Option<f64>,
+        /// Stop before a mesh with more vertices than this.
+        #[arg(long)]
+        max_vertices: Option<usize>,
+        /// Stop after this many refinements.
+        #[arg(long)]
+        steps: Option<usize>,
+        /// The result directory; default adapt/<case name>.
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -111,6 +136,15 @@ fn main() -> ExitCode {
             let levels = levels.map(Levels::Cells).or(refine.map(Levels::Refine));
             study(case, levels, cold, grading, hminus1_max, output)
         }
+        Command::Adapt {
+            case,
+            n,
+            theta,
+            target,
+            max_vertices,
+            steps,
+            output,
+        } => adapt(case, n, (theta, target, max_vertices, steps), output),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
@@ -215,6 +249,34 @@ fn study(
     study::study(&case, &name, &options, &dir)?;
     println!(
         "study       {} (study.md, .csv, .json, errors.png, iterations*.png)",
+        dir.display()
+    );
+    Ok(())
+}
+
+fn adapt(
+    case_path: Option<PathBuf>,
+    n: Option<usize>,
+    (theta, target, max_vertices, steps): (Option<f64>, Option<f64>, Option<usize>, Option<usize>),
+    output: Option<PathBuf>,
+) -> Result<(), Failure> {
+    let (mut case, name) = read_case(&case_path)?;
+    if let Some(n) = n {
+        case.set_cells(n)
+            .map_err(|e| CaseError(format!("--n {n}: {e}")))?;
+    }
+    let mut settings = case.adapt;
+    settings.theta = theta.unwrap_or(settings.theta);
+    settings.target = target.or(settings.target);
+    settings.max_vertices = max_vertices.unwrap_or(settings.max_vertices);
+    settings.steps = steps.unwrap_or(settings.steps);
+    settings
+        .check(|k| format!("--{}", k.replace('_', "-")))
+        .map_err(CaseError)?;
+    let dir = output_dir(output, "adapt", &name)?;
+    membrane_contact::adapt::adapt(&case, &settings, &dir)?;
+    println!(
+        "adapt       {0} (adapt.md, .csv, .json, adapt.png; open {0}/adapt.xdmf in ParaView for every step)",
         dir.display()
     );
     Ok(())

@@ -252,13 +252,19 @@ fn write_hdf5(path: &Path, grids: &[Grid], fields: &[Field], attrs: &[Attribute]
 
 /// The XDMF description of a grid and its fields; the heavy data are in `solution.h5` beside it.
 fn xdmf<'a>(g: &Grid, fields: impl Iterator<Item = &'a Field<'a>>) -> String {
+    let grid = grid_element(g, fields, SOLUTION_H5, "");
+    format!("<?xml version=\"1.0\"?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n{grid}  </Domain>\n</Xdmf>\n")
+}
+
+/// The `<Grid>` element of a grid and its fields, the heavy data in the HDF5 file `h5`; `time`
+/// is an optional `<Time>` line.
+fn grid_element<'a>(g: &Grid, fields: impl Iterator<Item = &'a Field<'a>>, h5: &str, time: &str) -> String {
     let item = |dims: String, number: &str, path: String| {
         let precision = if number == "Int" { 4 } else { 8 };
-        format!("<DataItem Dimensions=\"{dims}\" NumberType=\"{number}\" Precision=\"{precision}\" Format=\"HDF\">{SOLUTION_H5}:{path}</DataItem>")
+        format!("<DataItem Dimensions=\"{dims}\" NumberType=\"{number}\" Precision=\"{precision}\" Format=\"HDF\">{h5}:{path}</DataItem>")
     };
     let (np, nc) = (g.points.len(), g.triangles.len());
-    let mut s = String::from("<?xml version=\"1.0\"?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n");
-    let _ = writeln!(s, "    <Grid Name=\"{}\" GridType=\"Uniform\">", g.name);
+    let mut s = format!("    <Grid Name=\"{}\" GridType=\"Uniform\">\n{time}", g.name);
     let _ = writeln!(
         s,
         "      <Topology TopologyType=\"Triangle\" NumberOfElements=\"{nc}\" NodesPerElement=\"3\">\n        {}\n      </Topology>",
@@ -278,6 +284,34 @@ fn xdmf<'a>(g: &Grid, fields: impl Iterator<Item = &'a Field<'a>>) -> String {
             item(len.to_string(), "Float", format!("/{}/{}", g.name, f.name))
         );
     }
-    s.push_str("    </Grid>\n  </Domain>\n</Xdmf>\n");
+    s.push_str("    </Grid>\n");
     s
+}
+
+/// The `<Grid>` element of T_h and its fields of a result written by [`write`] into the
+/// directory `dir` (relative to the time series file), at time `time`.
+pub fn step_grid(dir: &str, time: f64, mesh: &Mesh, fields: &[Field]) -> String {
+    let g = Grid {
+        name: "mesh",
+        xdmf: "",
+        points: &mesh.points,
+        triangles: &mesh.triangles,
+        places: &[Place::Vertices, Place::Cells],
+    };
+    let time = format!("      <Time Value=\"{time}\"/>\n");
+    let fields = fields.iter().filter(|f| g.places.contains(&f.place));
+    grid_element(&g, fields, &format!("{dir}/{SOLUTION_H5}"), &time)
+}
+
+/// Writes the XDMF time series of the `grids` of [`step_grid`] to `path`: ParaView opens the
+/// sequence of meshes and fields as one dataset with a time slider.
+pub fn time_series(path: &Path, grids: &[String]) -> Result<(), String> {
+    let mut s = String::from(
+        "<?xml version=\"1.0\"?>\n<Xdmf Version=\"3.0\">\n  <Domain>\n  <Grid Name=\"steps\" GridType=\"Collection\" CollectionType=\"Temporal\">\n",
+    );
+    for g in grids {
+        s += g;
+    }
+    s += "  </Grid>\n  </Domain>\n</Xdmf>\n";
+    std::fs::write(path, s).map_err(|e| format!("{}: {e}", path.display()))
 }

@@ -8,7 +8,7 @@ use crate::case::{Case, CaseError};
 use crate::contact::{self, Solution, SolveError, Start};
 use crate::estimator::Estimate;
 use crate::flux::Fluxes;
-use crate::mesh::DualMesh;
+use crate::mesh::{DualMesh, Mesh};
 use crate::norms::Errors;
 use crate::problem::DiscreteProblem;
 use crate::result::{self, Attribute, Describe, Field, Place};
@@ -73,10 +73,22 @@ pub fn solve<'c>(case: &'c Case, options: &Options, target: &Path) -> Result<Run
 
 /// Computes a run without writing it.
 pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
-    let mut clock = Clock(Instant::now());
+    let clock = Instant::now();
     let (mesh, coarser) = case.hierarchy(matches!(options.start, Start::Nested))?;
     case.check_on(&mesh)?;
-    let mesh_seconds = clock.lap();
+    on_mesh(case, mesh, coarser, options, clock.elapsed().as_secs_f64())
+}
+
+/// Computes a run on `mesh` (built in `mesh_seconds`), with the `coarser` meshes of nested
+/// iteration.
+pub fn on_mesh<'c>(
+    case: &'c Case,
+    mesh: Mesh,
+    coarser: Vec<Mesh>,
+    options: &Options,
+    mesh_seconds: f64,
+) -> Result<Run<'c>, RunError> {
+    let mut clock = Clock(Instant::now());
     let problem =
         DiscreteProblem::new(mesh, &case.data).map_err(|e| CaseError(format!("{}: {e}", case.origin)))?;
     let assembly = clock.lap();

@@ -7,7 +7,7 @@
 //! EOCs are computed against h (the largest triangle diameter) and against N^(−1/2) (N the number
 //! of vertices); the second is the fair measure for graded meshes (Remark 10).
 
-mod plot;
+pub(crate) mod plot;
 
 use crate::atomic::{OutputError, Staging};
 use crate::case::{Case, CaseError, Levels};

@@ -1,4 +1,5 @@
-//! The plots of a study: errors against N^(−1/2) with reference slopes, and iterations per level.
+//! The plots of a study: errors against N^(−1/2) with reference slopes, and iterations per level;
+//! the log-log plot is shared with adaptive refinement.
 
 use super::{quantities, Level};
 use plotters::coord::ranged1d::Ranged;
@@ -64,7 +65,6 @@ fn register_font() -> Result<(), String> {
 /// A log-log plot of the errors against N^(−1/2) for one or more studies (labelled series), with
 /// reference slopes 1 and 2.
 pub fn errors(path: &Path, title: &str, studies: &[(String, &[Level])]) -> Result<(), String> {
-    register_font()?;
     let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     for (label, levels) in studies {
         let Some(first) = levels.first() else { continue };
@@ -84,6 +84,12 @@ pub fn errors(path: &Path, title: &str, studies: &[(String, &[Level])]) -> Resul
             }
         }
     }
+    loglog(path, title, &series, &[1.0, 2.0])
+}
+
+/// A log-log plot of labelled series of (N^(−1/2), value) with reference lines of the given slopes.
+pub(crate) fn loglog(path: &Path, title: &str, series: &[(String, Vec<(f64, f64)>)], slopes: &[f64]) -> Result<(), String> {
+    register_font()?;
     if series.is_empty() {
         return Ok(());
     }
@@ -115,16 +121,14 @@ pub fn errors(path: &Path, title: &str, studies: &[(String, &[Level])]) -> Resul
     for (i, (name, points)) in series.iter().enumerate() {
         marked_line(&mut chart, name, points, Palette99::pick(i).to_rgba())?;
     }
-    for (slope, style) in [
-        (1.0, BLACK.stroke_width(1)),
-        (2.0, BLACK.mix(0.5).stroke_width(1)),
-    ] {
+    for (k, &slope) in slopes.iter().enumerate() {
+        let style = BLACK.mix(1.0 - 0.5 * k as f64 / slopes.len() as f64).stroke_width(1);
         let anchor = y1;
         let line = vec![(x1, anchor), (x0, anchor * (x0 / x1).powf(slope))];
         chart
             .draw_series(LineSeries::new(line, style))
             .map_err(|e| err(&e))?
-            .label(format!("slope {slope}"))
+            .label(format!("slope {slope:.3}"))
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
     }
     finish(&mut chart, SeriesLabelPosition::LowerRight).map_err(|e| format!("{}: {e}", path.display()))

@@ -1,0 +1,330 @@
+//! Adaptive refinement, the a posteriori estimator put to work:
+//!
+//! ```text
+//! solve → estimate (η_K per triangle) → mark (Dörfler: the fewest triangles with Σ η_K² ≥ θ η²)
+//!       → refine (conforming newest-vertex bisection, new boundary vertices on the curves of ∂ω)
+//!       → solve, warm-started from the previous mesh's gap and active set → …
+//! ```
+//!
+//! until η ≤ the target, the next mesh would exceed the vertex budget, or the steps run out. Each
+//! step's result is a result directory of its own; `adapt.xdmf` shows them in ParaView as one time
+//! series, `adapt.md`/`.csv`/`.json` tabulate the steps beside uniform refinement of the same case,
+//! and `adapt.png` plots η and the error against N for both.
+
+use crate::atomic::{OutputError, Staging};
+use crate::case::{Adaptivity, Case};
+use crate::contact::Start;
+use crate::mesh::Mesh;
+use crate::result::{self, Describe};
+use crate::run::{self, Run, RunError};
+use crate::study::plot;
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::Path;
+use std::time::Instant;
+
+/// One step of the adaptive loop (or one level of uniform refinement).
+#[derive(Debug, Clone, Serialize)]
+pub struct Step {
+    /// Vertices N.
+    pub vertices: usize,
+    /// Triangles.
+    pub triangles: usize,
+    /// Triangles marked for refinement (none on the last step).
+    pub marked: usize,
+    /// η.
+    pub estimator: f64,
+    /// |||u − u_h|||, for a case with an exact solution.
+    pub error: Option<f64>,
+    /// Active-set iterations.
+    pub iterations: usize,
+    /// Seconds of refinement, assembly, solve and estimate.
+    pub seconds: f64,
+}
+
+impl Step {
+    fn new(r: &Run, marked: usize, seconds: f64) -> Step {
+        let mesh = &r.problem.mesh;
+        Step {
+            vertices: mesh.n_vertices(),
+            triangles: mesh.triangles.len(),
+            marked,
+            estimator: r.estimate.as_ref().expect("estimated").total,
+            error: r.errors.as_ref().and_then(|e| e.energy),
+            iterations: r.solution.obstacle.stats.iterations,
+            seconds,
+        }
+    }
+
+    /// η / |||u − u_h|||.
+    pub fn effectivity(&self) -> Option<f64> {
+        Some(self.estimator / self.error?)
+    }
+}
+
+/// The adaptive steps and the uniform levels of a run of `adapt`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Adapted {
+    /// The steps of the adaptive loop.
+    pub adaptive: Vec<Step>,
+    /// Uniform refinement of the initial mesh, up to about the final adaptive N.
+    pub uniform: Vec<Step>,
+}
+
+/// Dörfler marking: the fewest triangles (largest indicators first) whose η_K² sum to at least
+/// θ Σ η_K².
+pub fn dorfler(indicator: &[f64], theta: f64) -> Vec<bool> {
+    let mut order: Vec<usize> = (0..indicator.len()).collect();
+    order.sort_unstable_by(|&a, &b| indicator[b].total_cmp(&indicator[a]).then(a.cmp(&b)));
+    let total: f64 = indicator.iter().map(|x| x * x).sum();
+    let mut marked = vec![false; indicator.len()];
+    let mut sum = 0.0;
+    for t in order {
+        if sum >= theta * total {
+            break;
+        }
+        marked[t] = true;
+        sum += indicator[t] * indicator[t];
+    }
+    marked
+}
+
+/// Runs the adaptive loop on `case` with `settings` and writes everything into the directory
+/// `target`, whole or not at all.
+pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapted, RunError> {
+    let inputs = case.inputs();
+    let staging = Staging::new(target, &inputs, "adapt")?;
+    let options = |start| run::Options {
+        start,
+        hminus1: false,
+        flux: false,
+        estimate: true,
+    };
+    let curves = case.curves();
+    let mut clock = Instant::now();
+    let mut r = run::run(case, &options(Start::Nested))?;
+    let mut adaptive = Vec::new();
+    let mut grids = Vec::new();
+    for step in 0.. {
+        let eta = r.estimate.as_ref().expect("estimated").total;
+        let done = step == settings.steps || settings.target.is_some_and(|t| eta <= t);
+        let marked = if done {
+            None
+        } else {
+            let marks = dorfler(&r.estimate.as_ref().expect("estimated").indicator, settings.theta);
+            let labelled = if step == 0 {
+                r.problem.mesh.longest_edge_labelled()
+            } else {
+                r.problem.mesh.clone()
+            };
+            let fine = labelled.bisected(&marks, &curves).map_err(|e| mesh_error(case, &e))?;
+            let count = marks.iter().filter(|&&m| m).count();
+            (fine.n_vertices() <= settings.max_vertices).then_some((fine, count))
+        };
+        let seconds = clock.elapsed().as_secs_f64();
+        adaptive.push(Step::new(&r, marked.as_ref().map_or(0, |m| m.1), seconds));
+        progress(&adaptive);
+        let dir = format!("step-{step:03}");
+        write_step(&staging, &dir, &r)?;
+        grids.push(result::step_grid(&dir, step as f64, &r.problem.mesh, &r.fields()));
+        let Some((fine, _)) = marked else { break };
+        clock = Instant::now();
+        let start = Start::From {
+            mesh: &r.problem.mesh,
+            obstacle: &r.solution.obstacle,
+        };
+        let next = run::on_mesh(case, fine, Vec::new(), &options(start), 0.0)?;
+        r = next;
+    }
+    let last = adaptive.last().map_or(0, |s| s.vertices);
+    let uniform = uniform(case, last)?;
+    let dir = staging.path();
+    result::time_series(&dir.join("adapt.xdmf"), &grids).map_err(OutputError)?;
+    let adapted = Adapted { adaptive, uniform };
+    write_text(&dir.join("adapt.md"), &markdown(case, settings, &adapted))?;
+    write_text(&dir.join("adapt.csv"), &csv(&adapted))?;
+    let json = serde_json::to_string_pretty(&adapted).expect("steps serialise");
+    write_text(&dir.join("adapt.json"), &json)?;
+    plot::loglog(
+        &dir.join("adapt.png"),
+        &format!("{}: adaptive and uniform refinement", case.title),
+        &series(&adapted),
+        &[1.0, 2.0 / 3.0],
+    )
+    .map_err(OutputError)?;
+    staging.commit(&inputs)?;
+    Ok(adapted)
+}
+
+/// A mesh the bisection refused, named with the case.
+fn mesh_error(case: &Case, e: &dyn std::fmt::Display) -> RunError {
+    crate::case::CaseError(format!("{}: cannot refine the mesh by bisection: {e}", case.origin)).into()
+}
+
+/// Writes one step's result directory inside the staging directory.
+fn write_step(staging: &Staging, dir: &str, r: &Run) -> Result<(), RunError> {
+    let path = staging.path().join(dir);
+    std::fs::create_dir(&path).map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
+    result::write(&path, &r.problem.mesh, &r.dual, &r.fields(), &r.attributes())
+        .map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
+    Ok(())
+}
+
+/// Uniform refinement of the case's mesh, each level warm-started, up to `vertices` vertices.
+fn uniform(case: &Case, vertices: usize) -> Result<Vec<Step>, RunError> {
+    let curves = case.curves();
+    let mut out: Vec<Step> = Vec::new();
+    let mut previous: Option<Run> = None;
+    let mut mesh: Mesh = case.hierarchy(false)?.0;
+    loop {
+        let clock = Instant::now();
+        let start = previous.as_ref().map_or(Start::Nested, |p| Start::From {
+            mesh: &p.problem.mesh,
+            obstacle: &p.solution.obstacle,
+        });
+        let options = run::Options {
+            start,
+            hminus1: false,
+            flux: false,
+            estimate: true,
+        };
+        let r = match &previous {
+            None => run::run(case, &options)?,
+            Some(_) => run::on_mesh(case, mesh.clone(), Vec::new(), &options, 0.0)?,
+        };
+        out.push(Step::new(&r, 0, clock.elapsed().as_secs_f64()));
+        let fine = r.problem.mesh.refined(&curves).map_err(|e| mesh_error(case, &e))?;
+        if fine.n_vertices() > vertices.max(out[0].vertices) * 2 {
+            return Ok(out);
+        }
+        mesh = fine;
+        previous = Some(r);
+    }
+}
+
+/// Prints a step as it finishes.
+fn progress(steps: &[Step]) {
+    let s = steps.last().expect("a step");
+    println!(
+        "step {:3}  N = {:8}  η = {:.4e}{}  iterations {}  marked {}  {:.2} s",
+        steps.len() - 1,
+        s.vertices,
+        s.estimator,
+        s.error.map_or(String::new(), |e| format!("  error {e:.4e}  η/error {:.3}", s.estimator / e)),
+        s.iterations,
+        s.marked,
+        s.seconds
+    );
+}
+
+/// The fitted slope of log value against log N^(−1/2) over the last steps spanning at least one
+/// decade of N (all steps if they span less).
+pub fn rate(steps: &[Step], value: impl Fn(&Step) -> Option<f64>) -> Option<f64> {
+    let last = steps.last()?.vertices as f64;
+    let from = steps.iter().position(|s| (s.vertices as f64) * 10.0 >= last).unwrap_or(0);
+    let from = if from > 0 { from - 1 } else { 0 };
+    let points: Vec<(f64, f64)> = steps[from..]
+        .iter()
+        .filter_map(|s| Some((-0.5 * (s.vertices as f64).ln(), value(s)?.ln())))
+        .collect();
+    if points.len() < 2 {
+        return None;
+    }
+    let n = points.len() as f64;
+    let (mx, my) = points.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0 / n, a.1 + p.1 / n));
+    let (sxy, sxx) = points
+        .iter()
+        .fold((0.0, 0.0), |a, p| (a.0 + (p.0 - mx) * (p.1 - my), a.1 + (p.0 - mx).powi(2)));
+    Some(sxy / sxx)
+}
+
+fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted) -> String {
+    let mut s = format!(
+        "# Adaptive refinement: {} ({})\n\nDörfler marking with θ = {}, newest-vertex bisection; \
+         η is the guaranteed bound of the energy error (docs/a-posteriori.md).\n\n",
+        case.title, case.origin, settings.theta
+    );
+    for (title, steps) in [("Adaptive", &a.adaptive), ("Uniform", &a.uniform)] {
+        let _ = writeln!(
+            s,
+            "## {title}\n\n| step | vertices | triangles | marked | η | error | η/error | iterations | seconds |\n|---|---|---|---|---|---|---|---|---|"
+        );
+        for (k, st) in steps.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "| {k} | {} | {} | {} | {:.4e} | {} | {} | {} | {:.3} |",
+                st.vertices,
+                st.triangles,
+                st.marked,
+                st.estimator,
+                st.error.map_or("—".into(), |e| format!("{e:.4e}")),
+                st.effectivity().map_or("—".into(), |x| format!("{x:.3}")),
+                st.iterations,
+                st.seconds
+            );
+        }
+        let slope = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.3}"));
+        let _ = writeln!(
+            s,
+            "\nFitted rate against N^(−1/2) over the last decade of N: η {}, error {}.\n",
+            slope(rate(steps, |st| Some(st.estimator))),
+            slope(rate(steps, |st| st.error))
+        );
+    }
+    s += "![η and error against N](adapt.png)\n\nOpen `adapt.xdmf` in ParaView (Xdmf3 reader) for the meshes and fields of every step.\n";
+    s
+}
+
+fn csv(a: &Adapted) -> String {
+    let mut s = String::from("refinement,step,vertices,triangles,marked,estimator,error,effectivity,iterations,seconds\n");
+    for (name, steps) in [("adaptive", &a.adaptive), ("uniform", &a.uniform)] {
+        for (k, st) in steps.iter().enumerate() {
+            let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:e}"));
+            let _ = writeln!(
+                s,
+                "{name},{k},{},{},{},{:e},{},{},{},{:.4}",
+                st.vertices,
+                st.triangles,
+                st.marked,
+                st.estimator,
+                opt(st.error),
+                opt(st.effectivity()),
+                st.iterations,
+                st.seconds
+            );
+        }
+    }
+    s
+}
+
+/// η and the error against N^(−1/2), adaptive and uniform.
+fn series(a: &Adapted) -> Vec<(String, Vec<(f64, f64)>)> {
+    let mut out = Vec::new();
+    for (name, steps) in [("adaptive", &a.adaptive), ("uniform", &a.uniform)] {
+        let x = |s: &Step| (s.vertices as f64).powf(-0.5);
+        out.push((format!("{name}: η"), steps.iter().map(|s| (x(s), s.estimator)).collect()));
+        let errors: Vec<(f64, f64)> = steps.iter().filter_map(|s| Some((x(s), s.error?))).collect();
+        if !errors.is_empty() {
+            out.push((format!("{name}: error"), errors));
+        }
+    }
+    out
+}
+
+fn write_text(path: &Path, text: &str) -> Result<(), OutputError> {
+    std::fs::write(path, text).map_err(|e| OutputError(format!("{}: {e}", path.display())))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn dorfler_marks_the_fewest_largest() {
+        let eta = [1.0, 3.0, 2.0, 0.5];
+        // η² = 1, 9, 4, 0.25 (sum 14.25): θ = 0.5 needs 7.125 → {3.0}; θ = 0.7 → {3.0, 2.0}.
+        assert_eq!(dorfler(&eta, 0.5), [false, true, false, false]);
+        assert_eq!(dorfler(&eta, 0.7), [false, true, true, false]);
+        assert_eq!(dorfler(&eta, 1.0), [true; 4]);
+    }
+}
