@@ -1,8 +1,9 @@
 //! Conforming triangulations T_h of a polygon ω: the checks that make a set of triangles one,
 //! the boundary ∂ω, built-in meshes ([`builtin`]), meshes of polygons and disks ([`domain`]),
-//! mesh files ([`file`](mod@file)), uniform refinement ([`refine`]), the dual submesh S_h
-//! ([`dual`]) and P1 transfer between meshes ([`transfer`]).
+//! mesh files ([`file`](mod@file)), uniform refinement ([`refine`]), newest-vertex bisection
+//! ([`bisect`]), the dual submesh S_h ([`dual`]) and P1 transfer between meshes ([`transfer`]).
 
+pub mod bisect;
 mod buckets;
 pub mod builtin;
 pub mod domain;
