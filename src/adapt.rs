@@ -94,15 +94,9 @@ pub fn dorfler(indicator: &[f64], theta: f64) -> Vec<bool> {
 pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapted, RunError> {
     let inputs = case.inputs();
     let staging = Staging::new(target, &inputs, "adapt")?;
-    let options = |start| run::Options {
-        start,
-        hminus1: false,
-        flux: false,
-        estimate: true,
-    };
     let curves = case.curves();
     let mut clock = Instant::now();
-    let mut r = run::run(case, &options(Start::Nested))?;
+    let mut r = run::run(case, &estimating(Start::Nested))?;
     let mut adaptive = Vec::new();
     let mut grids = Vec::new();
     for step in 0.. {
@@ -117,7 +111,9 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
             } else {
                 r.problem.mesh.clone()
             };
-            let fine = labelled.bisected(&marks, &curves).map_err(|e| mesh_error(case, &e))?;
+            let fine = labelled
+                .bisected(&marks, &curves)
+                .map_err(|e| mesh_error(case, &e))?;
             let count = marks.iter().filter(|&&m| m).count();
             (fine.n_vertices() <= settings.max_vertices).then_some((fine, count))
         };
@@ -133,7 +129,7 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
             mesh: &r.problem.mesh,
             obstacle: &r.solution.obstacle,
         };
-        let next = run::on_mesh(case, fine, Vec::new(), &options(start), 0.0)?;
+        let next = run::on_mesh(case, fine, Vec::new(), &estimating(start), 0.0)?;
         r = next;
     }
     let last = adaptive.last().map_or(0, |s| s.vertices);
@@ -156,9 +152,23 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
     Ok(adapted)
 }
 
+/// A run with the estimator.
+fn estimating(start: Start) -> run::Options {
+    run::Options {
+        start,
+        hminus1: false,
+        flux: false,
+        estimate: true,
+    }
+}
+
 /// A mesh the bisection refused, named with the case.
 fn mesh_error(case: &Case, e: &dyn std::fmt::Display) -> RunError {
-    crate::case::CaseError(format!("{}: cannot refine the mesh by bisection: {e}", case.origin)).into()
+    crate::case::CaseError(format!(
+        "{}: cannot refine the mesh by bisection: {e}",
+        case.origin
+    ))
+    .into()
 }
 
 /// Writes one step's result directory inside the staging directory.
@@ -182,18 +192,16 @@ fn uniform(case: &Case, vertices: usize) -> Result<Vec<Step>, RunError> {
             mesh: &p.problem.mesh,
             obstacle: &p.solution.obstacle,
         });
-        let options = run::Options {
-            start,
-            hminus1: false,
-            flux: false,
-            estimate: true,
-        };
         let r = match &previous {
-            None => run::run(case, &options)?,
-            Some(_) => run::on_mesh(case, mesh.clone(), Vec::new(), &options, 0.0)?,
+            None => run::run(case, &estimating(start))?,
+            Some(_) => run::on_mesh(case, mesh.clone(), Vec::new(), &estimating(start), 0.0)?,
         };
         out.push(Step::new(&r, 0, clock.elapsed().as_secs_f64()));
-        let fine = r.problem.mesh.refined(&curves).map_err(|e| mesh_error(case, &e))?;
+        let fine = r
+            .problem
+            .mesh
+            .refined(&curves)
+            .map_err(|e| mesh_error(case, &e))?;
         if fine.n_vertices() > vertices.max(out[0].vertices) * 2 {
             return Ok(out);
         }
@@ -210,31 +218,38 @@ fn progress(steps: &[Step]) {
         steps.len() - 1,
         s.vertices,
         s.estimator,
-        s.error.map_or(String::new(), |e| format!("  error {e:.4e}  η/error {:.3}", s.estimator / e)),
+        s.error.map_or(String::new(), |e| format!(
+            "  error {e:.4e}  η/error {:.3}",
+            s.estimator / e
+        )),
         s.iterations,
         s.marked,
         s.seconds
     );
 }
 
-/// The fitted slope of log value against log N^(−1/2) over the last steps spanning at least one
-/// decade of N (all steps if they span less).
+/// The rate s of value ∝ N^(−s): the least-squares slope of −log value against log N over the
+/// steps of the last two decades of N (all steps if they span less).
 pub fn rate(steps: &[Step], value: impl Fn(&Step) -> Option<f64>) -> Option<f64> {
     let last = steps.last()?.vertices as f64;
-    let from = steps.iter().position(|s| (s.vertices as f64) * 10.0 >= last).unwrap_or(0);
-    let from = if from > 0 { from - 1 } else { 0 };
-    let points: Vec<(f64, f64)> = steps[from..]
+    let from = steps
         .iter()
-        .filter_map(|s| Some((-0.5 * (s.vertices as f64).ln(), value(s)?.ln())))
+        .position(|s| (s.vertices as f64) * 100.0 >= last)
+        .unwrap_or(0);
+    let points: Vec<(f64, f64)> = steps[from.saturating_sub(1)..]
+        .iter()
+        .filter_map(|s| Some(((s.vertices as f64).ln(), -value(s)?.ln())))
         .collect();
     if points.len() < 2 {
         return None;
     }
     let n = points.len() as f64;
-    let (mx, my) = points.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0 / n, a.1 + p.1 / n));
-    let (sxy, sxx) = points
+    let (mx, my) = points
         .iter()
-        .fold((0.0, 0.0), |a, p| (a.0 + (p.0 - mx) * (p.1 - my), a.1 + (p.0 - mx).powi(2)));
+        .fold((0.0, 0.0), |a, p| (a.0 + p.0 / n, a.1 + p.1 / n));
+    let (sxy, sxx) = points.iter().fold((0.0, 0.0), |a, p| {
+        (a.0 + (p.0 - mx) * (p.1 - my), a.1 + (p.0 - mx).powi(2))
+    });
     Some(sxy / sxx)
 }
 
@@ -266,7 +281,7 @@ fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted) -> String {
         let slope = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.3}"));
         let _ = writeln!(
             s,
-            "\nFitted rate against N^(−1/2) over the last decade of N: η {}, error {}.\n",
+            "\nRate s of ∝ N^(−s), fitted over the last two decades of N: η {}, error {} (optimal for P1: 0.5).\n",
             slope(rate(steps, |st| Some(st.estimator))),
             slope(rate(steps, |st| st.error))
         );
@@ -276,7 +291,9 @@ fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted) -> String {
 }
 
 fn csv(a: &Adapted) -> String {
-    let mut s = String::from("refinement,step,vertices,triangles,marked,estimator,error,effectivity,iterations,seconds\n");
+    let mut s = String::from(
+        "refinement,step,vertices,triangles,marked,estimator,error,effectivity,iterations,seconds\n",
+    );
     for (name, steps) in [("adaptive", &a.adaptive), ("uniform", &a.uniform)] {
         for (k, st) in steps.iter().enumerate() {
             let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:e}"));
@@ -302,7 +319,10 @@ fn series(a: &Adapted) -> Vec<(String, Vec<(f64, f64)>)> {
     let mut out = Vec::new();
     for (name, steps) in [("adaptive", &a.adaptive), ("uniform", &a.uniform)] {
         let x = |s: &Step| (s.vertices as f64).powf(-0.5);
-        out.push((format!("{name}: η"), steps.iter().map(|s| (x(s), s.estimator)).collect()));
+        out.push((
+            format!("{name}: η"),
+            steps.iter().map(|s| (x(s), s.estimator)).collect(),
+        ));
         let errors: Vec<(f64, f64)> = steps.iter().filter_map(|s| Some((x(s), s.error?))).collect();
         if !errors.is_empty() {
             out.push((format!("{name}: error"), errors));
@@ -326,5 +346,26 @@ mod tests {
         assert_eq!(dorfler(&eta, 0.5), [false, true, false, false]);
         assert_eq!(dorfler(&eta, 0.7), [false, true, true, false]);
         assert_eq!(dorfler(&eta, 1.0), [true; 4]);
+    }
+
+    #[test]
+    fn the_rate_of_a_power_law_is_its_exponent() {
+        let steps: Vec<Step> = (0..12)
+            .map(|k| {
+                let vertices = 10 * 2_usize.pow(k);
+                Step {
+                    vertices,
+                    triangles: 2 * vertices,
+                    marked: 0,
+                    estimator: 3.0 * (vertices as f64).powf(-0.4),
+                    error: Some((vertices as f64).powf(-0.5)),
+                    iterations: 1,
+                    seconds: 0.0,
+                }
+            })
+            .collect();
+        assert!((rate(&steps, |s| Some(s.estimator)).unwrap() - 0.4).abs() < 1e-12);
+        assert!((rate(&steps, |s| s.error).unwrap() - 0.5).abs() < 1e-12);
+        assert_eq!(rate(&steps[..1], |s| s.error), None);
     }
 }

@@ -223,7 +223,10 @@ impl Adaptivity {
             return Err(format!("{} = {}: θ must lie in (0, 1]", key("theta"), self.theta));
         }
         if let Some(t) = self.target.filter(|t| !(*t > 0.0 && t.is_finite())) {
-            return Err(format!("{} = {t}: the target estimate must be a positive number", key("target")));
+            return Err(format!(
+                "{} = {t}: the target estimate must be a positive number",
+                key("target")
+            ));
         }
         if self.max_vertices == 0 {
             return Err(format!("{} must be positive", key("max_vertices")));

@@ -36,6 +36,17 @@ fn earlier_result(dir: &Path) -> PathBuf {
 /// Runs `solve` on `case_text` (with mesh files written by `setup`) into a directory holding an
 /// earlier result `out`; checks the failure and returns stderr.
 fn fails(case_text: &str, setup: impl Fn(&Path), extra: &[&str], output: Option<PathBuf>) -> String {
+    command_fails("solve", case_text, setup, extra, output)
+}
+
+/// As [`fails`], for the subcommand `command`.
+fn command_fails(
+    command: &str,
+    case_text: &str,
+    setup: impl Fn(&Path),
+    extra: &[&str],
+    output: Option<PathBuf>,
+) -> String {
     let dir = tempfile::tempdir().unwrap();
     setup(dir.path());
     let case = dir.path().join("case.toml");
@@ -44,7 +55,7 @@ fn fails(case_text: &str, setup: impl Fn(&Path), extra: &[&str], output: Option<
     let out = output.unwrap_or_else(|| earlier.clone());
     let before = listing(dir.path());
     let run = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
-        .arg("solve")
+        .arg(command)
         .arg(&case)
         .arg("-o")
         .arg(&out)
@@ -781,5 +792,45 @@ fn a_nan_exact_gradient_is_refused() {
     contains(
         &case_fails(&format!("{GOOD}{exact}{SQUARE}")),
         "an error norm is not finite",
+    );
+}
+
+/// `adapt` with settings it cannot use, from the case file or the command line.
+#[test]
+fn adapt_settings_out_of_range() {
+    let adapt = |table: &str, extra: &[&str]| {
+        command_fails("adapt", &format!("{GOOD}{SQUARE}{table}"), |_| {}, extra, None)
+    };
+    contains(
+        &adapt("[adapt]\ntheta = 0.0\n", &[]),
+        "key 'adapt.theta' = 0: θ must lie in (0, 1]",
+    );
+    contains(
+        &adapt("[adapt]\ntheta = 1.5\n", &[]),
+        "key 'adapt.theta' = 1.5: θ must lie in (0, 1]",
+    );
+    contains(
+        &adapt("", &["--theta=-0.2"]),
+        "--theta = -0.2: θ must lie in (0, 1]",
+    );
+    contains(
+        &adapt("[adapt]\ntarget = -1.0\n", &[]),
+        "key 'adapt.target' = -1: the target estimate must be a positive number",
+    );
+    contains(
+        &adapt("", &["--target", "0"]),
+        "--target = 0: the target estimate must be a positive number",
+    );
+    contains(
+        &adapt("", &["--max-vertices", "0"]),
+        "--max-vertices must be positive",
+    );
+    contains(
+        &adapt("[adapt]\nsteps = 0\n", &[]),
+        "key 'adapt.steps' must be at least 1",
+    );
+    contains(
+        &adapt("[adapt]\ntheta = 0.5\nbulk = 1\n", &[]),
+        "unknown field `bulk`",
     );
 }

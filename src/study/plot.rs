@@ -88,7 +88,12 @@ pub fn errors(path: &Path, title: &str, studies: &[(String, &[Level])]) -> Resul
 }
 
 /// A log-log plot of labelled series of (N^(−1/2), value) with reference lines of the given slopes.
-pub(crate) fn loglog(path: &Path, title: &str, series: &[(String, Vec<(f64, f64)>)], slopes: &[f64]) -> Result<(), String> {
+pub(crate) fn loglog(
+    path: &Path,
+    title: &str,
+    series: &[(String, Vec<(f64, f64)>)],
+    slopes: &[f64],
+) -> Result<(), String> {
     register_font()?;
     if series.is_empty() {
         return Ok(());
@@ -122,7 +127,9 @@ pub(crate) fn loglog(path: &Path, title: &str, series: &[(String, Vec<(f64, f64)
         marked_line(&mut chart, name, points, Palette99::pick(i).to_rgba())?;
     }
     for (k, &slope) in slopes.iter().enumerate() {
-        let style = BLACK.mix(1.0 - 0.5 * k as f64 / slopes.len() as f64).stroke_width(1);
+        let style = BLACK
+            .mix(1.0 - 0.5 * k as f64 / slopes.len() as f64)
+            .stroke_width(1);
         let anchor = y1;
         let line = vec![(x1, anchor), (x0, anchor * (x0 / x1).powf(slope))];
         chart
