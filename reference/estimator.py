@@ -35,7 +35,6 @@ import sys
 
 import basix
 import numpy as np
-import sympy as sp
 
 from . import common, expr
 
@@ -74,17 +73,50 @@ def barycentric(p, x):
     return out
 
 
-class Geometry:
-    """T_h, S_h, the edges of S_h and everything the estimators share."""
+def dual_submesh(P, T):
+    """S_h of Section 4.2, built here from T_h alone, in the layout the Rust code writes (/dual):
+    points = the vertices of T_h, the midpoints of its edges, the barycentres; six
+    counter-clockwise cells per triangle t of T_h, cells 6t + 2k = [v_k, m(v_k, v_k+1), g] and
+    6t + 2k + 1 = [v_k, g, m(v_k+2, v_k)], both owned by v_k. Returns (points, cells, owner,
+    th_edge): th_edge[s, e] = the edge (a, b) of T_h that edge e of cell s (from corner e to e + 1)
+    halves, or (-1, -1) for an edge inside a triangle of T_h."""
+    nv, nt = len(P), len(T)
+    e = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+    edges, inv = np.unique(e, axis=0, return_inverse=True)
+    mid_of = inv.reshape(3, nt).T  # mid_of[t, k]: the midpoint of (v_k, v_k+1)
+    pk = P[T]
+    Q = np.concatenate([P, 0.5 * (P[edges[:, 0]] + P[edges[:, 1]]), (pk[:, 0] + pk[:, 1] + pk[:, 2]) / 3.0])
+    S = np.empty((nt, 6, 3), np.int64)
+    th = -np.ones((nt, 6, 3, 2), np.int64)
+    centre = nv + len(edges) + np.arange(nt)
+    for k in range(3):
+        a, b, c = T[:, k], T[:, (k + 1) % 3], T[:, (k + 2) % 3]
+        S[:, 2 * k] = np.stack([a, nv + mid_of[:, k], centre], axis=1)
+        S[:, 2 * k + 1] = np.stack([a, centre, nv + mid_of[:, (k + 2) % 3]], axis=1)
+        th[:, 2 * k, 0] = np.stack([a, b], axis=1)
+        th[:, 2 * k + 1, 2] = np.stack([c, a], axis=1)
+    owner = np.repeat(T, 2, axis=1)
+    return Q, S.reshape(-1, 3), owner.ravel(), th.reshape(-1, 3, 2)
 
-    def __init__(self, r):
+
+class Geometry:
+    """T_h, S_h, the edges of S_h and everything the estimators share. S_h is built from T_h
+    (dual_submesh); a result's /dual must be the same submesh in the same order (checked:
+    `dual_mismatch`, the largest distance between corresponding corners, relative to the size
+    of the domain). `degree`: the quadrature rule used on the cells of S_h (basix's default)."""
+
+    def __init__(self, r, degree=DEGREE):
         self.P = r["points"][:, :2]
         self.T = r["cells"]
-        self.S = r["dual_cells"]
-        self.Q = r["dual_points"][:, :2]
-        self.owner = r["dual_owner"]
+        self.Q, self.S, self.owner, th_edge = dual_submesh(self.P, self.T)
         nt, ns, nv = len(self.T), len(self.S), len(self.P)
-        assert ns == 6 * nt
+        size = float(np.ptp(self.P, axis=0).max())
+        if "dual_cells" in r:
+            same = r["dual_cells"].shape == self.S.shape and np.array_equal(r["dual_owner"], self.owner)
+            self.dual_mismatch = (float(np.abs(r["dual_points"][:, :2][r["dual_cells"]] - self.Q[self.S]).max()) / size
+                                  if same else math.inf)
+        else:
+            self.dual_mismatch = 0.0
         self.tri = np.arange(ns) // 6  # the triangle K of T_h containing each cell of S_h
         self.pk = self.P[self.T]  # nt x 3 x 2
         self.area_K = 0.5 * orient(self.pk)
@@ -109,6 +141,9 @@ class Geometry:
         self.cell_sign = np.where(ce[:, :, 0] < ce[:, :, 1], 1.0, -1.0)
         self.n_edges = len(uniq)
         self.edge_on_boundary = counts == 1
+        # the edge of T_h that each edge of S_h halves ((-1, -1) inside the triangles)
+        self.edge_th = -np.ones((self.n_edges, 2), np.int64)
+        self.edge_th[self.cell_edge.ravel()] = th_edge.reshape(-1, 2)
         # midpoints of the edges of each cell (edge k), and the RT0 basis there
         self.mid = 0.5 * (self.ps + np.roll(self.ps, -1, axis=1))  # ns x 3 x 2, mid[k] of edge k
         # psi_k(x) = (x - P_{k+2}) / (2|kappa|): unit outward flux through edge k
@@ -116,8 +151,9 @@ class Geometry:
         self.psi_mid = (self.mid[:, None, :, :] - opp[:, :, None, :]) / (2 * self.area[:, None, None, None])  # ns x k x m x 2
         # cell mass matrices (midpoint rule: exact for quadratics)
         self.mass = np.einsum("nkmd,njmd->nkj", self.psi_mid, self.psi_mid) * (self.area / 3)[:, None, None]
-        # quadrature of degree DEGREE on the cells of S_h
-        xi, w = basix.make_quadrature(basix.CellType.triangle, DEGREE)
+        # quadrature of degree `degree` on the cells of S_h
+        self.degree = degree
+        xi, w = basix.make_quadrature(basix.CellType.triangle, degree)
         a, b, c = self.ps[:, 0], self.ps[:, 1], self.ps[:, 2]
         self.xq = a[:, None] + xi[None, :, 0, None] * (b - a)[:, None] + xi[None, :, 1, None] * (c - a)[:, None]
         self.wq = 2 * self.area[:, None] * w[None, :]
@@ -156,15 +192,19 @@ class Geometry:
 # local mixed problems on patches of S_h
 # ---------------------------------------------------------------------------------------------
 
-def solve_patch(geo, cells, target_mid, div):
+def solve_patch(geo, cells, target_mid, div, vertex=None):
     """min ||sigma - target|| over sigma in RT0 on `cells` (of S_h) with div sigma = div (per cell),
-    sigma.n = 0 on the boundary of the patch except on d(omega). Returns (edge ids, edge fluxes)."""
+    sigma.n = 0 on the boundary of the patch except on d(omega) -- only on the halves of the
+    boundary edges of T_h that contain `vertex` if it is given. Returns (edge ids, edge fluxes)."""
     ce, cs = geo.cell_edge[cells], geo.cell_sign[cells]
     edges, inv = np.unique(ce.ravel(), return_inverse=True)
     inv = inv.reshape(ce.shape)
     cnt = np.bincount(inv.ravel(), minlength=len(edges))
-    free = (cnt == 2) | geo.edge_on_boundary[edges]
-    closed = not geo.edge_on_boundary[edges].any()
+    open_boundary = geo.edge_on_boundary[edges]
+    if vertex is not None:
+        open_boundary &= (geo.edge_th[edges] == vertex).any(axis=1)
+    free = (cnt == 2) | open_boundary
+    closed = not open_boundary.any()
     unk = -np.ones(len(edges), np.int64)
     unk[free] = np.arange(free.sum())
     nu, nc = int(free.sum()), len(cells)
@@ -192,12 +232,15 @@ def solve_patch(geo, cells, target_mid, div):
     return edges[free], x
 
 
-def equilibrate(geo, G_tri, int_fphi, own_term):
+def equilibrate(geo, G_tri, int_fphi, own_term, touching=False):
     """The patch flux of section 7(c): sum over the vertices a of the minimisers of
     ||Pi_RT(phi_a G) + tau|| on the cells of S_h in supp phi_a, with tau.n = 0 on the patch boundary
     inside omega and div tau = Pi(f phi_a) - G.grad phi_a + own_term[a] on the cells of D_a.
     G_tri: the discrete flux mu grad u_h per triangle; int_fphi: int_kappa f phi_j (ns x 3).
-    Returns the fluxes through the edges of S_h."""
+    touching: the normal flux is free only on the halves of the boundary edges of T_h that contain
+    a (the Rust code's choice; every other part of the patch boundary is closed, so the patch of an
+    interior vertex is closed even where an edge opposite a lies on d(omega)); otherwise on every
+    edge of the patch on d(omega). Returns the fluxes through the edges of S_h."""
     nv = len(geo.P)
     x = np.zeros(geo.n_edges)
     G = G_tri[geo.tri]
@@ -215,7 +258,7 @@ def equilibrate(geo, G_tri, int_fphi, own_term):
         target = geo.rt0_at(Fi, geo.mid[cells], cells)
         own = geo.owner[cells] == a
         d = int_fphi[cells, j] / geo.area[cells] - g_phi[geo.tri[cells], j] + own * own_term[a]
-        edges, xe = solve_patch(geo, cells, target, d)
+        edges, xe = solve_patch(geo, cells, target, d, a if touching else None)
         x[edges] += xe
     return x
 
@@ -253,17 +296,21 @@ def case_function(source):
 
 
 def case_gradient(source):
-    """grad g as NumPy functions (SymPy derivative of the case expression)."""
-    from .exact_cases import X, Y, to_sympy
+    """grad g as a NumPy function: the exact derivative of the case expression (forward-mode
+    differentiation of its tree, expr.to_numpy_gradient; the case's [let] names substituted)."""
+    tree = expr.parse(source)
 
-    g = to_sympy(source)
-    parts = [sp.lambdify((X, Y), sp.diff(g, v).rewrite(sp.Piecewise), "numpy") for v in (X, Y)]
-    return lambda x, y: np.stack([np.broadcast_to(np.asarray(p(x, y), float), np.shape(x)) for p in parts], axis=-1)
+    def grad(x, y):
+        _, gx, gy = expr.to_numpy_gradient(tree, x, y)
+        return np.stack([gx, gy], axis=-1)
+
+    return grad
 
 
-def boundary_lifting(geo, case, lam):
-    """psi, the lifting of g - g_h into the triangles of the boundary edges (docs, section 4):
-    per triangle ||grad psi||_K^2 and int_K lambda_h psi."""
+def boundary_lifting(geo, case, lam, gap):
+    """psi, the lifting of g - g_h into the triangles of the boundary edges (docs, section 5):
+    per triangle ||grad psi||_K^2 and int_K lambda_h psi. lam: lambda_a (0 at the boundary
+    vertices); gap: w_h at the vertices (w_h = g_h at the boundary vertices)."""
     g, dg = case_function(case["g"]), case_gradient(case["g"])
     t, w = np.polynomial.legendre.leggauss(GAUSS_1D)
     tau = np.concatenate([(t + 1) / 4, (t + 3) / 4])  # [0, 1/2] and [1/2, 1]: s* has a kink at 1/2
@@ -297,17 +344,16 @@ def boundary_lifting(geo, case, lam):
             n2 = geo.area_K[K] * np.sum(wt * np.sum(field ** 2, axis=1))
             sstar = 1.0 / (1.0 + np.maximum(tau, 1 - tau))
             lampsi[K] += lam[c] * 2 * geo.area_K[K] * np.sum(wt * delta * sstar ** 3 / 3)
-            parts.append((math.sqrt(n2), float(np.min(delta)), (gp, gq)))
+            parts.append((math.sqrt(n2), min(0.0, float(np.min(delta))), (gp, gq)))
         if len(parts) == 1:
             grad2[K] = parts[0][0] ** 2  # w_h + psi = (1 - s) w_c + s g >= 0: psi is the lifting
         else:
-            # two (or three) boundary edges: psi0 = sum of the edge liftings; psi = max(psi0, -g_h)
-            gmin = min(float(g(geo.P[v:v + 1, 0], geo.P[v:v + 1, 1])[0]) for v in verts)
-            need = sum(max(0.0, -d) for _, d, _ in parts)
+            # two (or three) boundary edges: psi0 = sum of the edge liftings; psi = max(psi0, -w_h)
+            wmin = float(gap[verts].min())
+            need = sum(max(0.0, -d) for _, d, _ in parts)  # d = min(0, min of delta at the Gauss points)
             n = sum(x for x, _, _ in parts) ** 2
-            if gmin < need:  # max(psi0, -g_h) may differ from psi0: |grad psi|^2 <= |grad psi0|^2 + |grad g_h|^2
-                gh = np.array([float(g(geo.P[v:v + 1, 0], geo.P[v:v + 1, 1])[0]) for v in verts])
-                n += geo.area_K[K] * float(np.sum((gh @ gl) ** 2))
+            if wmin < need:  # max(psi0, -w_h) may differ from psi0: |grad psi|^2 <= |grad psi0|^2 + |grad w_h|^2
+                n += geo.area_K[K] * float(np.sum((gap[verts] @ gl) ** 2))
             grad2[K] = n
     return grad2, lampsi
 
@@ -337,7 +383,7 @@ def estimate(path, variants=VARIANTS, lift_means=("dualmin", "patch")):
     # contact term (lambda_h, w_h + psi) and the boundary lifting
     w_cent = np.einsum("nk,nk->n", barycentric(geo.pk[geo.tri], geo.ps.mean(axis=1)[:, None, :])[:, 0], gap[geo.T[geo.tri]])
     contact_cell = lam_cell * w_cent * geo.area
-    grad_psi2, lampsi = boundary_lifting(geo, case, lam)
+    grad_psi2, lampsi = boundary_lifting(geo, case, lam, gap)
     contact_K = np.bincount(geo.tri, contact_cell, minlength=nt) + lampsi
     eta_C = float(contact_K.sum())
     eta_D = math.sqrt(mu[0] * grad_psi2.sum())
