@@ -5,7 +5,18 @@ Usage (from the repository root, Debian's python3):
     /usr/bin/python3 -m reference.estimator DIR [DIR ...]        one line per result
     /usr/bin/python3 -m reference.estimator --table DIR [DIR ...] the markdown table of the report
     /usr/bin/python3 -m reference.estimator --per-triangle OUT.npz DIR   also saves the per-triangle terms
-DIR is a result of `membrane-contact solve CASE --n N --flux [--hminus1] -o DIR`.
+    /usr/bin/python3 -m reference.estimator --compare DIR [DIR ...]  the Rust estimator, recomputed
+DIR is a result of `membrane-contact solve CASE --n N --flux [--hminus1] -o DIR` (with --estimate
+for --compare; --flux is needed only by the fluxes "dual" and "dualmin").
+
+--compare recomputes everything `solve --estimate` writes (the attributes estimator,
+estimator_membrane_i, estimator_means_i, estimator_boundary, estimator_contact,
+estimator_hminus1_lambda, effectivity, and the cell fields estimator, estimator_flux_i,
+estimator_oscillation_i, estimator_boundary, estimator_contact) from the written u1, u2, gap and
+lambda, the mesh and the case's expressions, with the choices of the Rust code (`rust_estimate`:
+the patch flux with the means by Friedrichs, section 4(c), the case's own rule on the cells of
+S_h), prints the differences and exits 1 when one exceeds its tolerance (COMPARED) or when the
+bound fails against the energy error computed here from the exact solution.
 
 Bound (docs/a-posteriori.md, Theorem (E)):
     |||u - u_h||| <= eta := (eta_FR^2 + eta_D^2 + 2 eta_C)^(1/2),
@@ -31,6 +42,7 @@ Three fluxes (docs, section 7):
                means (quadrature errors of the loads) lifted. Recommended.
 """
 import math
+import os
 import sys
 
 import basix
@@ -504,6 +516,329 @@ def estimate(path, variants=VARIANTS, lift_means=("dualmin", "patch")):
     return out
 
 
+# ---------------------------------------------------------------------------------------------
+# the estimator as the Rust code computes it (`solve --estimate`), recomputed from a result
+# ---------------------------------------------------------------------------------------------
+
+MAX_RULE = 20  # the highest degree of the rules (src/quadrature_tables.rs, reference/gen_quadrature.py)
+ERROR_DEGREE = 10  # the Rust code's rule for the error norms (src/norms.rs)
+
+
+def on_triangles(geo, degree):
+    """Basix's default rule of `degree` mapped onto every triangle of T_h from its corners in
+    order (x = p0 + xi (p1 - p0) + eta (p2 - p0), as the Rust code's Quadrature::visit):
+    points (nt x nq x 2), weights (nt x nq), barycentric coordinates (nq x 3)."""
+    xi, w = basix.make_quadrature(basix.CellType.triangle, degree)
+    a, b, c = geo.pk[:, 0], geo.pk[:, 1], geo.pk[:, 2]
+    x = a[:, None] + xi[None, :, 0, None] * (b - a)[:, None] + xi[None, :, 1, None] * (c - a)[:, None]
+    return x, 2 * geo.area_K[:, None] * w[None, :], np.column_stack([1 - xi.sum(axis=1), xi])
+
+
+def energy_error(geo, case, u, mu):
+    """|||u - u_h||| = (sum_i mu_i ||grad u_i - grad u_ih||^2)^(1/2) by the degree-10 rule on T_h
+    (the Rust code's error rule), from the case's exact gradients: None without them."""
+    exact = case.get("exact", {})
+    if "grad_u1" not in exact or "grad_u2" not in exact:
+        return None
+    x, w, _ = on_triangles(geo, ERROR_DEGREE)
+    total = 0.0
+    for i in range(2):
+        gh = np.einsum("nkd,nk->nd", geo.grad_K, u[i][geo.T])
+        ge = np.stack([expr.to_numpy(expr.parse(c), x[..., 0], x[..., 1]) for c in exact["grad_u%d" % (i + 1)]], axis=-1)
+        total += mu[i] * float(np.sum(w * np.sum((ge - gh[:, None, :]) ** 2, axis=-1)))
+    return math.sqrt(total)
+
+
+def rust_estimate(r):
+    """Everything `membrane-contact solve --estimate` writes, recomputed independently from the
+    result r (common.read_result) -- the written u1, u2, gap, lambda at the vertices, the mesh and
+    the case's expressions -- with the Rust code's choices (docs/a-posteriori.md section 10):
+    the patch flux of section 7(c) with the normal flux free only on the halves of the boundary
+    edges of T_h that contain a; the case's own rule on the cells of S_h; the means by Friedrichs
+    (section 4(c), not lifted); h_kappa the longest edge; the lifting psi of section 5.
+    Returns (attributes, cell fields per triangle of T_h, checks)."""
+    case = r["case"]
+    degree = min(max(common.quadrature_degree(case), 1), MAX_RULE)
+    geo = Geometry(r, degree)
+    mu = [float(case["mu1"]), float(case["mu2"])]
+    alpha = mu[1] / (mu[0] + mu[1])
+    sign = [1.0, -1.0]
+    u = [r["u1"], r["u2"]]
+    gap = r["gap"]
+    lam = np.where(geo.on_boundary, 0.0, r["lambda"])  # lambda_h = 0 on the cells of boundary vertices
+    lam_cell = lam[geo.owner]
+    nt, nv = len(geo.T), len(geo.P)
+    m = geo.dual_area  # m_a = |D_a| = int phi_a
+    f = [case_function(case["f1"]), case_function(case["f2"])]
+
+    # the loads (f_i, phi_a)_q by the case's rule on T_h (the solver's load vectors)
+    xT, wT, lT = on_triangles(geo, degree)
+    loads = []
+    for i in range(2):
+        v = f[i](xT[..., 0], xT[..., 1])
+        loads.append(np.bincount(geo.T.ravel(), np.einsum("nq,nq,qk->nk", wT, v, lT).ravel(), minlength=nv))
+    # their consistency with the written lambda, lambda2 through (4.5) (interior vertices)
+    stiff = np.einsum("nid,njd->nij", geo.grad_K, geo.grad_K) * geo.area_K[:, None, None]
+    Ku = [np.bincount(geo.T.ravel(), np.einsum("nij,nj->ni", stiff, ui[geo.T]).ravel(), minlength=nv) for ui in u]
+    recovered = [mu[0] * Ku[0] - lam * m, mu[1] * Ku[1] + np.where(geo.on_boundary, 0.0, r.get("lambda2", r["lambda"])) * m]
+    inner = geo.interior
+    load_check = max(float(np.abs(recovered[i] - loads[i])[inner].max(initial=0.0))
+                     / max(float(np.abs(loads[i][inner]).max(initial=0.0)), 1e-300) for i in range(2))
+
+    # the cells of S_h: int f phi_j, ||v - Pi v||^2 for v = f1, f2, alpha f1 - (1 - alpha) f2
+    fq = [f[i](geo.xq[..., 0], geo.xq[..., 1]) for i in range(2)]
+    fq.append(alpha * fq[0] - (1 - alpha) * fq[1])
+    area_q = geo.wq.sum(axis=1)
+    raw = [np.sum(geo.wq * v * v, axis=1) - np.sum(geo.wq * v, axis=1) ** 2 / area_q for v in fq]
+    osc2 = [np.maximum(v, 0.0) for v in raw]
+    # Round-off of that formula (the Rust code's): both sums carry a relative error of about
+    # nq eps of int f^2 (of the sizes of the terms of alpha f1 - (1 - alpha) f2 for the action),
+    # and a difference D of the squares moves the root by at most min(sqrt(D), D / root). Where f
+    # is constant on kappa up to round-off (alpha f1 - (1 - alpha) f2 inside the disk of
+    # disk_jump) the two codes' oscillations are noise of size (h/pi) sqrt(eps int f^2).
+    size = [np.sum(geo.wq * fq[0] ** 2, axis=1), np.sum(geo.wq * fq[1] ** 2, axis=1),
+            np.sum(geo.wq * (alpha * np.abs(fq[0]) + (1 - alpha) * np.abs(fq[1])) ** 2, axis=1)]
+    roundoff = []
+    for v, m2 in zip(raw, size):
+        D = OSC_ROUNDOFF * (geo.wq.shape[1] + 2) * np.finfo(float).eps * m2
+        root = np.sqrt(np.maximum(v, 0.0))
+        roundoff.append(geo.diam / math.pi * np.where(root > 0, np.minimum(np.sqrt(D), D / np.where(root > 0, root, 1.0)), np.sqrt(D)))
+    int_fphi = [np.einsum("nq,nq,nqk->nk", geo.wq, fq[i], geo.lam_q) for i in range(2)]
+
+    fields = {}
+    attrs = {}
+    allow = {}  # round-off allowances of the oscillation terms (absolute; per triangle for cell fields)
+    allow_K = np.zeros(nt)
+    checks = {"dual_mismatch": geo.dual_mismatch, "load_vs_lambda": load_check}
+    means, G_mid, tau_mid, sums = [], [], [], []
+    indicator2 = np.zeros(nt)
+    for i in range(2):
+        on_s_h = np.bincount(geo.T[geo.tri].ravel(), int_fphi[i].ravel(), minlength=nv)
+        c = np.where(geo.interior, (on_s_h - loads[i]) / m, 0.0)  # c_{i,a}, section 4(c)
+        means.append(c)
+        grad_uh = np.einsum("nkd,nk->nd", geo.grad_K, u[i][geo.T])
+        x = equilibrate(geo, mu[i] * grad_uh, int_fphi[i], sign[i] * lam - c, touching=True)
+        F = geo.cell_fluxes(x)
+        t_mid = geo.rt0_at(F, geo.mid)
+        G = mu[i] * grad_uh[geo.tri]
+        eta_F = np.sqrt(geo.l2_affine(G[:, None, :] + t_mid)) / math.sqrt(mu[i])
+        eta_osc = geo.diam / math.pi * np.sqrt(osc2[i]) / math.sqrt(mu[i])
+        # conservation of the flux: div tau_i = Pi f_i +- lambda_h - c_i on every cell
+        div = F.sum(axis=1) / geo.area
+        target = np.sum(geo.wq * fq[i], axis=1) / geo.area + sign[i] * lam_cell - c[geo.owner]
+        checks["div_defect_%d" % (i + 1)] = float(np.abs(div - target).max() / max(np.abs(target).max(), 1e-300))
+        fields["estimator_flux_%d" % (i + 1)] = np.sqrt(np.bincount(geo.tri, eta_F ** 2, minlength=nt))
+        fields["estimator_oscillation_%d" % (i + 1)] = np.sqrt(np.bincount(geo.tri, eta_osc ** 2, minlength=nt))
+        a2 = np.bincount(geo.tri, roundoff[i] ** 2, minlength=nt) / mu[i]
+        allow["cell estimator_oscillation_%d" % (i + 1)] = np.sqrt(a2)
+        allow["attr estimator_membrane_%d" % (i + 1)] = math.sqrt(a2.sum())
+        allow_K += a2
+        local = (eta_F + eta_osc) ** 2
+        indicator2 += np.bincount(geo.tri, local, minlength=nt)
+        sums.append(float(local.sum()))
+        G_mid.append(G)
+        tau_mid.append(t_mid)
+        attrs["estimator_means_%d" % (i + 1)] = geo.C_F * math.sqrt(np.sum(c ** 2 * m) / mu[i])
+        attrs["estimator_membrane_%d" % (i + 1)] = math.sqrt(sums[i]) + attrs["estimator_means_%d" % (i + 1)]
+
+    # the boundary data (section 5) and the contact term (section 6)
+    grad_psi2, lampsi = boundary_lifting(geo, case, lam, gap)
+    fields["estimator_boundary"] = np.sqrt(mu[0] * grad_psi2)
+    w_cent = np.einsum("nk,nk->n", barycentric(geo.pk[geo.tri], geo.ps.mean(axis=1)[:, None, :])[:, 0], gap[geo.T[geo.tri]])
+    fields["estimator_contact"] = np.bincount(geo.tri, lam_cell * geo.area * w_cent, minlength=nt) + lampsi
+    fields["estimator"] = np.sqrt(np.maximum(indicator2 + fields["estimator_boundary"] ** 2 + 2 * fields["estimator_contact"], 0.0))
+    eta_D = math.sqrt(float(np.sum(fields["estimator_boundary"] ** 2)))
+    eta_C = float(fields["estimator_contact"].sum())
+    attrs["estimator_boundary"], attrs["estimator_contact"] = eta_D, eta_C
+    allow["cell estimator"] = np.sqrt(allow_K)
+    allow["attr estimator"] = math.sqrt(allow_K.sum())
+    attrs["estimator"] = math.sqrt(max(attrs["estimator_membrane_1"] ** 2 + attrs["estimator_membrane_2"] ** 2
+                                       + eta_D ** 2 + 2 * eta_C, 0.0))
+
+    # the action (section 8), the means by Friedrichs
+    zeta = alpha * (G_mid[0][:, None, :] + tau_mid[0]) - (1 - alpha) * (G_mid[1][:, None, :] + tau_mid[1])
+    cell = np.sqrt(geo.l2_affine(zeta)) + geo.diam / math.pi * np.sqrt(osc2[2])
+    combined = alpha * means[0] - (1 - alpha) * means[1]
+    eta_lam = math.sqrt(float(np.sum(cell ** 2))) + geo.C_F * math.sqrt(float(np.sum(combined ** 2 * m)))
+    mu_bar = mu[0] * mu[1] / (mu[0] + mu[1])
+    e_w = math.sqrt(max(eta_lam ** 2 / mu_bar + mu_bar * eta_D ** 2 / mu[0] + 2 * eta_C, 0.0))
+    attrs["estimator_hminus1_lambda"] = math.sqrt(mu_bar) * e_w + eta_lam
+    allow["attr estimator_hminus1_lambda"] = 2.0 * math.sqrt(float(np.sum(roundoff[2] ** 2)))  # d(bound)/d(eta_lambda) <= 2
+
+    # the exact error, here and as written
+    checks["error_energy"] = energy_error(geo, case, u, mu)
+    if "error_energy" in r["attrs"]:
+        attrs["effectivity"] = attrs["estimator"] / float(r["attrs"]["error_energy"])
+        allow["attr effectivity"] = allow["attr estimator"] / float(r["attrs"]["error_energy"])
+    return attrs, fields, checks, allow
+
+
+# What --compare checks: (name, where, scale, tolerance). The scale of a difference is the total
+# eta ("eta"; for the contact terms eta^2: 2 eta_C enters eta^2, so a change d of eta_C changes
+# eta by d/eta), or the value itself ("own").
+FLUX_TOL = 1e-9  # flux, oscillation, means: the same formulas at the same points; round-off only
+OSC_ROUNDOFF = 8.0  # the round-off of int f^2 - (int f)^2/|kappa|: OSC_ROUNDOFF (nq + 2) eps int f^2
+BOUNDARY_TOL = 1e-7  # psi: Rust's delta' is a difference quotient, here the exact derivative
+CONTACT_TOL = 1e-9  # lambda_h w_h and int lambda_h psi: no derivative of g, round-off only
+COMPARED = (
+    ("estimator", "attr", "eta", BOUNDARY_TOL),
+    ("estimator_membrane_1", "attr", "eta", FLUX_TOL),
+    ("estimator_membrane_2", "attr", "eta", FLUX_TOL),
+    ("estimator_means_1", "attr", "eta", FLUX_TOL),
+    ("estimator_means_2", "attr", "eta", FLUX_TOL),
+    ("estimator_boundary", "attr", "eta", BOUNDARY_TOL),
+    ("estimator_contact", "attr", "eta2", CONTACT_TOL),
+    ("estimator_hminus1_lambda", "attr", "own", BOUNDARY_TOL),
+    ("effectivity", "attr", "own", BOUNDARY_TOL),
+    ("estimator", "cell", "eta", BOUNDARY_TOL),
+    ("estimator_flux_1", "cell", "eta", FLUX_TOL),
+    ("estimator_flux_2", "cell", "eta", FLUX_TOL),
+    ("estimator_oscillation_1", "cell", "eta", FLUX_TOL),
+    ("estimator_oscillation_2", "cell", "eta", FLUX_TOL),
+    ("estimator_boundary", "cell", "eta", BOUNDARY_TOL),
+    ("estimator_contact", "cell", "eta2", CONTACT_TOL),
+)
+DUAL_TOL = 1e-14  # /dual against S_h built here (coordinates relative to the domain's size)
+DIV_TOL = 1e-11  # div tau_i = Pi f_i +- lambda_h - c_i, relative (this code's own equilibration)
+ERROR_TOL = 1e-9  # error_energy against the one computed here (same rule, same points)
+
+
+def read_estimate(path):
+    """The estimator's attributes and cell fields of a Rust result (h5py)."""
+    import h5py
+
+    h5 = os.path.join(path, "solution.h5") if os.path.isdir(path) else path
+    with h5py.File(h5, "r") as f:
+        attrs = {k: float(f.attrs[k]) for k in f.attrs if k.startswith("estimator") or k in ("effectivity", "error_energy")}
+        fields = {k: f["mesh"][k][...] for k in f["mesh"] if k.startswith("estimator")}
+    return attrs, fields
+
+
+def compare(path):
+    """Recomputes the estimator of the Rust result `path` and compares. Returns (rows, failures,
+    summary): rows (name, where, Rust, here, max |difference| / scale, tolerance, round-off
+    allowance / scale), failures the messages of every check that fails. A value passes when
+    |Rust - here| <= tolerance * scale + allowance (per triangle for the cell fields)."""
+    r = common.read_result(path)
+    mine, mine_fields, checks, allow = rust_estimate(r)
+    theirs, their_fields = read_estimate(path)
+    failures = []
+    if "estimator" not in theirs:
+        return [], ["%s: no estimator in the result (solve with --estimate)" % path], {}
+    eta = mine["estimator"]
+    scales = {"eta": eta, "eta2": eta * eta}
+    rows = []
+    for name, where, scale, tol in COMPARED:
+        extra = allow.get(where + " " + name, 0.0)
+        if where == "attr":
+            if name not in mine and name not in theirs:
+                continue
+            if name not in theirs or name not in mine:
+                failures.append("%s: attribute %s only %s" % (path, name, "here" if name in mine else "in the result"))
+                continue
+            a, b = theirs[name], mine[name]
+            s = abs(b) if scale == "own" else scales[scale]
+            d = abs(a - b)
+            ok = d <= tol * s + extra
+        else:
+            if name not in their_fields:
+                failures.append("%s: cell field %s missing" % (path, name))
+                continue
+            a, b = their_fields[name], mine_fields[name]
+            if a.shape != b.shape:
+                failures.append("%s: cell field %s has %s values, %d triangles" % (path, name, a.shape, len(b)))
+                continue
+            s = scales[scale]
+            dk = np.abs(a - b)
+            d, ok = float(dk.max()), bool(np.all(dk <= tol * s + extra))
+            a, b, extra = float(np.abs(a).max()), float(np.abs(b).max()), float(np.max(extra))
+        rel = d / s if s > 0 else (0.0 if d == 0 else math.inf)
+        rows.append((name, where, a, b, rel, tol, extra / s if s > 0 else 0.0))
+        if not ok:
+            failures.append("%s: %s %s differs by %.2e (relative to %s) > %.0e + round-off %.1e: Rust %.10e, here %.10e"
+                            % (path, where, name, rel, {"eta": "eta", "eta2": "eta^2", "own": "itself"}[scale], tol,
+                               rows[-1][6], a, b))
+    if not checks["dual_mismatch"] <= DUAL_TOL:
+        failures.append("%s: /dual is not the submesh S_h of /mesh (mismatch %.2e)" % (path, checks["dual_mismatch"]))
+    for i in (1, 2):
+        if not checks["div_defect_%d" % i] <= DIV_TOL:
+            failures.append("%s: the flux tau_%d recomputed here misses its divergence by %.2e" % (path, i, checks["div_defect_%d" % i]))
+    # the bound itself, where the case has an exact solution
+    E = checks["error_energy"]
+    summary = {"eta": eta, "eta_rust": theirs["estimator"], "E": E, "E_rust": theirs.get("error_energy")}
+    if E is not None:
+        e_rust = theirs.get("error_energy", math.nan)
+        summary["E_rel"] = abs(e_rust - E) / E if E > 0 else abs(e_rust - E)
+        if not summary["E_rel"] <= ERROR_TOL:
+            failures.append("%s: error_energy = %.10e, here %.10e" % (path, e_rust, E))
+        for who, value in (("here", eta), ("Rust", theirs["estimator"])):
+            if not value >= E:
+                failures.append("%s: the bound fails: eta (%s) = %.6e < |||u - u_h||| = %.6e" % (path, who, value, E))
+    summary["checks"] = checks
+    return rows, failures, summary
+
+
+def print_comparison(path, rows, summary, out=sys.stdout):
+    print("%s" % path, file=out)
+    print("  %-26s %-4s %18s %18s %10s %7s %9s" % ("quantity", "", "Rust (max |.|)", "here (max |.|)", "rel. diff", "tol",
+                                                   "round-off"), file=out)
+    for name, where, a, b, rel, tol, extra in rows:
+        print("  %-26s %-4s %18.10e %18.10e %10.2e %7.0e %9.1e%s" % (name, where, a, b, rel, tol, extra,
+                                                                  "" if rel <= tol + extra else "  FAIL"), file=out)
+    c = summary.get("checks", {})
+    line = "  S_h mismatch %.1e, div defects %.1e %.1e, loads vs (4.5) %.1e" % (
+        c.get("dual_mismatch", math.nan), c.get("div_defect_1", math.nan), c.get("div_defect_2", math.nan), c.get("load_vs_lambda", math.nan))
+    if summary.get("E") is not None:
+        line += "; |||u - u_h||| = %.6e (Rust %.6e, rel. diff %.1e), eta/E = %.4f" % (
+            summary["E"], summary["E_rust"], summary["E_rel"], summary["eta"] / summary["E"])
+    print(line, file=out, flush=True)
+
+
+GROUPS = (  # the columns of the summary table: (title, names compared)
+    ("η, η_K", ("estimator",)),
+    ("η_1, η_2", ("estimator_membrane_1", "estimator_membrane_2")),
+    ("η_Q,1, η_Q,2", ("estimator_means_1", "estimator_means_2")),
+    ("flux_i (cells)", ("estimator_flux_1", "estimator_flux_2")),
+    ("osc_i (cells)", ("estimator_oscillation_1", "estimator_oscillation_2")),
+    ("η_D, η_D,K", ("estimator_boundary",)),
+    ("η_C, η_C,K", ("estimator_contact",)),
+    ("§8 bound", ("estimator_hminus1_lambda",)),
+    ("effectivity", ("effectivity",)),
+)
+
+
+def summary_row(label, rows, summary):
+    cells = [label]
+    for _, names in GROUPS:
+        v = [rel for name, _, _, _, rel, _, _ in rows if name in names]
+        cells.append("%.1e" % max(v) if v else "—")
+    E = summary.get("E")
+    cells.append("%.4f" % (summary["eta"] / E) if E else "—")
+    return "| " + " | ".join(cells) + " |"
+
+
+def compare_main(paths):
+    head = ["| result | " + " | ".join(t for t, _ in GROUPS) + " | η/E |", "|---" * (len(GROUPS) + 2) + "|"]
+    table, failures = [], []
+    for p in paths:
+        rows, fails, summary = compare(p)
+        if rows:
+            print_comparison(p, rows, summary)
+            table.append(summary_row(p, rows, summary))
+        failures += fails
+    print("\nmax |Rust - here| relative to eta (eta^2 for the contact terms, the value itself for the §8 bound and "
+          "the effectivity); tolerances %.0e (flux, oscillation, means), %.0e (contact), %.0e (boundary terms and "
+          "what contains them)" % (FLUX_TOL, CONTACT_TOL, BOUNDARY_TOL))
+    print("\n".join(head + table))
+    if failures:
+        print("ESTIMATOR COMPARISON FAILED:")
+        for f in failures:
+            print("  " + f)
+        return 1
+    print("estimator comparison: %d result(s) agree" % len(paths))
+    return 0
+
+
 def line(o, variants=VARIANTS):
     e = o["error_energy"]
     s = "%s  err %.4e" % (o["path"], e)
@@ -532,6 +867,8 @@ TABLE_HEAD = ("| case | n | error | eta dual | eff | eta dualmin | eff | eta pat
 
 
 def main(argv):
+    if argv and argv[0] == "--compare":
+        sys.exit(compare_main(argv[1:]))
     table = "--table" in argv
     save = None
     if "--per-triangle" in argv:
