@@ -720,6 +720,9 @@ def compare(path):
     summary): rows (name, where, Rust, here, max |difference| / scale, tolerance, round-off
     allowance / scale), failures the messages of every check that fails. A value passes when
     |Rust - here| <= tolerance * scale + allowance (per triangle for the cell fields)."""
+    h5 = os.path.join(path, "solution.h5") if os.path.isdir(path) else path
+    if not os.path.isfile(h5):
+        return [], ["%s: no result there (no %s)" % (path, h5)], {}
     r = common.read_result(path)
     mine, mine_fields, checks, allow = rust_estimate(r)
     theirs, their_fields = read_estimate(path)
@@ -822,6 +825,9 @@ def summary_row(label, rows, summary):
 
 
 def compare_main(paths):
+    if not paths:
+        print("usage: python3 -m reference.estimator --compare DIR [DIR ...]", file=sys.stderr)
+        return 2
     head = ["| result | " + " | ".join(t for t, _ in GROUPS) + " | η/E |", "|---" * (len(GROUPS) + 2) + "|"]
     table, failures = [], []
     for p in paths:
