@@ -373,6 +373,7 @@ def boundary_lifting(geo, case, lam, gap):
 def estimate(path, variants=VARIANTS, lift_means=("dualmin", "patch")):
     r = common.read_result(path)
     geo = Geometry(r)
+    assert geo.dual_mismatch <= DUAL_TOL, "the result's /dual is not S_h in the expected order"
     case = r["case"]
     mu = [float(case["mu1"]), float(case["mu2"])]
     sign = [1.0, -1.0]
