@@ -10,6 +10,7 @@ repository root with Debian's /usr/bin/python3:
     /usr/bin/python3 -m reference.compare RESULT_DIR reference.h5
     /usr/bin/python3 -m reference.exact_cases [CASE.toml ...]
     /usr/bin/python3 -m reference.paraview_check RESULT_DIR [...]
+    /usr/bin/python3 -m reference.estimator --compare RESULT_DIR [...]   (results of solve --estimate)
     /usr/bin/python3 -m reference.random_expressions --seed 1 --count 10000 --out cases.json
 
 Modules:
@@ -23,6 +24,8 @@ Modules:
   compare          vertex-by-vertex field comparison
   flux_checks      checks of the written flux fields t_1h, t_2h (continuity, conservation, rate)
   exact_cases      SymPy check of the exact solutions (SymPy's own parser)
+  estimator        the a posteriori estimators of docs/a-posteriori.md (prototype: fluxes dual,
+                   dualmin, patch); --compare recomputes the Rust code's `solve --estimate`
   validate         `make validate`
   report           the tables and plots of its report
   paraview_check   ParaView's own XDMF reader on result directories

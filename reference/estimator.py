@@ -5,7 +5,18 @@ Usage (from the repository root, Debian's python3):
     /usr/bin/python3 -m reference.estimator DIR [DIR ...]        one line per result
     /usr/bin/python3 -m reference.estimator --table DIR [DIR ...] the markdown table of the report
     /usr/bin/python3 -m reference.estimator --per-triangle OUT.npz DIR   also saves the per-triangle terms
-DIR is a result of `membrane-contact solve CASE --n N --flux [--hminus1] -o DIR`.
+    /usr/bin/python3 -m reference.estimator --compare DIR [DIR ...]  the Rust estimator, recomputed
+DIR is a result of `membrane-contact solve CASE --n N --flux [--hminus1] -o DIR` (with --estimate
+for --compare; --flux is needed only by the fluxes "dual" and "dualmin").
+
+--compare recomputes everything `solve --estimate` writes (the attributes estimator,
+estimator_membrane_i, estimator_means_i, estimator_boundary, estimator_contact,
+estimator_hminus1_lambda, effectivity, and the cell fields estimator, estimator_flux_i,
+estimator_oscillation_i, estimator_boundary, estimator_contact) from the written u1, u2, gap and
+lambda, the mesh and the case's expressions, with the choices of the Rust code (`rust_estimate`:
+the patch flux with the means by Friedrichs, section 4(c), the case's own rule on the cells of
+S_h), prints the differences and exits 1 when one exceeds its tolerance (COMPARED) or when the
+bound fails against the energy error computed here from the exact solution.
 
 Bound (docs/a-posteriori.md, Theorem (E)):
     |||u - u_h||| <= eta := (eta_FR^2 + eta_D^2 + 2 eta_C)^(1/2),
@@ -31,11 +42,11 @@ Three fluxes (docs, section 7):
                means (quadrature errors of the loads) lifted. Recommended.
 """
 import math
+import os
 import sys
 
 import basix
 import numpy as np
-import sympy as sp
 
 from . import common, expr
 
@@ -74,17 +85,50 @@ def barycentric(p, x):
     return out
 
 
-class Geometry:
-    """T_h, S_h, the edges of S_h and everything the estimators share."""
+def dual_submesh(P, T):
+    """S_h of Section 4.2, built here from T_h alone, in the layout the Rust code writes (/dual):
+    points = the vertices of T_h, the midpoints of its edges, the barycentres; six
+    counter-clockwise cells per triangle t of T_h, cells 6t + 2k = [v_k, m(v_k, v_k+1), g] and
+    6t + 2k + 1 = [v_k, g, m(v_k+2, v_k)], both owned by v_k. Returns (points, cells, owner,
+    th_edge): th_edge[s, e] = the edge (a, b) of T_h that edge e of cell s (from corner e to e + 1)
+    halves, or (-1, -1) for an edge inside a triangle of T_h."""
+    nv, nt = len(P), len(T)
+    e = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+    edges, inv = np.unique(e, axis=0, return_inverse=True)
+    mid_of = inv.reshape(3, nt).T  # mid_of[t, k]: the midpoint of (v_k, v_k+1)
+    pk = P[T]
+    Q = np.concatenate([P, 0.5 * (P[edges[:, 0]] + P[edges[:, 1]]), (pk[:, 0] + pk[:, 1] + pk[:, 2]) / 3.0])
+    S = np.empty((nt, 6, 3), np.int64)
+    th = -np.ones((nt, 6, 3, 2), np.int64)
+    centre = nv + len(edges) + np.arange(nt)
+    for k in range(3):
+        a, b, c = T[:, k], T[:, (k + 1) % 3], T[:, (k + 2) % 3]
+        S[:, 2 * k] = np.stack([a, nv + mid_of[:, k], centre], axis=1)
+        S[:, 2 * k + 1] = np.stack([a, centre, nv + mid_of[:, (k + 2) % 3]], axis=1)
+        th[:, 2 * k, 0] = np.stack([a, b], axis=1)
+        th[:, 2 * k + 1, 2] = np.stack([c, a], axis=1)
+    owner = np.repeat(T, 2, axis=1)
+    return Q, S.reshape(-1, 3), owner.ravel(), th.reshape(-1, 3, 2)
 
-    def __init__(self, r):
+
+class Geometry:
+    """T_h, S_h, the edges of S_h and everything the estimators share. S_h is built from T_h
+    (dual_submesh); a result's /dual must be the same submesh in the same order (checked:
+    `dual_mismatch`, the largest distance between corresponding corners, relative to the size
+    of the domain). `degree`: the quadrature rule used on the cells of S_h (basix's default)."""
+
+    def __init__(self, r, degree=DEGREE):
         self.P = r["points"][:, :2]
         self.T = r["cells"]
-        self.S = r["dual_cells"]
-        self.Q = r["dual_points"][:, :2]
-        self.owner = r["dual_owner"]
+        self.Q, self.S, self.owner, th_edge = dual_submesh(self.P, self.T)
         nt, ns, nv = len(self.T), len(self.S), len(self.P)
-        assert ns == 6 * nt
+        size = float(np.ptp(self.P, axis=0).max())
+        if "dual_cells" in r:
+            same = r["dual_cells"].shape == self.S.shape and np.array_equal(r["dual_owner"], self.owner)
+            self.dual_mismatch = (float(np.abs(r["dual_points"][:, :2][r["dual_cells"]] - self.Q[self.S]).max()) / size
+                                  if same else math.inf)
+        else:
+            self.dual_mismatch = 0.0
         self.tri = np.arange(ns) // 6  # the triangle K of T_h containing each cell of S_h
         self.pk = self.P[self.T]  # nt x 3 x 2
         self.area_K = 0.5 * orient(self.pk)
@@ -109,6 +153,9 @@ class Geometry:
         self.cell_sign = np.where(ce[:, :, 0] < ce[:, :, 1], 1.0, -1.0)
         self.n_edges = len(uniq)
         self.edge_on_boundary = counts == 1
+        # the edge of T_h that each edge of S_h halves ((-1, -1) inside the triangles)
+        self.edge_th = -np.ones((self.n_edges, 2), np.int64)
+        self.edge_th[self.cell_edge.ravel()] = th_edge.reshape(-1, 2)
         # midpoints of the edges of each cell (edge k), and the RT0 basis there
         self.mid = 0.5 * (self.ps + np.roll(self.ps, -1, axis=1))  # ns x 3 x 2, mid[k] of edge k
         # psi_k(x) = (x - P_{k+2}) / (2|kappa|): unit outward flux through edge k
@@ -116,8 +163,9 @@ class Geometry:
         self.psi_mid = (self.mid[:, None, :, :] - opp[:, :, None, :]) / (2 * self.area[:, None, None, None])  # ns x k x m x 2
         # cell mass matrices (midpoint rule: exact for quadratics)
         self.mass = np.einsum("nkmd,njmd->nkj", self.psi_mid, self.psi_mid) * (self.area / 3)[:, None, None]
-        # quadrature of degree DEGREE on the cells of S_h
-        xi, w = basix.make_quadrature(basix.CellType.triangle, DEGREE)
+        # quadrature of degree `degree` on the cells of S_h
+        self.degree = degree
+        xi, w = basix.make_quadrature(basix.CellType.triangle, degree)
         a, b, c = self.ps[:, 0], self.ps[:, 1], self.ps[:, 2]
         self.xq = a[:, None] + xi[None, :, 0, None] * (b - a)[:, None] + xi[None, :, 1, None] * (c - a)[:, None]
         self.wq = 2 * self.area[:, None] * w[None, :]
@@ -156,15 +204,19 @@ class Geometry:
 # local mixed problems on patches of S_h
 # ---------------------------------------------------------------------------------------------
 
-def solve_patch(geo, cells, target_mid, div):
+def solve_patch(geo, cells, target_mid, div, vertex=None):
     """min ||sigma - target|| over sigma in RT0 on `cells` (of S_h) with div sigma = div (per cell),
-    sigma.n = 0 on the boundary of the patch except on d(omega). Returns (edge ids, edge fluxes)."""
+    sigma.n = 0 on the boundary of the patch except on d(omega) -- only on the halves of the
+    boundary edges of T_h that contain `vertex` if it is given. Returns (edge ids, edge fluxes)."""
     ce, cs = geo.cell_edge[cells], geo.cell_sign[cells]
     edges, inv = np.unique(ce.ravel(), return_inverse=True)
     inv = inv.reshape(ce.shape)
     cnt = np.bincount(inv.ravel(), minlength=len(edges))
-    free = (cnt == 2) | geo.edge_on_boundary[edges]
-    closed = not geo.edge_on_boundary[edges].any()
+    open_boundary = geo.edge_on_boundary[edges]
+    if vertex is not None:
+        open_boundary &= (geo.edge_th[edges] == vertex).any(axis=1)
+    free = (cnt == 2) | open_boundary
+    closed = not open_boundary.any()
     unk = -np.ones(len(edges), np.int64)
     unk[free] = np.arange(free.sum())
     nu, nc = int(free.sum()), len(cells)
@@ -192,12 +244,15 @@ def solve_patch(geo, cells, target_mid, div):
     return edges[free], x
 
 
-def equilibrate(geo, G_tri, int_fphi, own_term):
+def equilibrate(geo, G_tri, int_fphi, own_term, touching=False):
     """The patch flux of section 7(c): sum over the vertices a of the minimisers of
     ||Pi_RT(phi_a G) + tau|| on the cells of S_h in supp phi_a, with tau.n = 0 on the patch boundary
     inside omega and div tau = Pi(f phi_a) - G.grad phi_a + own_term[a] on the cells of D_a.
     G_tri: the discrete flux mu grad u_h per triangle; int_fphi: int_kappa f phi_j (ns x 3).
-    Returns the fluxes through the edges of S_h."""
+    touching: the normal flux is free only on the halves of the boundary edges of T_h that contain
+    a (the Rust code's choice; every other part of the patch boundary is closed, so the patch of an
+    interior vertex is closed even where an edge opposite a lies on d(omega)); otherwise on every
+    edge of the patch on d(omega). Returns the fluxes through the edges of S_h."""
     nv = len(geo.P)
     x = np.zeros(geo.n_edges)
     G = G_tri[geo.tri]
@@ -215,7 +270,7 @@ def equilibrate(geo, G_tri, int_fphi, own_term):
         target = geo.rt0_at(Fi, geo.mid[cells], cells)
         own = geo.owner[cells] == a
         d = int_fphi[cells, j] / geo.area[cells] - g_phi[geo.tri[cells], j] + own * own_term[a]
-        edges, xe = solve_patch(geo, cells, target, d)
+        edges, xe = solve_patch(geo, cells, target, d, a if touching else None)
         x[edges] += xe
     return x
 
@@ -253,17 +308,21 @@ def case_function(source):
 
 
 def case_gradient(source):
-    """grad g as NumPy functions (SymPy derivative of the case expression)."""
-    from .exact_cases import X, Y, to_sympy
+    """grad g as a NumPy function: the exact derivative of the case expression (forward-mode
+    differentiation of its tree, expr.to_numpy_gradient; the case's [let] names substituted)."""
+    tree = expr.parse(source)
 
-    g = to_sympy(source)
-    parts = [sp.lambdify((X, Y), sp.diff(g, v).rewrite(sp.Piecewise), "numpy") for v in (X, Y)]
-    return lambda x, y: np.stack([np.broadcast_to(np.asarray(p(x, y), float), np.shape(x)) for p in parts], axis=-1)
+    def grad(x, y):
+        _, gx, gy = expr.to_numpy_gradient(tree, x, y)
+        return np.stack([gx, gy], axis=-1)
+
+    return grad
 
 
-def boundary_lifting(geo, case, lam):
-    """psi, the lifting of g - g_h into the triangles of the boundary edges (docs, section 4):
-    per triangle ||grad psi||_K^2 and int_K lambda_h psi."""
+def boundary_lifting(geo, case, lam, gap):
+    """psi, the lifting of g - g_h into the triangles of the boundary edges (docs, section 5):
+    per triangle ||grad psi||_K^2 and int_K lambda_h psi. lam: lambda_a (0 at the boundary
+    vertices); gap: w_h at the vertices (w_h = g_h at the boundary vertices)."""
     g, dg = case_function(case["g"]), case_gradient(case["g"])
     t, w = np.polynomial.legendre.leggauss(GAUSS_1D)
     tau = np.concatenate([(t + 1) / 4, (t + 3) / 4])  # [0, 1/2] and [1/2, 1]: s* has a kink at 1/2
@@ -297,17 +356,16 @@ def boundary_lifting(geo, case, lam):
             n2 = geo.area_K[K] * np.sum(wt * np.sum(field ** 2, axis=1))
             sstar = 1.0 / (1.0 + np.maximum(tau, 1 - tau))
             lampsi[K] += lam[c] * 2 * geo.area_K[K] * np.sum(wt * delta * sstar ** 3 / 3)
-            parts.append((math.sqrt(n2), float(np.min(delta)), (gp, gq)))
+            parts.append((math.sqrt(n2), min(0.0, float(np.min(delta))), (gp, gq)))
         if len(parts) == 1:
             grad2[K] = parts[0][0] ** 2  # w_h + psi = (1 - s) w_c + s g >= 0: psi is the lifting
         else:
-            # two (or three) boundary edges: psi0 = sum of the edge liftings; psi = max(psi0, -g_h)
-            gmin = min(float(g(geo.P[v:v + 1, 0], geo.P[v:v + 1, 1])[0]) for v in verts)
-            need = sum(max(0.0, -d) for _, d, _ in parts)
+            # two (or three) boundary edges: psi0 = sum of the edge liftings; psi = max(psi0, -w_h)
+            wmin = float(gap[verts].min())
+            need = sum(max(0.0, -d) for _, d, _ in parts)  # d = min(0, min of delta at the Gauss points)
             n = sum(x for x, _, _ in parts) ** 2
-            if gmin < need:  # max(psi0, -g_h) may differ from psi0: |grad psi|^2 <= |grad psi0|^2 + |grad g_h|^2
-                gh = np.array([float(g(geo.P[v:v + 1, 0], geo.P[v:v + 1, 1])[0]) for v in verts])
-                n += geo.area_K[K] * float(np.sum((gh @ gl) ** 2))
+            if wmin < need:  # max(psi0, -w_h) may differ from psi0: |grad psi|^2 <= |grad psi0|^2 + |grad w_h|^2
+                n += geo.area_K[K] * float(np.sum((gap[verts] @ gl) ** 2))
             grad2[K] = n
     return grad2, lampsi
 
@@ -315,6 +373,7 @@ def boundary_lifting(geo, case, lam):
 def estimate(path, variants=VARIANTS, lift_means=("dualmin", "patch")):
     r = common.read_result(path)
     geo = Geometry(r)
+    assert geo.dual_mismatch <= DUAL_TOL, "the result's /dual is not S_h in the expected order"
     case = r["case"]
     mu = [float(case["mu1"]), float(case["mu2"])]
     sign = [1.0, -1.0]
@@ -337,7 +396,7 @@ def estimate(path, variants=VARIANTS, lift_means=("dualmin", "patch")):
     # contact term (lambda_h, w_h + psi) and the boundary lifting
     w_cent = np.einsum("nk,nk->n", barycentric(geo.pk[geo.tri], geo.ps.mean(axis=1)[:, None, :])[:, 0], gap[geo.T[geo.tri]])
     contact_cell = lam_cell * w_cent * geo.area
-    grad_psi2, lampsi = boundary_lifting(geo, case, lam)
+    grad_psi2, lampsi = boundary_lifting(geo, case, lam, gap)
     contact_K = np.bincount(geo.tri, contact_cell, minlength=nt) + lampsi
     eta_C = float(contact_K.sum())
     eta_D = math.sqrt(mu[0] * grad_psi2.sum())
@@ -458,6 +517,339 @@ def estimate(path, variants=VARIANTS, lift_means=("dualmin", "patch")):
     return out
 
 
+# ---------------------------------------------------------------------------------------------
+# the estimator as the Rust code computes it (`solve --estimate`), recomputed from a result
+# ---------------------------------------------------------------------------------------------
+
+MAX_RULE = 20  # the highest degree of the rules (src/quadrature_tables.rs, reference/gen_quadrature.py)
+ERROR_DEGREE = 10  # the Rust code's rule for the error norms (src/norms.rs)
+
+
+def on_triangles(geo, degree):
+    """Basix's default rule of `degree` mapped onto every triangle of T_h from its corners in
+    order (x = p0 + xi (p1 - p0) + eta (p2 - p0), as the Rust code's Quadrature::visit):
+    points (nt x nq x 2), weights (nt x nq), barycentric coordinates (nq x 3)."""
+    xi, w = basix.make_quadrature(basix.CellType.triangle, degree)
+    a, b, c = geo.pk[:, 0], geo.pk[:, 1], geo.pk[:, 2]
+    x = a[:, None] + xi[None, :, 0, None] * (b - a)[:, None] + xi[None, :, 1, None] * (c - a)[:, None]
+    return x, 2 * geo.area_K[:, None] * w[None, :], np.column_stack([1 - xi.sum(axis=1), xi])
+
+
+def energy_error(geo, case, u, mu):
+    """|||u - u_h||| = (sum_i mu_i ||grad u_i - grad u_ih||^2)^(1/2) by the degree-10 rule on T_h
+    (the Rust code's error rule), from the case's exact gradients: None without them."""
+    exact = case.get("exact", {})
+    if "grad_u1" not in exact or "grad_u2" not in exact:
+        return None
+    x, w, _ = on_triangles(geo, ERROR_DEGREE)
+    total = 0.0
+    for i in range(2):
+        gh = np.einsum("nkd,nk->nd", geo.grad_K, u[i][geo.T])
+        ge = np.stack([expr.to_numpy(expr.parse(c), x[..., 0], x[..., 1]) for c in exact["grad_u%d" % (i + 1)]], axis=-1)
+        total += mu[i] * float(np.sum(w * np.sum((ge - gh[:, None, :]) ** 2, axis=-1)))
+    return math.sqrt(total)
+
+
+def rust_estimate(r, cell_degree=None):
+    """Everything `membrane-contact solve --estimate` writes, recomputed independently from the
+    result r (common.read_result) -- the written u1, u2, gap, lambda at the vertices, the mesh and
+    the case's expressions -- with the Rust code's choices (docs/a-posteriori.md section 10):
+    the patch flux of section 7(c) with the normal flux free only on the halves of the boundary
+    edges of T_h that contain a; the case's own rule on the cells of S_h; the means by Friedrichs
+    (section 4(c), not lifted); h_kappa the longest edge; the lifting psi of section 5.
+    cell_degree: another rule on the cells of S_h (for experiments; the loads on T_h keep the
+    case's). Returns (attributes, cell fields per triangle of T_h, checks, round-off allowances)."""
+    case = r["case"]
+    degree = min(max(common.quadrature_degree(case), 1), MAX_RULE)
+    geo = Geometry(r, cell_degree or degree)
+    mu = [float(case["mu1"]), float(case["mu2"])]
+    alpha = mu[1] / (mu[0] + mu[1])
+    sign = [1.0, -1.0]
+    u = [r["u1"], r["u2"]]
+    gap = r["gap"]
+    lam = np.where(geo.on_boundary, 0.0, r["lambda"])  # lambda_h = 0 on the cells of boundary vertices
+    lam_cell = lam[geo.owner]
+    nt, nv = len(geo.T), len(geo.P)
+    m = geo.dual_area  # m_a = |D_a| = int phi_a
+    f = [case_function(case["f1"]), case_function(case["f2"])]
+
+    # the loads (f_i, phi_a)_q by the case's rule on T_h (the solver's load vectors)
+    xT, wT, lT = on_triangles(geo, degree)
+    loads = []
+    for i in range(2):
+        v = f[i](xT[..., 0], xT[..., 1])
+        loads.append(np.bincount(geo.T.ravel(), np.einsum("nq,nq,qk->nk", wT, v, lT).ravel(), minlength=nv))
+    # their consistency with the written lambda, lambda2 through (4.5) (interior vertices)
+    stiff = np.einsum("nid,njd->nij", geo.grad_K, geo.grad_K) * geo.area_K[:, None, None]
+    Ku = [np.bincount(geo.T.ravel(), np.einsum("nij,nj->ni", stiff, ui[geo.T]).ravel(), minlength=nv) for ui in u]
+    recovered = [mu[0] * Ku[0] - lam * m, mu[1] * Ku[1] + np.where(geo.on_boundary, 0.0, r.get("lambda2", r["lambda"])) * m]
+    inner = geo.interior
+    load_check = max(float(np.abs(recovered[i] - loads[i])[inner].max(initial=0.0))
+                     / max(float(np.abs(loads[i][inner]).max(initial=0.0)), 1e-300) for i in range(2))
+
+    # the cells of S_h: int f phi_j, ||v - Pi v||^2 for v = f1, f2, alpha f1 - (1 - alpha) f2
+    fq = [f[i](geo.xq[..., 0], geo.xq[..., 1]) for i in range(2)]
+    fq.append(alpha * fq[0] - (1 - alpha) * fq[1])
+    area_q = geo.wq.sum(axis=1)
+    raw = [np.sum(geo.wq * v * v, axis=1) - np.sum(geo.wq * v, axis=1) ** 2 / area_q for v in fq]
+    osc2 = [np.maximum(v, 0.0) for v in raw]
+    # Round-off of that formula (the Rust code's): both sums carry a relative error of about
+    # nq eps of int f^2 (of the sizes of the terms of alpha f1 - (1 - alpha) f2 for the action),
+    # and a difference D of the squares moves the root by at most min(sqrt(D), D / root). Where f
+    # is constant on kappa up to round-off (alpha f1 - (1 - alpha) f2 inside the disk of
+    # disk_jump) the two codes' oscillations are noise of size (h/pi) sqrt(eps int f^2).
+    size = [np.sum(geo.wq * fq[0] ** 2, axis=1), np.sum(geo.wq * fq[1] ** 2, axis=1),
+            np.sum(geo.wq * (alpha * np.abs(fq[0]) + (1 - alpha) * np.abs(fq[1])) ** 2, axis=1)]
+    roundoff = []
+    for v, m2 in zip(raw, size):
+        D = OSC_ROUNDOFF * (geo.wq.shape[1] + 2) * np.finfo(float).eps * m2
+        root = np.sqrt(np.maximum(v, 0.0))
+        roundoff.append(geo.diam / math.pi * np.where(root > 0, np.minimum(np.sqrt(D), D / np.where(root > 0, root, 1.0)), np.sqrt(D)))
+    int_fphi = [np.einsum("nq,nq,nqk->nk", geo.wq, fq[i], geo.lam_q) for i in range(2)]
+
+    fields = {}
+    attrs = {}
+    allow = {}  # round-off allowances of the oscillation terms (absolute; per triangle for cell fields)
+    allow_K = np.zeros(nt)
+    checks = {"dual_mismatch": geo.dual_mismatch, "load_vs_lambda": load_check}
+    means, G_mid, tau_mid, sums = [], [], [], []
+    indicator2 = np.zeros(nt)
+    for i in range(2):
+        on_s_h = np.bincount(geo.T[geo.tri].ravel(), int_fphi[i].ravel(), minlength=nv)
+        c = np.where(geo.interior, (on_s_h - loads[i]) / m, 0.0)  # c_{i,a}, section 4(c)
+        means.append(c)
+        grad_uh = np.einsum("nkd,nk->nd", geo.grad_K, u[i][geo.T])
+        x = equilibrate(geo, mu[i] * grad_uh, int_fphi[i], sign[i] * lam - c, touching=True)
+        F = geo.cell_fluxes(x)
+        t_mid = geo.rt0_at(F, geo.mid)
+        G = mu[i] * grad_uh[geo.tri]
+        eta_F = np.sqrt(geo.l2_affine(G[:, None, :] + t_mid)) / math.sqrt(mu[i])
+        eta_osc = geo.diam / math.pi * np.sqrt(osc2[i]) / math.sqrt(mu[i])
+        # conservation of the flux: div tau_i = Pi f_i +- lambda_h - c_i on every cell
+        div = F.sum(axis=1) / geo.area
+        target = np.sum(geo.wq * fq[i], axis=1) / geo.area + sign[i] * lam_cell - c[geo.owner]
+        checks["div_defect_%d" % (i + 1)] = float(np.abs(div - target).max() / max(np.abs(target).max(), 1e-300))
+        fields["estimator_flux_%d" % (i + 1)] = np.sqrt(np.bincount(geo.tri, eta_F ** 2, minlength=nt))
+        fields["estimator_oscillation_%d" % (i + 1)] = np.sqrt(np.bincount(geo.tri, eta_osc ** 2, minlength=nt))
+        a2 = np.bincount(geo.tri, roundoff[i] ** 2, minlength=nt) / mu[i]
+        allow["cell estimator_oscillation_%d" % (i + 1)] = np.sqrt(a2)
+        allow["attr estimator_membrane_%d" % (i + 1)] = math.sqrt(a2.sum())
+        allow_K += a2
+        local = (eta_F + eta_osc) ** 2
+        indicator2 += np.bincount(geo.tri, local, minlength=nt)
+        sums.append(float(local.sum()))
+        G_mid.append(G)
+        tau_mid.append(t_mid)
+        attrs["estimator_means_%d" % (i + 1)] = geo.C_F * math.sqrt(np.sum(c ** 2 * m) / mu[i])
+        attrs["estimator_membrane_%d" % (i + 1)] = math.sqrt(sums[i]) + attrs["estimator_means_%d" % (i + 1)]
+
+    # the boundary data (section 5) and the contact term (section 6)
+    grad_psi2, lampsi = boundary_lifting(geo, case, lam, gap)
+    fields["estimator_boundary"] = np.sqrt(mu[0] * grad_psi2)
+    w_cent = np.einsum("nk,nk->n", barycentric(geo.pk[geo.tri], geo.ps.mean(axis=1)[:, None, :])[:, 0], gap[geo.T[geo.tri]])
+    fields["estimator_contact"] = np.bincount(geo.tri, lam_cell * geo.area * w_cent, minlength=nt) + lampsi
+    fields["estimator"] = np.sqrt(np.maximum(indicator2 + fields["estimator_boundary"] ** 2 + 2 * fields["estimator_contact"], 0.0))
+    eta_D = math.sqrt(float(np.sum(fields["estimator_boundary"] ** 2)))
+    eta_C = float(fields["estimator_contact"].sum())
+    attrs["estimator_boundary"], attrs["estimator_contact"] = eta_D, eta_C
+    allow["cell estimator"] = np.sqrt(allow_K)
+    allow["attr estimator"] = math.sqrt(allow_K.sum())
+    attrs["estimator"] = math.sqrt(max(attrs["estimator_membrane_1"] ** 2 + attrs["estimator_membrane_2"] ** 2
+                                       + eta_D ** 2 + 2 * eta_C, 0.0))
+
+    # the action (section 8), the means by Friedrichs
+    zeta = alpha * (G_mid[0][:, None, :] + tau_mid[0]) - (1 - alpha) * (G_mid[1][:, None, :] + tau_mid[1])
+    cell = np.sqrt(geo.l2_affine(zeta)) + geo.diam / math.pi * np.sqrt(osc2[2])
+    combined = alpha * means[0] - (1 - alpha) * means[1]
+    eta_lam = math.sqrt(float(np.sum(cell ** 2))) + geo.C_F * math.sqrt(float(np.sum(combined ** 2 * m)))
+    mu_bar = mu[0] * mu[1] / (mu[0] + mu[1])
+    e_w = math.sqrt(max(eta_lam ** 2 / mu_bar + mu_bar * eta_D ** 2 / mu[0] + 2 * eta_C, 0.0))
+    attrs["estimator_hminus1_lambda"] = math.sqrt(mu_bar) * e_w + eta_lam
+    allow["attr estimator_hminus1_lambda"] = 2.0 * math.sqrt(float(np.sum(roundoff[2] ** 2)))  # d(bound)/d(eta_lambda) <= 2
+
+    # the exact error, here and as written
+    checks["error_energy"] = energy_error(geo, case, u, mu)
+    if "error_energy" in r["attrs"]:
+        attrs["effectivity"] = attrs["estimator"] / float(r["attrs"]["error_energy"])
+        allow["attr effectivity"] = allow["attr estimator"] / float(r["attrs"]["error_energy"])
+    return attrs, fields, checks, allow
+
+
+# What --compare checks: (name, where, scale, tolerance). The scale of a difference is the total
+# eta ("eta"; for the contact terms eta^2: 2 eta_C enters eta^2, so a change d of eta_C changes
+# eta by d/eta), or the value itself ("own").
+FLUX_TOL = 1e-9  # flux, oscillation, means: the same formulas at the same points; round-off only
+OSC_ROUNDOFF = 8.0  # the round-off of int f^2 - (int f)^2/|kappa|: OSC_ROUNDOFF (nq + 2) eps int f^2
+BOUNDARY_TOL = 1e-7  # psi: Rust's delta' is a difference quotient, here the exact derivative
+CONTACT_TOL = 1e-9  # lambda_h w_h and int lambda_h psi: no derivative of g, round-off only
+COMPARED = (
+    ("estimator", "attr", "eta", BOUNDARY_TOL),
+    ("estimator_membrane_1", "attr", "eta", FLUX_TOL),
+    ("estimator_membrane_2", "attr", "eta", FLUX_TOL),
+    ("estimator_means_1", "attr", "eta", FLUX_TOL),
+    ("estimator_means_2", "attr", "eta", FLUX_TOL),
+    ("estimator_boundary", "attr", "eta", BOUNDARY_TOL),
+    ("estimator_contact", "attr", "eta2", CONTACT_TOL),
+    ("estimator_hminus1_lambda", "attr", "own", BOUNDARY_TOL),
+    ("effectivity", "attr", "own", BOUNDARY_TOL),
+    ("estimator", "cell", "eta", BOUNDARY_TOL),
+    ("estimator_flux_1", "cell", "eta", FLUX_TOL),
+    ("estimator_flux_2", "cell", "eta", FLUX_TOL),
+    ("estimator_oscillation_1", "cell", "eta", FLUX_TOL),
+    ("estimator_oscillation_2", "cell", "eta", FLUX_TOL),
+    ("estimator_boundary", "cell", "eta", BOUNDARY_TOL),
+    ("estimator_contact", "cell", "eta2", CONTACT_TOL),
+)
+DUAL_TOL = 1e-14  # /dual against S_h built here (coordinates relative to the domain's size)
+DIV_TOL = 1e-11  # div tau_i = Pi f_i +- lambda_h - c_i, relative (this code's own equilibration)
+ERROR_TOL = 1e-9  # error_energy against the one computed here (same rule, same points)
+
+
+def read_estimate(path):
+    """The estimator's attributes and cell fields of a Rust result (h5py)."""
+    import h5py
+
+    h5 = os.path.join(path, "solution.h5") if os.path.isdir(path) else path
+    with h5py.File(h5, "r") as f:
+        attrs = {k: float(f.attrs[k]) for k in f.attrs if k.startswith("estimator") or k in ("effectivity", "error_energy")}
+        fields = {k: f["mesh"][k][...] for k in f["mesh"] if k.startswith("estimator")}
+    return attrs, fields
+
+
+def compare(path):
+    """Recomputes the estimator of the Rust result `path` and compares. Returns (rows, failures,
+    summary): rows (name, where, Rust, here, max |difference| / scale, tolerance, round-off
+    allowance / scale), failures the messages of every check that fails. A value passes when
+    |Rust - here| <= tolerance * scale + allowance (per triangle for the cell fields)."""
+    h5 = os.path.join(path, "solution.h5") if os.path.isdir(path) else path
+    if not os.path.isfile(h5):
+        return [], ["%s: no result there (no %s)" % (path, h5)], {}
+    r = common.read_result(path)
+    mine, mine_fields, checks, allow = rust_estimate(r)
+    theirs, their_fields = read_estimate(path)
+    failures = []
+    if "estimator" not in theirs:
+        return [], ["%s: no estimator in the result (solve with --estimate)" % path], {}
+    eta = mine["estimator"]
+    scales = {"eta": eta, "eta2": eta * eta}
+    rows = []
+    for name, where, scale, tol in COMPARED:
+        extra = allow.get(where + " " + name, 0.0)
+        if where == "attr":
+            if name not in mine and name not in theirs:
+                continue
+            if name not in theirs or name not in mine:
+                failures.append("%s: attribute %s only %s" % (path, name, "here" if name in mine else "in the result"))
+                continue
+            a, b = theirs[name], mine[name]
+            s = abs(b) if scale == "own" else scales[scale]
+            d = abs(a - b)
+            ok = d <= tol * s + extra
+        else:
+            if name not in their_fields:
+                failures.append("%s: cell field %s missing" % (path, name))
+                continue
+            a, b = their_fields[name], mine_fields[name]
+            if a.shape != b.shape:
+                failures.append("%s: cell field %s has %s values, %d triangles" % (path, name, a.shape, len(b)))
+                continue
+            s = scales[scale]
+            dk = np.abs(a - b)
+            d, ok = float(dk.max()), bool(np.all(dk <= tol * s + extra))
+            worst = int(np.argmax(dk / (tol * s + extra + 1e-300)))
+            at = (worst, a[worst], b[worst])
+            a, b, extra = float(np.abs(a).max()), float(np.abs(b).max()), float(np.max(extra))
+        rel = d / s if s > 0 else (0.0 if d == 0 else math.inf)
+        rows.append((name, where, a, b, rel, tol, extra / s if s > 0 else 0.0))
+        if not ok:
+            failures.append("%s: %s %s differs by %.2e (relative to %s) > %.0e + round-off %.1e: %s"
+                            % (path, where, name, rel, {"eta": "eta", "eta2": "eta^2", "own": "itself"}[scale], tol,
+                               rows[-1][6], "Rust %.10e, here %.10e" % (a, b) if where == "attr" else
+                               "on triangle %d Rust %.10e, here %.10e" % at))
+    if not checks["dual_mismatch"] <= DUAL_TOL:
+        failures.append("%s: /dual is not the submesh S_h of /mesh (mismatch %.2e)" % (path, checks["dual_mismatch"]))
+    for i in (1, 2):
+        if not checks["div_defect_%d" % i] <= DIV_TOL:
+            failures.append("%s: the flux tau_%d recomputed here misses its divergence by %.2e" % (path, i, checks["div_defect_%d" % i]))
+    # the bound itself, where the case has an exact solution
+    E = checks["error_energy"]
+    summary = {"eta": eta, "eta_rust": theirs["estimator"], "E": E, "E_rust": theirs.get("error_energy")}
+    if E is not None:
+        e_rust = theirs.get("error_energy", math.nan)
+        summary["E_rel"] = abs(e_rust - E) / E if E > 0 else abs(e_rust - E)
+        if not summary["E_rel"] <= ERROR_TOL:
+            failures.append("%s: error_energy = %.10e, here %.10e" % (path, e_rust, E))
+        for who, value in (("here", eta), ("Rust", theirs["estimator"])):
+            if not value >= E:
+                failures.append("%s: the bound fails: eta (%s) = %.6e < |||u - u_h||| = %.6e" % (path, who, value, E))
+    summary["checks"] = checks
+    return rows, failures, summary
+
+
+def print_comparison(path, rows, summary, out=sys.stdout):
+    print("%s" % path, file=out)
+    print("  %-26s %-4s %18s %18s %10s %7s %9s" % ("quantity", "", "Rust (max |.|)", "here (max |.|)", "rel. diff", "tol",
+                                                   "round-off"), file=out)
+    for name, where, a, b, rel, tol, extra in rows:
+        print("  %-26s %-4s %18.10e %18.10e %10.2e %7.0e %9.1e%s" % (name, where, a, b, rel, tol, extra,
+                                                                  "" if rel <= tol + extra else "  FAIL"), file=out)
+    c = summary.get("checks", {})
+    line = "  S_h mismatch %.1e, div defects %.1e %.1e, loads vs (4.5) %.1e" % (
+        c.get("dual_mismatch", math.nan), c.get("div_defect_1", math.nan), c.get("div_defect_2", math.nan), c.get("load_vs_lambda", math.nan))
+    if summary.get("E") is not None:
+        line += "; |||u - u_h||| = %.6e (Rust %.6e, rel. diff %.1e), eta/E = %.4f" % (
+            summary["E"], summary["E_rust"], summary["E_rel"], summary["eta"] / summary["E"])
+    print(line, file=out, flush=True)
+
+
+GROUPS = (  # the columns of the summary table: (title, names compared)
+    ("η, η_K", ("estimator",)),
+    ("η_1, η_2", ("estimator_membrane_1", "estimator_membrane_2")),
+    ("η_Q,1, η_Q,2", ("estimator_means_1", "estimator_means_2")),
+    ("flux_i (cells)", ("estimator_flux_1", "estimator_flux_2")),
+    ("osc_i (cells)", ("estimator_oscillation_1", "estimator_oscillation_2")),
+    ("η_D, η_D,K", ("estimator_boundary",)),
+    ("η_C, η_C,K", ("estimator_contact",)),
+    ("§8 bound", ("estimator_hminus1_lambda",)),
+    ("effectivity", ("effectivity",)),
+)
+
+
+def summary_row(label, rows, summary):
+    cells = [label]
+    for _, names in GROUPS:
+        v = [rel for name, _, _, _, rel, _, _ in rows if name in names]
+        cells.append("%.1e" % max(v) if v else "—")
+    E = summary.get("E")
+    cells.append("%.4f" % (summary["eta"] / E) if E else "—")
+    return "| " + " | ".join(cells) + " |"
+
+
+def compare_main(paths):
+    if not paths:
+        print("usage: python3 -m reference.estimator --compare DIR [DIR ...]", file=sys.stderr)
+        return 2
+    head = ["| result | " + " | ".join(t for t, _ in GROUPS) + " | η/E |", "|---" * (len(GROUPS) + 2) + "|"]
+    table, failures = [], []
+    for p in paths:
+        rows, fails, summary = compare(p)
+        if rows:
+            print_comparison(p, rows, summary)
+            table.append(summary_row(p, rows, summary))
+        failures += fails
+    print("\nmax |Rust - here| relative to eta (eta^2 for the contact terms, the value itself for the §8 bound and "
+          "the effectivity); tolerances %.0e (flux, oscillation, means), %.0e (contact), %.0e (boundary terms and "
+          "what contains them)" % (FLUX_TOL, CONTACT_TOL, BOUNDARY_TOL))
+    print("\n".join(head + table))
+    if failures:
+        print("ESTIMATOR COMPARISON FAILED:")
+        for f in failures:
+            print("  " + f)
+        return 1
+    print("estimator comparison: %d result(s) agree" % len(paths))
+    return 0
+
+
 def line(o, variants=VARIANTS):
     e = o["error_energy"]
     s = "%s  err %.4e" % (o["path"], e)
@@ -486,6 +878,8 @@ TABLE_HEAD = ("| case | n | error | eta dual | eff | eta dualmin | eff | eta pat
 
 
 def main(argv):
+    if argv and argv[0] == "--compare":
+        sys.exit(compare_main(argv[1:]))
     table = "--table" in argv
     save = None
     if "--per-triangle" in argv:

@@ -27,7 +27,11 @@ Fails (exit 1) when
     2/3 - 0.1 on the L-shape (u in H^(5/3 - eps) only, Remark 10); the Rust code's own conservation
     defect exceeds 1e-13;
   - an exact case fails its SymPy check (exact_cases), or ParaView cannot read a result in double
-    precision (paraview_check).
+    precision (paraview_check);
+  - the a posteriori estimator (`solve --estimate`, on the first validation level of every case
+    and on the jittered mesh files) differs from its recomputation by reference/estimator.py
+    (--compare: every attribute and cell field, 1e-9 of eta for the flux, oscillation and means,
+    1e-7 for the boundary terms and what contains them), or eta < |||u - u_h||| on an exact case.
 Writes OUT/report.md with plots.
 
 Usage (from the repository root):
@@ -39,7 +43,7 @@ import subprocess
 import sys
 import time
 
-from . import common, compare, exact_cases, flux_checks, report, solve_mixed, solve_reference
+from . import common, compare, estimator, exact_cases, flux_checks, report, solve_mixed, solve_reference
 from .report import NORMS, eocs
 
 AT_LEAST = {"hminus1_lambda"}
@@ -172,11 +176,47 @@ def rate_failures(name, levels, convex, failures):
     return rates
 
 
+def estimator_check(path, label, level, binary, workdir, failures, reuse=False):
+    """One more Rust run of `level` with --estimate (unless `reuse` and it exists), compared with
+    reference/estimator.py: the row of the report's estimator table, or None."""
+    option, value, _, tag = level
+    rust_dir = os.path.join(workdir, "estimate-%s" % tag)
+    t = time.perf_counter()
+    if not (reuse and os.path.isdir(rust_dir)):
+        proc = subprocess.run([binary, "solve", path, option, str(value), "--estimate", "-o", rust_dir],
+                              capture_output=True, text=True)
+        if proc.returncode != 0:
+            failures.append("%s: Rust solver failed with --estimate: %s" % (label, proc.stderr.strip()))
+            return None
+    row = estimator_row(label, rust_dir, failures)
+    print("estimator of %s: Rust run and comparison %.1f s" % (label, time.perf_counter() - t), flush=True)
+    return row
+
+
+def estimator_row(label, rust_dir, failures):
+    """Compares the estimator of a result with --estimate against reference/estimator.py."""
+    rows, fails, summary = estimator.compare(rust_dir)
+    failures += ["%s: %s" % (label, f) for f in fails]
+    return estimator.summary_row(label, rows, summary) if rows else None
+
+
+ESTIMATOR_HEAD = ["### A posteriori estimator: Rust against `reference/estimator.py --compare`", "",
+                  "Max |Rust − reference| relative to η (η² for the contact terms, the value itself for the §8 "
+                  "bound and the effectivity); tolerances %.0e (flux, oscillation, means; plus the round-off of "
+                  "∫f² − (∫f)²/|κ| for the oscillation), %.0e (contact), %.0e (boundary terms and what contains "
+                  "them); last column η/|||u − u_h||| (must be ≥ 1)." % (estimator.FLUX_TOL, estimator.CONTACT_TOL,
+                                                                         estimator.BOUNDARY_TOL), "",
+                  "| result | " + " | ".join(t for t, _ in estimator.GROUPS) + " | η/E |",
+                  "|---" * (len(estimator.GROUPS) + 2) + "|"]
+
+
 def run_case(path, binary, out, tol, failures, reuse=False):
     case = common.load_case(path)
     name = os.path.splitext(os.path.basename(path))[0]
     workdir = os.path.join(out, name)
     os.makedirs(workdir, exist_ok=True)
+    first = levels_of(case)[0]
+    estimate = estimator_check(path, "%s %s" % (name, first[2]), first, binary, workdir, failures, reuse)
     levels = []
     for spec in levels_of(case):
         level = run_level(path, name, spec, binary, workdir, tol, failures, reuse)
@@ -187,7 +227,7 @@ def run_case(path, binary, out, tol, failures, reuse=False):
     convex = mesh["kind"] == "rectangle" or (mesh["kind"] == "disk" and "inner_radius" not in mesh)
     rates = rate_failures(name, levels, convex, failures) if "exact" in case else {}
     return {"name": name, "title": case.get("title", ""), "path": path, "levels": levels, "rates": rates,
-            "convex": convex, "exact": "exact" in case}
+            "convex": convex, "exact": "exact" in case, "estimate": estimate}
 
 
 def jittered_mesh_files(workdir):
@@ -220,16 +260,18 @@ def mesh_files(binary, out, tol, failures):
     lines = ["| writer | vertices | max Δu1 | max Δu2 | max Δgap | max Δλ | max Δλ2 | contact mismatches |",
              "|---|---|---|---|---|---|---|---|"]
     paths, count = jittered_mesh_files(workdir)
+    estimates = []
     for writer, mesh_path in paths.items():
         case_path = os.path.join(workdir, writer + ".toml")
         with open(case_path, "w") as f:
             f.write(data + '[mesh]\nkind = "file"\npath = "%s"\n' % os.path.basename(mesh_path))
         rust_dir, ref_path = os.path.join(workdir, writer + "-rust"), os.path.join(workdir, writer + "-reference.h5")
-        proc = subprocess.run([binary, "solve", case_path, "-o", rust_dir], capture_output=True, text=True)
+        proc = subprocess.run([binary, "solve", case_path, "--estimate", "-o", rust_dir], capture_output=True, text=True)
         label = "mesh file from %s" % writer
         if proc.returncode != 0:
             failures.append("%s: Rust solver failed: %s" % (label, proc.stderr.strip()))
             continue
+        estimates.append(estimator_row(label, rust_dir, failures))
         solve_reference.solve_file(rust_dir, ref_path)
         rust = common.read_result(rust_dir)
         diffs, mismatch = compare.compare(rust, common.read_reference(ref_path))
@@ -240,7 +282,7 @@ def mesh_files(binary, out, tol, failures):
         cols = " | ".join(report.fmt(diffs[k][0]) for k in compare.FIELDS)
         lines.append("| %s | %d | %s | %d |" % (writer, nv, cols, mismatch))
     return ["### Meshes read from files (meshio and dolfinx XDMF, jittered 20 × 20 square, default case data)",
-            ""] + lines + [""]
+            ""] + lines + [""], [e for e in estimates if e]
 
 
 def paraview(result_dir, failures):
@@ -271,15 +313,19 @@ def main():
     if not exact_cases.main(paths):
         failures.append("an exact-solution case fails its SymPy check")
     lines = report.header(args.tol, EOC_AGREEMENT, THEORY_MARGIN)
+    estimates = []
     for path in paths:
         result = run_case(path, binary, args.out, args.tol, failures, args.reuse)
         if result is None:
             continue
+        if result["estimate"]:
+            estimates.append(result["estimate"])
         tables = report.tables(result)
         print("\n" + "\n".join(tables))
         lines += tables + ["![%s](%s)" % (img, img) for img in report.plots(result, args.out)] + [""]
         lines += paraview(result["levels"][-1]["dir"], failures)
-    mesh_lines = mesh_files(binary, args.out, args.tol, failures)
+    mesh_lines, mesh_estimates = mesh_files(binary, args.out, args.tol, failures)
+    mesh_lines += ESTIMATOR_HEAD + estimates + mesh_estimates + [""]
     print("\n" + "\n".join(mesh_lines))
     report.write(args.out, lines + mesh_lines, failures, time.perf_counter() - start)
     if failures:
