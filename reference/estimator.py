@@ -591,13 +591,13 @@ def rust_estimate(r, cell_degree=None):
     fq = [f[i](geo.xq[..., 0], geo.xq[..., 1]) for i in range(2)]
     fq.append(alpha * fq[0] - (1 - alpha) * fq[1])
     area_q = geo.wq.sum(axis=1)
-    raw = [np.sum(geo.wq * v * v, axis=1) - np.sum(geo.wq * v, axis=1) ** 2 / area_q for v in fq]
+    # Two passes, as the Rust code: the mean, then the squares of the deviations.
+    raw = [np.sum(geo.wq * (v - (np.sum(geo.wq * v, axis=1) / area_q)[:, None]) ** 2, axis=1) for v in fq]
     osc2 = [np.maximum(v, 0.0) for v in raw]
-    # Round-off of that formula (the Rust code's): both sums carry a relative error of about
-    # nq eps of int f^2 (of the sizes of the terms of alpha f1 - (1 - alpha) f2 for the action),
-    # and a difference D of the squares moves the root by at most min(sqrt(D), D / root). Where f
-    # is constant on kappa up to round-off (alpha f1 - (1 - alpha) f2 inside the disk of
-    # disk_jump) the two codes' oscillations are noise of size (h/pi) sqrt(eps int f^2).
+    # Round-off allowance (generous for the two-pass sums): a relative error of about nq eps of
+    # int f^2 (of the sizes of the terms of alpha f1 - (1 - alpha) f2 for the action) moves the
+    # root by at most min(sqrt(D), D / root); where f is constant on kappa up to round-off
+    # (alpha f1 - (1 - alpha) f2 inside the disk of disk_jump) both values are noise.
     size = [np.sum(geo.wq * fq[0] ** 2, axis=1), np.sum(geo.wq * fq[1] ** 2, axis=1),
             np.sum(geo.wq * (alpha * np.abs(fq[0]) + (1 - alpha) * np.abs(fq[1])) ** 2, axis=1)]
     roundoff = []

@@ -200,24 +200,28 @@ fn cell_loads(problem: &DiscreteProblem, dual: &DualMesh, alpha: f64) -> Vec<Cel
             .visit(corners, range, [&data.f1, &data.f2], |s, points, [f1, f2]| {
                 let frame = cell_frame(s);
                 let mut l = CellLoads::default();
-                let (mut mean, mut square) = ([0.0; 3], [0.0; 3]);
-                let mut area = 0.0;
+                let f = |k: usize| [f1[k], f2[k], alpha * f1[k] - (1.0 - alpha) * f2[k]];
+                let (mut mean, mut area) = ([0.0; 3], 0.0);
                 for (k, p) in points.iter().enumerate() {
                     let phi: [f64; 3] =
                         std::array::from_fn(|j| (0..3).map(|v| p.barycentric[v] * frame[v][j]).sum());
-                    let f = [f1[k], f2[k], alpha * f1[k] - (1.0 - alpha) * f2[k]];
-                    for (f_phi, f) in l.f_phi.iter_mut().zip(f) {
+                    for (f_phi, f) in l.f_phi.iter_mut().zip(f(k)) {
                         for (v, phi) in f_phi.iter_mut().zip(phi) {
                             *v += p.weight * f * phi;
                         }
                     }
-                    for (i, f) in f.iter().enumerate() {
-                        mean[i] += p.weight * f;
-                        square[i] += p.weight * f * f;
+                    for (m, f) in mean.iter_mut().zip(f(k)) {
+                        *m += p.weight * f;
                     }
                     area += p.weight;
                 }
-                l.oscillation = std::array::from_fn(|i| (square[i] - mean[i] * mean[i] / area).max(0.0));
+                // ‖v − Π v‖²_κ in a second pass: ∫v² − (∫v)²/|κ| would cancel to noise where v is
+                // nearly constant.
+                for (k, p) in points.iter().enumerate() {
+                    for ((o, f), m) in l.oscillation.iter_mut().zip(f(k)).zip(mean) {
+                        *o += p.weight * (f - m / area).powi(2);
+                    }
+                }
                 out.push(l);
             });
         out
