@@ -31,7 +31,10 @@ Fails (exit 1) when
   - the a posteriori estimator (`solve --estimate`, on the first validation level of every case
     and on the jittered mesh files) differs from its recomputation by reference/estimator.py
     (--compare: every attribute and cell field, 1e-9 of eta for the flux, oscillation and means,
-    1e-7 for the boundary terms and what contains them), or eta < |||u - u_h||| on an exact case.
+    1e-7 for the boundary terms and what contains them), or eta < |||u - u_h||| on an exact case;
+  - on meshes made by `adapt` (newest-vertex bisection of the L-shape toward its corner, and of
+    the disk with new boundary vertices on the circle), a middle and the last step: fields differ
+    from the reference by more than --tol, or the estimator from its recomputation.
 Writes OUT/report.md with plots.
 
 Usage (from the repository root):
@@ -42,6 +45,8 @@ import os
 import subprocess
 import sys
 import time
+
+import numpy as np
 
 from . import common, compare, estimator, exact_cases, flux_checks, report, solve_mixed, solve_reference
 from .report import NORMS, eocs
@@ -285,6 +290,46 @@ def mesh_files(binary, out, tol, failures):
             ""] + lines + [""], [e for e in estimates if e]
 
 
+ADAPTED = [("lshape_corner", ["--n", "8", "--max-vertices", "1500"]),
+           ("disk_contact", ["--max-vertices", "5000", "--theta", "0.3"])]
+
+
+def adapted_meshes(binary, out, tol, failures):
+    """`adapt` on the L-shape (corner singularity) and the disk (curved boundary): the reference
+    solves on a middle and the last bisected mesh, fields compared, and recomputes the estimator."""
+    workdir = os.path.join(out, "adapted")
+    os.makedirs(workdir, exist_ok=True)
+    lines = ["### Adapted meshes (`adapt`: Dörfler marking, newest-vertex bisection)", "",
+             "| case | step | vertices | smallest/largest triangle area | max Δu1 | max Δu2 | max Δgap | max Δλ | max Δλ2 | contact mismatches |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    estimates = []
+    for name, options in ADAPTED:
+        adapt_dir = os.path.join(workdir, name)
+        case_path = os.path.join(common.ROOT, "data", "cases", name + ".toml")
+        proc = subprocess.run([binary, "adapt", case_path, "-o", adapt_dir] + options, capture_output=True, text=True)
+        if proc.returncode != 0:
+            failures.append("adapt %s: Rust failed: %s" % (name, proc.stderr.strip()))
+            continue
+        steps = sorted(d for d in os.listdir(adapt_dir) if d.startswith("step-"))
+        if len(steps) < 4:
+            failures.append("adapt %s: only %d steps" % (name, len(steps)))
+            continue
+        for step in (steps[len(steps) // 2], steps[-1]):
+            rust_dir = os.path.join(adapt_dir, step)
+            label = "adapted %s %s" % (name, step)
+            estimates.append(estimator_row(label, rust_dir, failures))
+            ref_path = os.path.join(workdir, "%s-%s-reference.h5" % (name, step))
+            solve_reference.solve_file(rust_dir, ref_path)
+            rust = common.read_result(rust_dir)
+            diffs, mismatch = compare.compare(rust, common.read_reference(ref_path))
+            field_failures(label, "", diffs, mismatch, tol, failures)
+            areas = np.abs(common.areas(rust["points"], rust["cells"]))
+            cols = " | ".join(report.fmt(diffs[k][0]) for k in compare.FIELDS)
+            lines.append("| %s | %s | %d | %.1e | %s | %d |" % (name, step[5:], int(rust["attrs"]["vertices"]),
+                                                                 areas.min() / areas.max(), cols, mismatch))
+    return lines + [""], [e for e in estimates if e]
+
+
 def paraview(result_dir, failures):
     """paraview_check in a separate process (ParaView's Python stays out of this one)."""
     pv = subprocess.run([sys.executable, "-m", "reference.paraview_check", os.path.abspath(result_dir)],
@@ -325,7 +370,8 @@ def main():
         lines += tables + ["![%s](%s)" % (img, img) for img in report.plots(result, args.out)] + [""]
         lines += paraview(result["levels"][-1]["dir"], failures)
     mesh_lines, mesh_estimates = mesh_files(binary, args.out, args.tol, failures)
-    mesh_lines += ESTIMATOR_HEAD + estimates + mesh_estimates + [""]
+    adapted_lines, adapted_estimates = adapted_meshes(binary, args.out, args.tol, failures)
+    mesh_lines += adapted_lines + ESTIMATOR_HEAD + estimates + mesh_estimates + adapted_estimates + [""]
     print("\n" + "\n".join(mesh_lines))
     report.write(args.out, lines + mesh_lines, failures, time.perf_counter() - start)
     if failures:
