@@ -20,7 +20,7 @@
 //! with k triangles (a, the k midpoints of its edges, the k barycentres), 2k + 2 at a boundary one.
 //! The system depends on the geometry only: one factorization serves both membranes.
 
-use crate::assembly::gradients;
+use crate::assembly::{gradients, in_two_halves};
 use crate::flux::Flux;
 use crate::mesh::{orient, DualMesh, Mesh};
 
@@ -101,9 +101,6 @@ pub struct Membrane<'a> {
 
 /// τ_1, τ_2 = Σ_a τ_{i,a}, by their normal fluxes on the cells of S_h (the convention of [`Flux`]).
 pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: [&Membrane; 2]) -> [Flux; 2] {
-    let mut tau = [0, 1].map(|_| Flux {
-        edge_flux: vec![[0.0; 3]; dual.triangles.len()],
-    });
     let grad_u: Vec<[[f64; 2]; 2]> = (0..mesh.triangles.len())
         .map(|t| {
             let g = gradients(mesh.corners(t));
@@ -111,11 +108,24 @@ pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: [
             membranes.map(|m| [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()))
         })
         .collect();
-    let mut work = Patch::default();
-    for a in 0..mesh.n_vertices() {
-        work.build(mesh, dual, patches, a);
-        for (i, m) in membranes.iter().enumerate() {
-            work.solve(a, m, |t| grad_u[t][i], &mut tau[i]);
+    // The patches of each half of the vertices on a thread of its own, each adding into its own
+    // fluxes (a cell belongs to the patches of its triangle's three vertices).
+    let [mut tau, other] = in_two_halves(mesh.n_vertices(), |vertices| {
+        let mut tau = [0, 1].map(|_| Flux {
+            edge_flux: vec![[0.0; 3]; dual.triangles.len()],
+        });
+        let mut work = Patch::default();
+        for a in vertices {
+            work.build(mesh, dual, patches, a);
+            for (i, m) in membranes.iter().enumerate() {
+                work.solve(a, m, |t| grad_u[t][i], &mut tau[i]);
+            }
+        }
+        tau
+    });
+    for (mine, theirs) in tau.iter_mut().zip(other) {
+        for (f, g) in mine.edge_flux.iter_mut().zip(theirs.edge_flux) {
+            *f = [f[0] + g[0], f[1] + g[1], f[2] + g[2]];
         }
     }
     tau

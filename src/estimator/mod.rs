@@ -274,52 +274,61 @@ fn cell_terms(
     loads: &[CellLoads],
     alpha: f64,
 ) -> Vec<CellTerms> {
-    let mut grad = [[0.0; 2]; 2];
-    (dual.triangles.iter().enumerate())
-        .map(|(s, cell)| {
-            let t = s / 6;
-            if s % 6 == 0 {
-                let g = gradients(mesh.corners(t));
-                let tri = mesh.triangles[t];
-                grad = [0, 1]
-                    .map(|i| [0, 1].map(|k| mu[i] * (0..3).map(|j| g[j][k] * u[i][tri[j]]).sum::<f64>()));
-            }
-            let p = cell.map(|v| dual.points[v]);
-            let area = 0.5 * crate::mesh::orient(p[0], p[1], p[2]);
-            let diameter = (0..3)
-                .map(|e| crate::mesh::dist(p[e], p[(e + 1) % 3]))
-                .fold(0.0, f64::max);
-            // μ_i ∇u_ih + τ_i at the edge midpoints: ‖·‖²_κ = |κ|/3 Σ_m |·(m)|², exact for affine fields.
-            let at = |i: usize, m: [f64; 2]| {
-                let f = &tau[i].edge_flux[s];
-                [0, 1].map(|k| {
-                    grad[i][k] + (0..3).map(|e| f[e] * (m[k] - p[(e + 2) % 3][k])).sum::<f64>() / (2.0 * area)
-                })
-            };
-            let mids: [[f64; 2]; 3] =
-                std::array::from_fn(|e| [0, 1].map(|k| 0.5 * (p[e][k] + p[(e + 1) % 3][k])));
-            let norm = |v: &dyn Fn([f64; 2]) -> [f64; 2]| {
-                (area / 3.0
-                    * mids
-                        .iter()
-                        .map(|&m| v(m))
-                        .map(|v| v[0] * v[0] + v[1] * v[1])
-                        .sum::<f64>())
-                .sqrt()
-            };
-            let flux = [0, 1].map(|i| norm(&|m| at(i, m)) / mu[i].sqrt());
-            let oscillation = [0, 1].map(|i| diameter / PI * loads[s].oscillation[i].sqrt() / mu[i].sqrt());
-            let zeta = norm(&|m| {
-                let (a, b) = (at(0, m), at(1, m));
-                [0, 1].map(|k| alpha * a[k] - (1.0 - alpha) * b[k])
-            });
-            CellTerms {
-                area,
-                flux,
-                oscillation,
-                lambda: zeta + diameter / PI * loads[s].oscillation[2].sqrt(),
-            }
-        })
+    let part = |triangles: std::ops::Range<usize>| {
+        let mut grad = [[0.0; 2]; 2];
+        (6 * triangles.start..6 * triangles.end)
+            .map(|s| {
+                let cell = &dual.triangles[s];
+                let t = s / 6;
+                if s % 6 == 0 {
+                    let g = gradients(mesh.corners(t));
+                    let tri = mesh.triangles[t];
+                    grad = [0, 1]
+                        .map(|i| [0, 1].map(|k| mu[i] * (0..3).map(|j| g[j][k] * u[i][tri[j]]).sum::<f64>()));
+                }
+                let p = cell.map(|v| dual.points[v]);
+                let area = 0.5 * crate::mesh::orient(p[0], p[1], p[2]);
+                let diameter = (0..3)
+                    .map(|e| crate::mesh::dist(p[e], p[(e + 1) % 3]))
+                    .fold(0.0, f64::max);
+                // μ_i ∇u_ih + τ_i at the edge midpoints: ‖·‖²_κ = |κ|/3 Σ_m |·(m)|², exact for affine fields.
+                let at = |i: usize, m: [f64; 2]| {
+                    let f = &tau[i].edge_flux[s];
+                    [0, 1].map(|k| {
+                        grad[i][k]
+                            + (0..3).map(|e| f[e] * (m[k] - p[(e + 2) % 3][k])).sum::<f64>() / (2.0 * area)
+                    })
+                };
+                let mids: [[f64; 2]; 3] =
+                    std::array::from_fn(|e| [0, 1].map(|k| 0.5 * (p[e][k] + p[(e + 1) % 3][k])));
+                let norm = |v: &dyn Fn([f64; 2]) -> [f64; 2]| {
+                    (area / 3.0
+                        * mids
+                            .iter()
+                            .map(|&m| v(m))
+                            .map(|v| v[0] * v[0] + v[1] * v[1])
+                            .sum::<f64>())
+                    .sqrt()
+                };
+                let flux = [0, 1].map(|i| norm(&|m| at(i, m)) / mu[i].sqrt());
+                let oscillation =
+                    [0, 1].map(|i| diameter / PI * loads[s].oscillation[i].sqrt() / mu[i].sqrt());
+                let zeta = norm(&|m| {
+                    let (a, b) = (at(0, m), at(1, m));
+                    [0, 1].map(|k| alpha * a[k] - (1.0 - alpha) * b[k])
+                });
+                CellTerms {
+                    area,
+                    flux,
+                    oscillation,
+                    lambda: zeta + diameter / PI * loads[s].oscillation[2].sqrt(),
+                }
+            })
+            .collect::<Vec<_>>()
+    };
+    in_two_halves(mesh.triangles.len(), part)
+        .into_iter()
+        .flatten()
         .collect()
 }
 
