@@ -143,7 +143,10 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
     write_text(&dir.join("adapt.json"), &json)?;
     plot::loglog(
         &dir.join("adapt.png"),
-        &format!("{}: adaptive and uniform refinement", case.title),
+        &format!(
+            "η and error: adaptive (θ = {}) and uniform refinement",
+            settings.theta
+        ),
         &series(&adapted),
         &[1.0, 2.0 / 3.0],
     )
@@ -278,10 +281,17 @@ fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted) -> String {
                 st.seconds
             );
         }
+        let total: f64 = steps.iter().map(|st| st.seconds).sum();
+        let last = steps.last().map_or(0.0, |st| st.seconds);
+        let _ = writeln!(
+            s,
+            "\nSeconds, all steps: {total:.2}, {:.2}× the last step's (refinement, assembly, solve, estimate).",
+            total / last.max(f64::MIN_POSITIVE)
+        );
         let slope = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.3}"));
         let _ = writeln!(
             s,
-            "\nRate s of ∝ N^(−s), fitted over the last two decades of N: η {}, error {} (optimal for P1: 0.5).\n",
+            "Rate s of ∝ N^(−s), fitted over the last two decades of N: η {}, error {} (optimal for P1: 0.5).\n",
             slope(rate(steps, |st| Some(st.estimator))),
             slope(rate(steps, |st| st.error))
         );

@@ -2,8 +2,11 @@
 //! coarse mesh, checked against the exact solution (not against the estimator's own figures).
 
 use membrane_contact::adapt::{adapt, rate};
+use membrane_contact::assembly::{gradients, Quadrature};
 use membrane_contact::case::{Adaptivity, Case};
+use membrane_contact::contact::Start;
 use membrane_contact::mesh::file;
+use membrane_contact::run;
 use std::path::Path;
 
 #[test]
@@ -77,5 +80,80 @@ fn adaptivity_on_the_l_shape_reaches_the_optimal_rate_with_a_guaranteed_bound() 
     }
     for name in ["adapt.md", "adapt.csv", "adapt.json", "adapt.png"] {
         assert!(out.join(name).exists(), "{name}");
+    }
+}
+
+/// The default case: contact on the disk r < 1/4, loads discontinuous on its circle. Where the
+/// adapted mesh is fine, the true error is: on the contact interior, at the free boundary and
+/// outside, the indicators η_K summed over the region bound the true energy error there, within
+/// the global effectivity's range — the contact region is not over-refined.
+#[test]
+fn adaptivity_follows_the_true_error_in_and_out_of_contact() {
+    let mut case = Case::default_case();
+    case.set_cells(8).unwrap();
+    let settings = Adaptivity {
+        theta: 0.5,
+        target: None,
+        max_vertices: 6000,
+        steps: 40,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("adapt");
+    let a = adapt(&case, &settings, &out).unwrap();
+    let last = out.join(format!("step-{:03}/solution.h5", a.adaptive.len() - 1));
+    let options = run::Options {
+        start: Start::Cold,
+        hminus1: false,
+        flux: false,
+        estimate: true,
+    };
+    let r = run::on_mesh(&case, file::read(&last).unwrap(), Vec::new(), &options, 0.0).unwrap();
+    let mesh = &r.problem.mesh;
+    // The true local error Σ_i μ_i ‖∇(u_i − u_ih)‖²_K, from the exact gradients.
+    let exact = case.exact.as_ref().unwrap();
+    let [g1, g2] = [exact.grad_u1.as_ref().unwrap(), exact.grad_u2.as_ref().unwrap()];
+    let mut error = vec![0.0; mesh.triangles.len()];
+    let rule = Quadrature { degree: 10 };
+    rule.visit(
+        |t| mesh.corners(t),
+        0..mesh.triangles.len(),
+        [&g1[0], &g1[1], &g2[0], &g2[1]],
+        |t, points, g| {
+            let grads = gradients(mesh.corners(t));
+            let tri = mesh.triangles[t];
+            let uh = [&r.solution.u1, &r.solution.u2]
+                .map(|u| [0, 1].map(|k| (0..3).map(|j| grads[j][k] * u[tri[j]]).sum::<f64>()));
+            for (q, p) in points.iter().enumerate() {
+                let d1 = [g[0][q] - uh[0][0], g[1][q] - uh[0][1]];
+                let d2 = [g[2][q] - uh[1][0], g[3][q] - uh[1][1]];
+                error[t] += p.weight
+                    * (case.data.mu1 * (d1[0] * d1[0] + d1[1] * d1[1])
+                        + case.data.mu2 * (d2[0] * d2[0] + d2[1] * d2[1]));
+            }
+        },
+    );
+    let eta = &r.estimate.as_ref().unwrap().indicator;
+    let total = (eta.iter().map(|x| x * x).sum::<f64>() / error.iter().sum::<f64>()).sqrt();
+    for (region, inside) in [
+        ("contact interior", &(|r: f64| r < 0.2) as &dyn Fn(f64) -> bool),
+        ("free boundary", &|r: f64| (r - 0.25).abs() < 0.03),
+        ("outside", &|r: f64| r > 0.3),
+    ] {
+        let (mut e2, mut err2) = (0.0, 0.0);
+        for t in 0..mesh.triangles.len() {
+            let c = mesh.corners(t);
+            let rc =
+                ((c[0][0] + c[1][0] + c[2][0]) / 3.0 - 0.5).hypot((c[0][1] + c[1][1] + c[2][1]) / 3.0 - 0.5);
+            if inside(rc) {
+                e2 += eta[t] * eta[t];
+                err2 += error[t];
+            }
+        }
+        let local = (e2 / err2).sqrt();
+        println!("{region}: local effectivity {local:.3} (global {total:.3})");
+        assert!(
+            (1.0..1.25 * total).contains(&local),
+            "{region}: local effectivity {local}, global {total}"
+        );
     }
 }
