@@ -14,7 +14,6 @@
 use crate::atomic::{OutputError, Staging};
 use crate::case::{Adaptivity, Case};
 use crate::contact::Start;
-use crate::mesh::Mesh;
 use crate::result::{self, Describe};
 use crate::run::{self, Run, RunError};
 use crate::study::plot;
@@ -165,7 +164,7 @@ fn estimating(start: Start) -> run::Options {
     }
 }
 
-/// A mesh the bisection refused, named with the case.
+/// A mesh refinement refused, named with the case.
 fn mesh_error(case: &Case, e: &dyn std::fmt::Display) -> RunError {
     crate::case::CaseError(format!(
         "{}: cannot refine the mesh by bisection: {e}",
@@ -183,33 +182,30 @@ fn write_step(staging: &Staging, dir: &str, r: &Run) -> Result<(), RunError> {
     Ok(())
 }
 
-/// Uniform refinement of the case's mesh, each level warm-started, up to `vertices` vertices.
+/// Uniform refinement of the case's mesh, each level warm-started from the one before, up to about
+/// twice `vertices` vertices.
 fn uniform(case: &Case, vertices: usize) -> Result<Vec<Step>, RunError> {
     let curves = case.curves();
-    let mut out: Vec<Step> = Vec::new();
-    let mut previous: Option<Run> = None;
-    let mut mesh: Mesh = case.hierarchy(false)?.0;
+    let clock = Instant::now();
+    let mut r = run::run(case, &estimating(Start::Nested))?;
+    let mut out = vec![Step::new(&r, 0, clock.elapsed().as_secs_f64())];
     loop {
         let clock = Instant::now();
-        let start = previous.as_ref().map_or(Start::Nested, |p| Start::From {
-            mesh: &p.problem.mesh,
-            obstacle: &p.solution.obstacle,
-        });
-        let r = match &previous {
-            None => run::run(case, &estimating(start))?,
-            Some(_) => run::on_mesh(case, mesh.clone(), Vec::new(), &estimating(start), 0.0)?,
-        };
-        out.push(Step::new(&r, 0, clock.elapsed().as_secs_f64()));
         let fine = r
             .problem
             .mesh
             .refined(&curves)
             .map_err(|e| mesh_error(case, &e))?;
-        if fine.n_vertices() > vertices.max(out[0].vertices) * 2 {
+        if fine.n_vertices() > 2 * vertices.max(out[0].vertices) {
             return Ok(out);
         }
-        mesh = fine;
-        previous = Some(r);
+        let start = Start::From {
+            mesh: &r.problem.mesh,
+            obstacle: &r.solution.obstacle,
+        };
+        let next = run::on_mesh(case, fine, Vec::new(), &estimating(start), 0.0)?;
+        out.push(Step::new(&next, 0, clock.elapsed().as_secs_f64()));
+        r = next;
     }
 }
 

@@ -1,7 +1,7 @@
 //! Adaptive refinement as a user runs it: the L-shaped case with its corner singularity, from a
 //! coarse mesh, checked against the exact solution (not against the estimator's own figures).
 
-use membrane_contact::adapt::{adapt, rate};
+use membrane_contact::adapt::{adapt, rate, Adapted};
 use membrane_contact::assembly::{gradients, Quadrature};
 use membrane_contact::case::{Adaptivity, Case};
 use membrane_contact::contact::Start;
@@ -9,20 +9,27 @@ use membrane_contact::mesh::file;
 use membrane_contact::run;
 use std::path::Path;
 
-#[test]
-fn adaptivity_on_the_l_shape_reaches_the_optimal_rate_with_a_guaranteed_bound() {
-    let mut case =
-        Case::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases/lshape_corner.toml")).unwrap();
+/// `adapt` on `case` from its 8² mesh, θ = 1/2, up to `max_vertices`, into a temporary directory:
+/// the steps, the directory (kept alive) and the path of the result.
+fn adapted(mut case: Case, max_vertices: usize) -> (Adapted, tempfile::TempDir, std::path::PathBuf) {
     case.set_cells(8).unwrap();
     let settings = Adaptivity {
         theta: 0.5,
         target: None,
-        max_vertices: 4000,
+        max_vertices,
         steps: 40,
     };
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("adapt");
     let a = adapt(&case, &settings, &out).unwrap();
+    (a, dir, out)
+}
+
+#[test]
+fn adaptivity_on_the_l_shape_reaches_the_optimal_rate_with_a_guaranteed_bound() {
+    let case =
+        Case::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases/lshape_corner.toml")).unwrap();
+    let (a, _dir, out) = adapted(case, 4000);
     let steps = &a.adaptive;
     assert!(steps.len() >= 10, "{} steps", steps.len());
     for (k, s) in steps.iter().enumerate() {
@@ -89,17 +96,8 @@ fn adaptivity_on_the_l_shape_reaches_the_optimal_rate_with_a_guaranteed_bound() 
 /// the global effectivity's range — the contact region is not over-refined.
 #[test]
 fn adaptivity_follows_the_true_error_in_and_out_of_contact() {
-    let mut case = Case::default_case();
-    case.set_cells(8).unwrap();
-    let settings = Adaptivity {
-        theta: 0.5,
-        target: None,
-        max_vertices: 6000,
-        steps: 40,
-    };
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("adapt");
-    let a = adapt(&case, &settings, &out).unwrap();
+    let case = Case::default_case();
+    let (a, _dir, out) = adapted(case.clone(), 6000);
     let last = out.join(format!("step-{:03}/solution.h5", a.adaptive.len() - 1));
     let options = run::Options {
         start: Start::Cold,
