@@ -76,6 +76,7 @@ mutants: deps
 lint:
 	cargo fmt --all -- --check
 	cargo clippy --all-targets -- -D warnings -W clippy::too_many_lines
+	RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
 
 clean:
 	cargo clean

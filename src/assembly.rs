@@ -171,8 +171,8 @@ impl Quadrature {
     }
 
     /// Visits the triangles `range` (corners given by `corners`) with the E `fields` evaluated at
-    /// their quadrature points: `visit(t, points, values)`, values[e][q] the field e at points[q].
-    /// The fields are evaluated for [`TRIANGLES_PER_BLOCK`] triangles at a time
+    /// their quadrature points: `visit(t, points, values)`, `values[e][q]` the field e at `points[q]`.
+    /// The fields are evaluated for `TRIANGLES_PER_BLOCK` triangles at a time
     /// ([`Expr::eval_many`]).
     pub fn visit<const E: usize>(
         &self,

@@ -6,7 +6,7 @@
 //! ordering of K_II restricted to them, which is still fill-reducing and cheaper than K_II (a
 //! contact region cuts the separators). The symbolic analysis of K_FF is kept while the held set
 //! changes near the free boundary only: its pattern leaves out just the unknowns held deeper than
-//! [`MARGIN`] graph steps inside the held set, and unknowns held in the pattern become decoupled
+//! `MARGIN` graph steps inside the held set, and unknowns held in the pattern become decoupled
 //! rows K_aa w_a = 0. Several [`Factorization`]s can share one [`InteriorSystem`] (e.g. on two
 //! threads).
 

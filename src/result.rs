@@ -288,7 +288,7 @@ fn grid_element<'a>(g: &Grid, fields: impl Iterator<Item = &'a Field<'a>>, h5: &
     s
 }
 
-/// The `<Grid>` element of T_h and its fields of a result written by [`write`] into the
+/// The `<Grid>` element of T_h and its fields of a result written by [`write()`] into the
 /// directory `dir` (relative to the time series file), at time `time`.
 pub fn step_grid(dir: &str, time: f64, mesh: &Mesh, fields: &[Field]) -> String {
     let g = Grid {

@@ -31,7 +31,7 @@ pub struct OnTriangle {
 }
 
 /// ψ on every triangle of `mesh` (zero on those without a boundary edge). `neighbour[t][j]` is
-/// `usize::MAX` when the edge (t[j], t[j + 1]) lies on ∂ω; `lambda` is λ_a, `gap` is w_h.
+/// `usize::MAX` when the edge `(t[j], t[j + 1])` lies on ∂ω; `lambda` is λ_a, `gap` is w_h.
 pub fn lifting(
     mesh: &Mesh,
     neighbour: &[[usize; 3]],

@@ -33,7 +33,7 @@ pub struct Patches {
     start: Vec<usize>,
     /// For each vertex a, the triangles containing it, with a's position in each.
     star: Vec<(usize, usize)>,
-    /// Across edge j = (t[j], t[j + 1]) of each triangle: the neighbour, or NONE on ∂ω.
+    /// Across edge j = `(t[j], t[j + 1])` of each triangle: the neighbour, or NONE on ∂ω.
     pub neighbour: Vec<[usize; 3]>,
 }
 
