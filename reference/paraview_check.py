@@ -1,6 +1,8 @@
 """Opens Rust result directories with ParaView's own XDMF reader (headless) and checks that every
 field is there, with the right size and in double precision: DIR/solution.xdmf (the mesh, vertex
-fields) and DIR/dual.xdmf (the dual submesh S_h, cell fields), given to ParaView as absolute paths.
+fields) and DIR/dual.xdmf (the dual submesh S_h, cell fields), given to ParaView as absolute paths;
+for an `adapt` directory, DIR/adapt.xdmf: one time step per step-NNN, each with its own mesh, the
+vertex fields and the indicator `estimator` as cell data.
 
 Usage (from the repository root):
     /usr/bin/python3 -m reference.paraview_check RESULT_DIR [...]
@@ -50,10 +52,37 @@ def check(path):
     return problems
 
 
+def check_series(path):
+    """Checks DIR/adapt.xdmf, the time series of an `adapt` run, step by step."""
+    import h5py
+    steps = sorted(d for d in os.listdir(path) if d.startswith("step-"))
+    reader = Xdmf3ReaderS(FileName=[os.path.abspath(os.path.join(path, "adapt.xdmf"))])
+    reader.UpdatePipeline()
+    times = list(reader.TimestepValues)
+    problems = [] if len(times) == len(steps) else ["%d time steps for %d steps" % (len(times), len(steps))]
+    for t, step in zip(times, steps):
+        reader.UpdatePipeline(time=t)
+        data = servermanager.Fetch(reader)
+        while not data.IsA("vtkUnstructuredGrid"):
+            data = data.GetBlock(0) if data.IsA("vtkMultiBlockDataSet") else data.GetPiece(0)
+        with h5py.File(os.path.join(path, step, "solution.h5"), "r") as f:
+            own, own_eta = len(f["mesh/topology"]), f["mesh/estimator"][...]
+        if data.GetNumberOfCells() != own:
+            problems.append("time %g: %d cells, %s has %d" % (t, data.GetNumberOfCells(), step, own))
+        eta = data.GetCellData().GetArray("estimator")
+        if eta is None or eta.GetDataType() != VTK_DOUBLE or eta.GetNumberOfTuples() != data.GetNumberOfCells():
+            problems.append("time %g: no double cell field estimator" % t)
+        elif any(eta.GetValue(k) != own_eta[k] for k in range(len(own_eta))):
+            problems.append("time %g: the indicators shown are not those of %s" % (t, step))
+        if data.GetPointData().GetArray("u1") is None:
+            problems.append("time %g: no point field u1" % t)
+    return problems
+
+
 def main(paths):
     ok = True
     for p in paths:
-        problems = check(p)
+        problems = check_series(p) if os.path.exists(os.path.join(p, "adapt.xdmf")) else check(p)
         ok &= not problems
         print("paraview %-50s %s" % (p, "ok: all fields double" if not problems else "; ".join(problems)))
     return ok

@@ -296,13 +296,14 @@ ADAPTED = [("lshape_corner", ["--n", "8", "--max-vertices", "1500"]),
 
 def adapted_meshes(binary, out, tol, failures):
     """`adapt` on the L-shape (corner singularity) and the disk (curved boundary): the reference
-    solves on a middle and the last bisected mesh, fields compared, and recomputes the estimator."""
+    solves on a middle and the last bisected mesh, fields compared, and recomputes the estimator;
+    ParaView opens the steps as one time series."""
     workdir = os.path.join(out, "adapted")
     os.makedirs(workdir, exist_ok=True)
     lines = ["### Adapted meshes (`adapt`: Dörfler marking, newest-vertex bisection)", "",
              "| case | step | vertices | smallest/largest triangle area | max Δu1 | max Δu2 | max Δgap | max Δλ | max Δλ2 | contact mismatches |",
              "|---|---|---|---|---|---|---|---|---|---|"]
-    estimates = []
+    estimates, views = [], []
     for name, options in ADAPTED:
         adapt_dir = os.path.join(workdir, name)
         case_path = os.path.join(common.ROOT, "data", "cases", name + ".toml")
@@ -327,7 +328,8 @@ def adapted_meshes(binary, out, tol, failures):
             cols = " | ".join(report.fmt(diffs[k][0]) for k in compare.FIELDS)
             lines.append("| %s | %s | %d | %.1e | %s | %d |" % (name, step[5:], int(rust["attrs"]["vertices"]),
                                                                  areas.min() / areas.max(), cols, mismatch))
-    return lines + [""], [e for e in estimates if e]
+        views += paraview(adapt_dir, failures)
+    return lines + [""] + views, [e for e in estimates if e]
 
 
 def paraview(result_dir, failures):
