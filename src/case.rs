@@ -208,7 +208,7 @@ pub struct Adaptivity {
 impl Default for Adaptivity {
     fn default() -> Self {
         Adaptivity {
-            theta: 0.5,
+            theta: 0.7,
             target: None,
             max_vertices: 100_000,
             steps: 40,
