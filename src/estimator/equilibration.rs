@@ -94,7 +94,7 @@ pub struct Membrane<'a> {
     /// u_ih at the vertices.
     pub u: &'a [f64],
     /// ∫_κ f_i φ_j on every cell κ of S_h, for the three vertices j of its triangle (in order).
-    pub f_phi: &'a [[f64; 3]],
+    pub f_phi: &'a (dyn Fn(usize) -> [f64; 3] + Sync),
     /// ±λ_a − c_{i,a} at every vertex: the constant part of the divergence on D_a.
     pub on_dual_cell: &'a [f64],
 }
@@ -326,7 +326,7 @@ impl Patch {
         // The divergence, integrated over each cell.
         for (node, cell) in self.cells.iter().enumerate() {
             let (du, g) = (grad(cell.triangle), cell.grad_phi);
-            let mut d = m.f_phi[cell.index][cell.position] - cell.area * (du[0] * g[0] + du[1] * g[1]);
+            let mut d = (m.f_phi)(cell.index)[cell.position] - cell.area * (du[0] * g[0] + du[1] * g[1]);
             if cell.own {
                 d += cell.area * m.on_dual_cell[a];
             }

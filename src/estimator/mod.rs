@@ -86,7 +86,8 @@ impl Estimate {
                 .map(|a| sign[i] * action.lambda[a] - means[i][a])
                 .collect()
         });
-        let f_phi: [Vec<[f64; 3]>; 2] = [0, 1].map(|i| loads.iter().map(|l| l.f_phi[i]).collect());
+        let cell_loads = &loads;
+        let f_phi = [0, 1].map(|i| move |s: usize| cell_loads[s].f_phi[i]);
         let u = [&solution.u1, &solution.u2];
         let membranes = [0, 1].map(|i| Membrane {
             mu: mu[i],
@@ -102,16 +103,16 @@ impl Estimate {
             &action.lambda,
             &solution.obstacle.gap,
         );
-        let cells = cell_terms(mesh, dual, u, mu, &tau, &loads, alpha);
-        let lambda_h = action.on_dual_cells(dual);
-        let gap = &solution.obstacle.gap;
+        let terms = triangle_terms(problem, dual, solution, action, &tau, &loads);
         let n = mesh.triangles.len();
         let mut e = Estimate {
             indicator: vec![0.0; n],
-            flux: [vec![0.0; n], vec![0.0; n]],
-            oscillation: [vec![0.0; n], vec![0.0; n]],
+            flux: [0, 1].map(|i| terms.iter().map(|t| t.flux2[i].sqrt()).collect()),
+            oscillation: [0, 1].map(|i| terms.iter().map(|t| t.oscillation2[i].sqrt()).collect()),
             boundary: psi.iter().map(|p| mu[0].sqrt() * p.grad_norm).collect(),
-            contact: psi.iter().map(|p| p.with_lambda).collect(),
+            contact: (psi.iter().zip(&terms))
+                .map(|(p, t)| p.with_lambda + t.contact)
+                .collect(),
             total: 0.0,
             membranes: [0.0; 2],
             means: [0.0; 2],
@@ -120,33 +121,18 @@ impl Estimate {
             lambda: 0.0,
             tau,
         };
-        let (mut sums, mut lambda_sum) = ([0.0; 2], 0.0);
-        for (s, c) in cells.iter().enumerate() {
-            let t = s / 6;
-            for (i, sum) in sums.iter_mut().enumerate() {
-                e.flux[i][t] += c.flux[i] * c.flux[i];
-                e.oscillation[i][t] += c.oscillation[i] * c.oscillation[i];
-                let local = (c.flux[i] + c.oscillation[i]).powi(2);
-                *sum += local;
-                e.indicator[t] += local;
-            }
-            lambda_sum += c.lambda * c.lambda;
-            // (λ_h, w_h)_κ: w_h is affine, λ_h constant on κ.
-            e.contact[t] += lambda_h[s] * c.area * cell_mean(mesh, s, gap);
+        let sums = [0, 1].map(|i| terms.iter().map(|t| t.local2[i]).sum::<f64>());
+        let lambda_sum: f64 = terms.iter().map(|t| t.lambda2).sum();
+        for (t, terms) in terms.iter().enumerate() {
+            let local2 = terms.local2[0] + terms.local2[1];
+            e.indicator[t] = (local2 + e.boundary[t].powi(2) + 2.0 * e.contact[t])
+                .max(0.0)
+                .sqrt();
         }
         let friedrichs = friedrichs_constant(mesh);
         let norm = |c: &[f64]| (c.iter().zip(&problem.mass).map(|(c, m)| c * c * m).sum::<f64>()).sqrt();
         e.means = [0, 1].map(|i| friedrichs * norm(&means[i]) / mu[i].sqrt());
         e.membranes = [0, 1].map(|i| sums[i].sqrt() + e.means[i]);
-        for t in 0..n {
-            for i in 0..2 {
-                e.flux[i][t] = e.flux[i][t].sqrt();
-                e.oscillation[i][t] = e.oscillation[i][t].sqrt();
-            }
-            e.indicator[t] = (e.indicator[t] + e.boundary[t].powi(2) + 2.0 * e.contact[t])
-                .max(0.0)
-                .sqrt();
-        }
         e.boundary_total = e.boundary.iter().map(|b| b * b).sum::<f64>().sqrt();
         e.contact_total = e.contact.iter().sum();
         let eta_fr2 = e.membranes[0].powi(2) + e.membranes[1].powi(2);
@@ -253,76 +239,79 @@ fn cell_mean(mesh: &Mesh, s: usize, v: &[f64]) -> f64 {
         .sum()
 }
 
-/// The terms of one cell κ of S_h.
+/// The terms of one triangle K, summed over its six cells κ of S_h.
 #[derive(Debug, Clone, Copy, Default)]
-struct CellTerms {
-    area: f64,
-    /// η_F,κ and η_osc,κ for the two membranes.
-    flux: [f64; 2],
-    oscillation: [f64; 2],
-    /// ‖ζ‖_κ + (h_κ/π) ‖ρ − Π ρ‖_κ (§8).
-    lambda: f64,
+struct TriangleTerms {
+    /// Σ_κ η_F,κ² and Σ_κ η_osc,κ² for the two membranes.
+    flux2: [f64; 2],
+    oscillation2: [f64; 2],
+    /// Σ_κ (η_F,κ + η_osc,κ)².
+    local2: [f64; 2],
+    /// Σ_κ (‖ζ‖_κ + (h_κ/π) ‖ρ − Π ρ‖_κ)² (§8).
+    lambda2: f64,
+    /// (λ_h, w_h)_K: w_h is affine and λ_h constant on each κ.
+    contact: f64,
 }
 
-/// η_F,κ, η_osc,κ and the action's term on every cell of S_h.
-fn cell_terms(
-    mesh: &Mesh,
+/// The terms of every triangle, on two threads.
+fn triangle_terms(
+    problem: &DiscreteProblem,
     dual: &DualMesh,
-    u: [&Vec<f64>; 2],
-    mu: [f64; 2],
+    solution: &Solution,
+    action: &Action,
     tau: &[Flux; 2],
     loads: &[CellLoads],
-    alpha: f64,
-) -> Vec<CellTerms> {
+) -> Vec<TriangleTerms> {
+    let mesh = &problem.mesh;
+    let mu = [problem.data.mu1, problem.data.mu2];
+    let alpha = mu[1] / (mu[0] + mu[1]);
+    let u = [&solution.u1, &solution.u2];
     let part = |triangles: std::ops::Range<usize>| {
-        let mut grad = [[0.0; 2]; 2];
-        (6 * triangles.start..6 * triangles.end)
-            .map(|s| {
-                let cell = &dual.triangles[s];
-                let t = s / 6;
-                if s % 6 == 0 {
-                    let g = gradients(mesh.corners(t));
-                    let tri = mesh.triangles[t];
-                    grad = [0, 1]
-                        .map(|i| [0, 1].map(|k| mu[i] * (0..3).map(|j| g[j][k] * u[i][tri[j]]).sum::<f64>()));
+        (triangles)
+            .map(|t| {
+                let g = gradients(mesh.corners(t));
+                let tri = mesh.triangles[t];
+                let grad = [0, 1]
+                    .map(|i| [0, 1].map(|k| mu[i] * (0..3).map(|j| g[j][k] * u[i][tri[j]]).sum::<f64>()));
+                let mut terms = TriangleTerms::default();
+                for s in 6 * t..6 * t + 6 {
+                    let p = dual.triangles[s].map(|v| dual.points[v]);
+                    let area = 0.5 * crate::mesh::orient(p[0], p[1], p[2]);
+                    let diameter = (0..3)
+                        .map(|e| crate::mesh::dist(p[e], p[(e + 1) % 3]))
+                        .fold(0.0, f64::max);
+                    // μ_i ∇u_ih + τ_i at the edge midpoints: ‖·‖²_κ = |κ|/3 Σ_m |·(m)|², exact for
+                    // affine fields.
+                    let at = |i: usize, m: [f64; 2]| {
+                        let f = &tau[i].edge_flux[s];
+                        [0, 1].map(|k| {
+                            grad[i][k]
+                                + (0..3).map(|e| f[e] * (m[k] - p[(e + 2) % 3][k])).sum::<f64>()
+                                    / (2.0 * area)
+                        })
+                    };
+                    let mids: [[f64; 2]; 3] =
+                        std::array::from_fn(|e| [0, 1].map(|k| 0.5 * (p[e][k] + p[(e + 1) % 3][k])));
+                    let norm = |v: &dyn Fn([f64; 2]) -> [f64; 2]| {
+                        let squares = mids.iter().map(|&m| v(m)).map(|v| v[0] * v[0] + v[1] * v[1]);
+                        (area / 3.0 * squares.sum::<f64>()).sqrt()
+                    };
+                    for i in 0..2 {
+                        let flux = norm(&|m| at(i, m)) / mu[i].sqrt();
+                        let oscillation = diameter / PI * loads[s].oscillation[i].sqrt() / mu[i].sqrt();
+                        terms.flux2[i] += flux * flux;
+                        terms.oscillation2[i] += oscillation * oscillation;
+                        terms.local2[i] += (flux + oscillation).powi(2);
+                    }
+                    let zeta = norm(&|m| {
+                        let (a, b) = (at(0, m), at(1, m));
+                        [0, 1].map(|k| alpha * a[k] - (1.0 - alpha) * b[k])
+                    });
+                    terms.lambda2 += (zeta + diameter / PI * loads[s].oscillation[2].sqrt()).powi(2);
+                    let lambda_h = action.lambda[dual.owner[s]];
+                    terms.contact += lambda_h * area * cell_mean(mesh, s, &solution.obstacle.gap);
                 }
-                let p = cell.map(|v| dual.points[v]);
-                let area = 0.5 * crate::mesh::orient(p[0], p[1], p[2]);
-                let diameter = (0..3)
-                    .map(|e| crate::mesh::dist(p[e], p[(e + 1) % 3]))
-                    .fold(0.0, f64::max);
-                // μ_i ∇u_ih + τ_i at the edge midpoints: ‖·‖²_κ = |κ|/3 Σ_m |·(m)|², exact for affine fields.
-                let at = |i: usize, m: [f64; 2]| {
-                    let f = &tau[i].edge_flux[s];
-                    [0, 1].map(|k| {
-                        grad[i][k]
-                            + (0..3).map(|e| f[e] * (m[k] - p[(e + 2) % 3][k])).sum::<f64>() / (2.0 * area)
-                    })
-                };
-                let mids: [[f64; 2]; 3] =
-                    std::array::from_fn(|e| [0, 1].map(|k| 0.5 * (p[e][k] + p[(e + 1) % 3][k])));
-                let norm = |v: &dyn Fn([f64; 2]) -> [f64; 2]| {
-                    (area / 3.0
-                        * mids
-                            .iter()
-                            .map(|&m| v(m))
-                            .map(|v| v[0] * v[0] + v[1] * v[1])
-                            .sum::<f64>())
-                    .sqrt()
-                };
-                let flux = [0, 1].map(|i| norm(&|m| at(i, m)) / mu[i].sqrt());
-                let oscillation =
-                    [0, 1].map(|i| diameter / PI * loads[s].oscillation[i].sqrt() / mu[i].sqrt());
-                let zeta = norm(&|m| {
-                    let (a, b) = (at(0, m), at(1, m));
-                    [0, 1].map(|k| alpha * a[k] - (1.0 - alpha) * b[k])
-                });
-                CellTerms {
-                    area,
-                    flux,
-                    oscillation,
-                    lambda: zeta + diameter / PI * loads[s].oscillation[2].sqrt(),
-                }
+                terms
             })
             .collect::<Vec<_>>()
     };
