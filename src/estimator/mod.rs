@@ -274,7 +274,7 @@ fn triangle_terms(
                 let grad = [0, 1]
                     .map(|i| [0, 1].map(|k| mu[i] * (0..3).map(|j| g[j][k] * u[i][tri[j]]).sum::<f64>()));
                 let mut terms = TriangleTerms::default();
-                for s in 6 * t..6 * t + 6 {
+                for (s, cell_loads) in (6 * t..).zip(&loads[6 * t..6 * t + 6]) {
                     let p = dual.triangles[s].map(|v| dual.points[v]);
                     let area = 0.5 * crate::mesh::orient(p[0], p[1], p[2]);
                     let diameter = (0..3)
@@ -296,9 +296,9 @@ fn triangle_terms(
                         let squares = mids.iter().map(|&m| v(m)).map(|v| v[0] * v[0] + v[1] * v[1]);
                         (area / 3.0 * squares.sum::<f64>()).sqrt()
                     };
-                    for i in 0..2 {
-                        let flux = norm(&|m| at(i, m)) / mu[i].sqrt();
-                        let oscillation = diameter / PI * loads[s].oscillation[i].sqrt() / mu[i].sqrt();
+                    for (i, mu_i) in mu.iter().enumerate() {
+                        let flux = norm(&|m| at(i, m)) / mu_i.sqrt();
+                        let oscillation = diameter / PI * cell_loads.oscillation[i].sqrt() / mu_i.sqrt();
                         terms.flux2[i] += flux * flux;
                         terms.oscillation2[i] += oscillation * oscillation;
                         terms.local2[i] += (flux + oscillation).powi(2);
@@ -307,7 +307,7 @@ fn triangle_terms(
                         let (a, b) = (at(0, m), at(1, m));
                         [0, 1].map(|k| alpha * a[k] - (1.0 - alpha) * b[k])
                     });
-                    terms.lambda2 += (zeta + diameter / PI * loads[s].oscillation[2].sqrt()).powi(2);
+                    terms.lambda2 += (zeta + diameter / PI * cell_loads.oscillation[2].sqrt()).powi(2);
                     let lambda_h = action.lambda[dual.owner[s]];
                     terms.contact += lambda_h * area * cell_mean(mesh, s, &solution.obstacle.gap);
                 }
