@@ -290,7 +290,7 @@ def mesh_files(binary, out, tol, failures):
             ""] + lines + [""], [e for e in estimates if e]
 
 
-ADAPTED = [("lshape_corner", ["--n", "8", "--max-vertices", "1500"]),
+ADAPTED = [("lshape_corner", ["--n", "8", "--max-vertices", "4000"]),
            ("disk_contact", ["--max-vertices", "5000", "--theta", "0.3"])]
 
 
