@@ -367,4 +367,150 @@ mod tests {
         .unwrap_err();
         assert!(nan.value.is_nan() && nan.point[0] < 0.5);
     }
+
+    /// Asserts |a − b| ≤ tol · max(1, |b|).
+    fn close(a: f64, b: f64, tol: f64, what: &str) {
+        assert!((a - b).abs() <= tol * b.abs().max(1.0), "{what}: {a} against {b}");
+    }
+
+    #[test]
+    fn every_rule_integrates_its_degree_exactly() {
+        // ∫ ξ^i η^j over the reference triangle = i! j! / (i + j + 2)!.
+        let factorial = |n: i32| (1..=n).map(f64::from).product::<f64>();
+        for degree in 0..=Quadrature::MAX_DEGREE {
+            let rule = Quadrature { degree }.rule();
+            let d = i32::try_from(degree).unwrap();
+            for i in 0..=d {
+                for j in 0..=d - i {
+                    let q: f64 = rule.iter().map(|&[x, y, w]| w * x.powi(i) * y.powi(j)).sum();
+                    let exact = factorial(i) * factorial(j) / factorial(i + j + 2);
+                    assert!(
+                        (q - exact).abs() <= 1e-12 * exact,
+                        "degree {degree}, ξ^{i} η^{j}: {q} against {exact}"
+                    );
+                }
+            }
+        }
+        // A degree beyond the tables takes the highest rule, degree 20.
+        assert_eq!(Quadrature::MAX_DEGREE, 20);
+        let highest = Quadrature {
+            degree: Quadrature::MAX_DEGREE,
+        };
+        assert_eq!(Quadrature { degree: 21 }.rule(), highest.rule());
+    }
+
+    #[test]
+    fn element_matrices_of_two_triangles_by_hand() {
+        // The reference triangle: ∇λ = (−1, −1), (1, 0), (0, 1) and K = ½ [[2, −1, −1], [−1, 1, 0],
+        // [−1, 0, 1]].
+        let reference = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+        assert_eq!(gradients(reference), [[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]]);
+        assert_eq!(
+            local_stiffness(reference),
+            [[1.0, -0.5, -0.5], [-0.5, 0.5, 0.0], [-0.5, 0.0, 0.5]]
+        );
+        // (1, 1), (4, 2), (2, 5): 2|K| = 11, ∇λ = (−3, −2)/11, (4, −1)/11, (−1, 3)/11, and
+        // K = |K| ∇λ_i·∇λ_j = [[13, −10, −3], [−10, 17, −7], [−3, −7, 10]]/22.
+        let t = [[1.0, 1.0], [4.0, 2.0], [2.0, 5.0]];
+        let (g, k) = (gradients(t), local_stiffness(t));
+        let g_exact = [[-3.0, -2.0], [4.0, -1.0], [-1.0, 3.0]];
+        let k_exact = [[13.0, -10.0, -3.0], [-10.0, 17.0, -7.0], [-3.0, -7.0, 10.0]];
+        for i in 0..3 {
+            for c in 0..2 {
+                close(g[i][c], g_exact[i][c] / 11.0, 1e-15, &format!("∇λ_{i}[{c}]"));
+            }
+            for j in 0..3 {
+                close(k[i][j], k_exact[i][j] / 22.0, 1e-15, &format!("K_{i}{j}"));
+            }
+        }
+    }
+
+    #[test]
+    fn stiffness_and_masses_on_square_cells_in_closed_form() {
+        // Each square cell of a right-diagonal mesh is two right isosceles triangles, which add 1 to
+        // the diagonal entries of its four corners, −½ on each of its four sides and 0 across its
+        // diagonal: K_aa = (cells at a), K_ab = −½ (cells along the side ab), 0 across a diagonal,
+        // and nothing else in the pattern. m_a = |K|/3 = h²/6 for each triangle at a: two of the
+        // cell of which a is the lower left or upper right corner, one of the other two.
+        let (nx, ny, h) = (4_i64, 3_i64, 0.5);
+        let m = Mesh::rectangle([1.0, -1.0], [3.0, 0.5], 4, 3, Diagonal::Right).unwrap();
+        let (k, mass) = (Stiffness::assemble(&m), lumped_mass(&m));
+        let n = m.n_vertices();
+        assert_eq!(k.n(), n);
+        let grid = |a: usize| {
+            let p = m.points[a];
+            (
+                ((p[0] - 1.0) / h).round() as i64,
+                ((p[1] + 1.0) / h).round() as i64,
+            )
+        };
+        let cell = |i: i64, j: i64| f64::from(u8::from((0..nx).contains(&i) && (0..ny).contains(&j)));
+        let u: Vec<f64> = m.points.iter().map(|p| p[0] * p[0] - 3.0 * p[1]).collect();
+        let mut entries = 0;
+        for (a, &m_a) in mass.iter().enumerate() {
+            let (i, j) = grid(a);
+            let expected: Vec<(usize, f64)> = (0..n)
+                .filter_map(|b| {
+                    let (p, q) = grid(b);
+                    let value = match (p - i, q - j) {
+                        (0, 0) => cell(i, j) + cell(i - 1, j) + cell(i - 1, j - 1) + cell(i, j - 1),
+                        (1 | -1, 0) => -0.5 * (cell(i.min(p), j) + cell(i.min(p), j - 1)),
+                        (0, 1 | -1) => -0.5 * (cell(i, j.min(q)) + cell(i - 1, j.min(q))),
+                        (1, 1) | (-1, -1) => 0.0,
+                        _ => return None,
+                    };
+                    Some((b, value))
+                })
+                .collect();
+            let row: Vec<(usize, f64)> = k.row(a).collect();
+            assert_eq!(
+                row.iter().map(|e| e.0).collect::<Vec<_>>(),
+                expected.iter().map(|e| e.0).collect::<Vec<_>>(),
+                "the pattern of row {a}"
+            );
+            for (r, (b, v)) in expected.iter().enumerate() {
+                assert_eq!(k.position(a, *b), k.row_ptr[a] + r);
+                close(k.val[k.row_ptr[a] + r], *v, 1e-15, &format!("K_{a}{b}"));
+            }
+            close(
+                k.diagonal(a),
+                expected.iter().find(|e| e.0 == a).unwrap().1,
+                1e-15,
+                "K_aa",
+            );
+            let ku: f64 = expected.iter().map(|&(b, v)| v * u[b]).sum();
+            close(k.row_dot(a, &u), ku, 1e-14, "(K u)_a");
+            let triangles = 2.0 * cell(i, j) + cell(i - 1, j) + 2.0 * cell(i - 1, j - 1) + cell(i, j - 1);
+            close(m_a, triangles * h * h / 6.0, 1e-15, &format!("m_{a}"));
+            entries += expected.len();
+        }
+        assert_eq!(
+            (k.row_ptr[n], k.col.len(), k.val.len()),
+            (entries, entries, entries)
+        );
+    }
+
+    #[test]
+    fn loads_of_a_linear_function_at_every_vertex() {
+        // For f linear, ∫_K f λ_a = |K|/12 (f(a) + f(p) + f(q) + f(r)) over each triangle K = pqr
+        // at a. On 60 triangles, so that each half spans a full block of 16 and part of another.
+        let m = Mesh::rectangle([0.0, 0.0], [1.0, 0.75], 5, 3, Diagonal::Crossed).unwrap();
+        assert_eq!(m.triangles.len(), 60);
+        let f = |p: [f64; 2]| 1.0 + 2.0 * p[0] - 3.0 * p[1];
+        let mut exact = vec![0.0; m.n_vertices()];
+        for tri in &m.triangles {
+            let [p, q, r] = tri.map(|v| m.points[v]);
+            let area = 0.5 * ((q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]));
+            for &a in tri {
+                exact[a] += area / 12.0 * (f(m.points[a]) + f(p) + f(q) + f(r));
+            }
+        }
+        let expr = Expr::parse("1 + 2*x - 3*y").unwrap();
+        for degree in [2, 5] {
+            let l = load(&m, &expr, Quadrature { degree }).unwrap();
+            for (a, (l, e)) in l.iter().zip(&exact).enumerate() {
+                close(*l, *e, 1e-15, &format!("(f, φ_{a}) with degree {degree}"));
+            }
+        }
+    }
 }

@@ -121,6 +121,22 @@ pub struct SolverStats {
     pub coarse_seconds: f64,
 }
 
+impl SolverStats {
+    /// Adds the work of another solve beside this one (the v solve): its factorizations and its
+    /// symbolic, numeric and solve seconds.
+    fn add_work(&mut self, other: &SolverStats) {
+        self.symbolic_seconds += other.symbolic_seconds;
+        self.numeric_seconds += other.numeric_seconds;
+        self.solve_seconds += other.solve_seconds;
+        self.factorizations += other.factorizations;
+    }
+
+    /// Seconds in numeric factorizations and triangular solves.
+    fn factor_and_solve_seconds(&self) -> f64 {
+        self.numeric_seconds + self.solve_seconds
+    }
+}
+
 /// The solution w of the obstacle problem, with its λ and contact set.
 #[derive(Debug, Clone)]
 pub struct Obstacle {
@@ -237,14 +253,12 @@ pub fn solve(
     } else {
         (v_job(), w_job())
     };
-    let symbolic_seconds = system.get().map_or(0.0, |s| s.1);
     let mut obstacle = obstacle?;
-    let (v, v_stats) = v?;
+    let (v, mut v_stats) = v?;
+    // The shared symbolic analysis counts with the v solve (which did it or waited for it).
+    v_stats.symbolic_seconds = system.get().map_or(0.0, |s| s.1);
     let stats = &mut obstacle.stats;
-    stats.symbolic_seconds += symbolic_seconds;
-    stats.numeric_seconds += v_stats.numeric_seconds;
-    stats.solve_seconds += v_stats.solve_seconds;
-    stats.factorizations += v_stats.factorizations;
+    stats.add_work(&v_stats);
     stats.wall_seconds = clock.elapsed().as_secs_f64();
     let (c1, c2) = (mu2 / (mu1 + mu2), mu1 / (mu1 + mu2));
     let w = &obstacle.gap;
@@ -472,7 +486,7 @@ impl<'p> WProblem<'p> {
         for (j, &a) in active.iter().enumerate() {
             next[global_index(j)] = a;
         }
-        stats.local_seconds += local_stats.numeric_seconds + local_stats.solve_seconds;
+        stats.local_seconds += local_stats.factor_and_solve_seconds();
         next
     }
 }
@@ -577,5 +591,157 @@ impl Describe for Solution {
             ("seconds_solve", st.solve_seconds.into()),
             ("seconds_contact_solve", st.wall_seconds.into()),
         ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::assembly::Quadrature;
+    use crate::expr::Expr;
+    use crate::mesh::Diagonal;
+    use crate::problem::Data;
+
+    /// The unit square on n × n right-diagonal cells, μ1 = 1, μ2 = 2, f2 = 0.
+    fn problem(n: usize, f1: &str, g: &str) -> DiscreteProblem {
+        let e = |s: &str| Expr::parse(s).unwrap();
+        let data = Data::new([1.0, 2.0], e(f1), e("0"), e(g), Quadrature { degree: 2 }).unwrap();
+        let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], n, n, Diagonal::Right).unwrap();
+        DiscreteProblem::new(mesh, &data).unwrap()
+    }
+
+    #[test]
+    fn adding_the_v_solve_sums_its_work() {
+        let mut w = SolverStats {
+            symbolic_seconds: 1.0,
+            numeric_seconds: 2.0,
+            solve_seconds: 3.0,
+            factorizations: 4,
+            iterations: 5,
+            ..Default::default()
+        };
+        let v = SolverStats {
+            symbolic_seconds: 0.5,
+            numeric_seconds: 0.25,
+            solve_seconds: 0.125,
+            factorizations: 1,
+            iterations: 7,
+            ..Default::default()
+        };
+        w.add_work(&v);
+        let s = (w.symbolic_seconds, w.numeric_seconds, w.solve_seconds);
+        assert_eq!(s, (1.5, 2.25, 3.125));
+        assert_eq!((w.factorizations, w.iterations), (5, 5));
+        assert_eq!(v.factor_and_solve_seconds(), 0.375);
+    }
+
+    #[test]
+    fn statistics_count_the_work_of_a_cold_solve() {
+        // Membrane 1 pressed onto membrane 2 in the middle: some contact, several iterations.
+        let p = problem(24, "-10", "0.05");
+        let system = InteriorSystem::new(&p.stiffness, &p.mesh.on_boundary);
+        let o = obstacle(&p, &system, None, SolverOptions::default(), None).unwrap();
+        let s = &o.stats;
+        let inside = |a: usize| !p.mesh.on_boundary[a];
+        let interior = (0..p.mesh.n_vertices()).filter(|&a| inside(a)).count();
+        let interior_edges = p
+            .mesh
+            .edges()
+            .iter()
+            .filter(|&&(a, b)| inside(a) && inside(b))
+            .count();
+        assert_eq!(s.unknowns, interior);
+        // The factor holds at least the lower triangle of K_II.
+        assert!(s.factor_nnz >= interior + interior_edges, "{s:?}");
+        let contact = o.contact.iter().filter(|&&c| c).count();
+        assert!(contact > 10 && s.iterations > 2, "{s:?}");
+        assert_eq!(
+            (s.changes.len(), s.active_sizes.len()),
+            (s.iterations, s.iterations)
+        );
+        assert_eq!(
+            (s.changes.last(), s.active_sizes.last()),
+            (Some(&0), Some(&contact))
+        );
+        // Each global iteration factorizes for a new held set.
+        assert_eq!(s.factorizations, s.iterations);
+        assert!((1..=s.iterations).contains(&s.analyses), "{s:?}");
+        assert!(s.local_iterations <= LOCAL_ITERATIONS * s.iterations, "{s:?}");
+        for (name, t) in [
+            ("symbolic", s.symbolic_seconds),
+            ("numeric", s.numeric_seconds),
+            ("solve", s.solve_seconds),
+        ] {
+            assert!(t > 0.0 && t < 60.0, "{name} seconds: {t}");
+        }
+        assert!(s.local_seconds >= 0.0 && s.coarse_seconds == 0.0, "{s:?}");
+    }
+
+    #[test]
+    fn interface_and_band_follow_the_mesh_edges() {
+        let p = problem(8, "-10", "0.05");
+        let system = InteriorSystem::new(&p.stiffness, &p.mesh.on_boundary);
+        let n = system.n();
+        // The unknowns' neighbours along the edges of the mesh (not of K's pattern).
+        let mut neighbours = vec![Vec::new(); n];
+        for (a, b) in p.mesh.edges() {
+            let (i, j) = (system.unknown[a], system.unknown[b]);
+            if i != usize::MAX && j != usize::MAX {
+                neighbours[i].push(j);
+                neighbours[j].push(i);
+            }
+        }
+        let x = |i: usize| p.mesh.points[system.vertices[i]];
+        let active: Vec<bool> = (0..n).map(|i| x(i)[0] + 0.5 * x(i)[1] < 0.6).collect();
+        let expected: Vec<usize> = (0..n)
+            .filter(|&i| neighbours[i].iter().any(|&j| active[j] != active[i]))
+            .collect();
+        assert!(expected.len() > 4 && expected.len() < n / 2);
+        assert_eq!(interface(&p, &system, &active), expected);
+        // The band of r rings: the unknowns within r edges of a seed, by breadth-first search.
+        let seeds = [system.unknown[4 * 9 + 2], system.unknown[6 * 9 + 6]];
+        let mut distance = vec![usize::MAX; n];
+        let mut queue: std::collections::VecDeque<usize> = seeds.iter().copied().collect();
+        seeds.iter().for_each(|&i| distance[i] = 0);
+        while let Some(i) = queue.pop_front() {
+            for &j in &neighbours[i] {
+                if distance[j] == usize::MAX {
+                    distance[j] = distance[i] + 1;
+                    queue.push_back(j);
+                }
+            }
+        }
+        for rings in 0..5 {
+            let expected: Vec<usize> = (0..n).filter(|&i| distance[i] <= rings).collect();
+            assert_eq!(band(&p, &system, &seeds, rings), expected, "{rings} rings");
+        }
+    }
+
+    #[test]
+    fn a_start_from_the_solution_is_confirmed_at_once() {
+        // With μ1 = 1, μ2 = 2 and f2 = 0, −Δw = f1: w = g − τ for f1 = −1 and g constant, τ the
+        // torsion function (max 0.0737), so g = 0.072 gives a small contact set around the centre,
+        // whose band of local correction is a small part of the unknowns.
+        let p = problem(96, "-1", "0.072");
+        let options = SolverOptions::default();
+        let cold = solve(&p, Start::Cold, Vec::new(), options).unwrap();
+        let start = Start::From {
+            mesh: &p.mesh,
+            obstacle: &cold.obstacle,
+        };
+        let warm = solve(&p, start, Vec::new(), options).unwrap();
+        let s = &warm.obstacle.stats;
+        let contact = warm.obstacle.contact.iter().filter(|&&c| c).count();
+        assert!((10..200).contains(&contact), "contact at {contact} vertices");
+        assert_eq!(warm.obstacle.contact, cold.obstacle.contact);
+        assert_eq!(warm.obstacle.gap, cold.obstacle.gap);
+        // The guess's contact set is the solution's: the local correction on the band around its
+        // free boundary confirms it in one local iteration, one global solve confirms it again.
+        assert_eq!(
+            (s.iterations, s.local_iterations, s.factorizations),
+            (1, 1, 2),
+            "{s:?}"
+        );
+        assert!(s.local_seconds > 0.0 && s.local_seconds < s.wall_seconds, "{s:?}");
     }
 }

@@ -134,6 +134,24 @@ fn full_contact_moves_the_membranes_together() {
 }
 
 #[test]
+fn membranes_at_rest_do_not_press_on_each_other() {
+    // f1 = f2 = 0, g = 0: u1 = u2 = 0, so w = 0 and λ = 0 everywhere. The active set
+    // {λ_a − c_a w_a > 0} is empty: the membranes touch but do not press, and the first solve
+    // (exactly zero) is confirmed at once.
+    let c = case("mu1 = 1.0\nmu2 = 2.0\nf1 = 0\nf2 = 0\ng = 0", 6);
+    let r = solve(&c, Start::Cold);
+    let o = &r.solution.obstacle;
+    assert!(o
+        .gap
+        .iter()
+        .chain(&o.lambda)
+        .chain(&r.solution.u1)
+        .all(|&x| x == 0.0));
+    assert!(o.contact.iter().all(|&c| !c));
+    assert_eq!((o.stats.iterations, &o.stats.active_sizes[..]), (1, &[0][..]));
+}
+
+#[test]
 fn action_satisfies_proposition_12_and_complementarity() {
     // λ from each membrane recomputed here by (4.5), with K and m assembled densely in this test
     // and the loads of the piecewise constant f of the default case integrated exactly… by the
@@ -158,6 +176,9 @@ fn action_satisfies_proposition_12_and_complementarity() {
             r.action.lambda2[a]
         );
         assert!((l1 - l2).abs() < 1e-10, "Prop. 12 at {a}: {l1} vs {l2}");
+        // The obstacle problem's own λ_a = r_a/m_a (its residual, which warm starts use).
+        let lw = r.solution.obstacle.lambda[a];
+        assert!((l1 - lw).abs() < 1e-10, "obstacle λ at {a}: {l1} vs {lw}");
         assert!(l1 > -1e-10, "λ ≥ 0 at {a}: {l1}");
         // (4.8): the gap is exactly 0 at contact vertices; elsewhere λ vanishes up to round-off.
         if r.solution.obstacle.contact[a] {
@@ -170,6 +191,9 @@ fn action_satisfies_proposition_12_and_complementarity() {
             );
         }
         lmax = lmax.max(l1);
+    }
+    for a in (0..p.mesh.n_vertices()).filter(|&a| p.mesh.on_boundary[a]) {
+        assert_eq!(r.solution.obstacle.lambda[a], 0.0);
     }
     assert!(lmax > 1.0, "the default case has contact");
     assert!(r.action.checks.verify().is_ok());
