@@ -969,6 +969,30 @@ mod tests {
         assert!(dot(&u, &bu) > 0.0 && dot(&v, &bv) > 0.0);
     }
 
+    /// One free fine vertex amid held ones, the midpoint of a coarse edge: both coarse hat
+    /// functions of the edge truncate to half its fine hat function. Keeping them both would make
+    /// the coarse matrix singular; the rule keeps neither, and CG solves the 1 × 1 system.
+    #[test]
+    fn a_lone_free_midpoint_keeps_no_coarse_unknown() {
+        let (meshes, transfers) = square(8, Diagonal::Right);
+        let k = Stiffness::assemble(&meshes[0]);
+        let system = InteriorSystem::numbering(&meshes[0].on_boundary);
+        let h = Hierarchy::new(&k, &system, &transfers, 0);
+        let midpoint = (system.vertices.iter())
+            .position(|&a| meshes[0].points[a] == [0.375, 0.5])
+            .unwrap();
+        let held: Vec<bool> = (0..system.n()).map(|i| i != midpoint).collect();
+        let alive: Vec<bool> = held.iter().map(|&h| !h).collect();
+        let row = transfers.p[0].row(midpoint);
+        assert_eq!(row.1, &[0.5, 0.5], "the midpoint of a coarse edge");
+        let mut mg = h.preconditioner(&held).unwrap();
+        let b = vec![1.0; system.n()];
+        let mut x = vec![0.0; system.n()];
+        assert_eq!(mg.solve(&b, &mut x, 1e-12, 10), Ok(1));
+        assert!((x[midpoint] - 1.0 / mg.fine.get(midpoint, midpoint)).abs() < 1e-15);
+        assert!(kept(&transfers.p[0], &alive).iter().all(|&k| !k));
+    }
+
     #[test]
     fn truncated_cg_reaches_the_cholesky_solution_in_few_iterations() {
         let mut iterations = Vec::new();
@@ -980,7 +1004,10 @@ mod tests {
             let held = held_disk(&meshes[0], &system);
             let b: Vec<f64> = noise(system.n(), 3).iter().map(|v| 1.0 + v).collect();
             let mut factor = system.factorization();
-            for held in [vec![false; system.n()], held] {
+            // Also a scattered held set, with free vertices amid held ones: the truncated coarse
+            // basis functions of two coarse vertices can reduce to one fine hat function there.
+            let scattered = noise(system.n(), 4).iter().map(|&v| v > -0.6).collect();
+            for held in [vec![false; system.n()], held, scattered] {
                 factor.factorize(&held).unwrap();
                 let mut direct = b.clone();
                 factor.solve(&mut direct);
