@@ -17,16 +17,18 @@ impl Prolongation {
     pub fn new(fine: &Mesh, coarse: &Mesh) -> Self {
         let locator = Locator::new(coarse);
         // Consecutive vertices are mostly near each other: the last triangle is tried first.
-        let mut hint = 0;
-        let weights = fine
-            .points
-            .iter()
-            .map(|&p| {
-                let (t, bary) = locator.locate(coarse, p, hint);
-                hint = t;
-                (coarse.triangles[t], bary)
-            })
-            .collect();
+        // The two halves of the fine vertices on two threads.
+        let [mut weights, second] = crate::assembly::in_two_halves(fine.n_vertices(), |range| {
+            let mut hint = 0;
+            (fine.points[range].iter())
+                .map(|&p| {
+                    let (t, bary) = locator.locate(coarse, p, hint);
+                    hint = t;
+                    (coarse.triangles[t], bary)
+                })
+                .collect::<Vec<_>>()
+        });
+        weights.extend(second);
         Prolongation {
             coarse_vertices: coarse.n_vertices(),
             weights,
