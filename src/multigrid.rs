@@ -375,15 +375,6 @@ impl<'t> Hierarchy<'t> {
         }
     }
 
-    /// A hierarchy of one level: the coarsest solve (Cholesky) is the whole solve.
-    pub fn single(k: &Stiffness, system: &InteriorSystem) -> Hierarchy<'static> {
-        Hierarchy {
-            fine: Csr::interior(k, system),
-            p: &[],
-            pt: &[],
-        }
-    }
-
     /// The number of levels.
     pub fn levels(&self) -> usize {
         self.p.len() + 1
