@@ -42,7 +42,7 @@
 //! multigrid, DD XVIII, 2009). Then every coarse space is a subspace of the free space and the
 //! coarse correction is the energy projection onto it: the cycle is a symmetric positive definite
 //! preconditioner of K_FF. E keeps the coarse unknowns that give some live finer unknown a weight
-//! above 1/2 — on nested meshes, the coarse vertices that are free fine vertices (see [`kept`]):
+//! above 1/2 — on nested meshes, the coarse vertices that are free fine vertices (the function `kept`):
 //! this keeps P̃ of full rank, so that the coarse operators stay definite and the coarsest can be
 //! factorized. The alternative of truncating the transfers but keeping the coarse operators of K
 //! (no recomputation) is not variational, and measured so: at 1024² cells its CG took 39 and 22
