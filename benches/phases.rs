@@ -4,12 +4,16 @@
 //! refined K times (`disk-K`: about 1.1M vertices at K = 6).
 //!
 //! Usage: `cargo bench --bench phases -- contact MESH` or `-- poisson MESH` (one process per figure,
-//! so that the peak resident memory is that of one run).
+//! so that the peak resident memory is that of one run); `contact-mg` and `poisson-mg` solve with
+//! multigrid (`[solver] linear = "multigrid"`; `poisson-mg`: one MG-preconditioned CG solve
+//! from zero to the contact solve's tolerance, setup included).
 
 use membrane_contact::assembly::Stiffness;
 use membrane_contact::case::{Case, MeshSpec};
-use membrane_contact::contact::Start;
+use membrane_contact::contact::{LinearSolver, Start};
 use membrane_contact::linear::InteriorSystem;
+use membrane_contact::mesh::{Mesh, Prolongation};
+use membrane_contact::multigrid::{Hierarchy, Transfers};
 use membrane_contact::run;
 use std::time::Instant;
 
@@ -53,9 +57,16 @@ fn main() {
         eprintln!("usage: phases contact|poisson N|disk-K");
         std::process::exit(2);
     };
-    let case = case(mesh);
-    match what.as_str() {
-        "contact" => {
+    let mut case = case(mesh);
+    let what = match what.strip_suffix("-mg") {
+        Some(w) => {
+            case.solver.linear = LinearSolver::Multigrid;
+            w
+        }
+        None => what.as_str(),
+    };
+    match (what, case.solver.linear) {
+        ("contact", _) => {
             let dir = tempfile::tempdir().expect("a temporary directory");
             let options = run::Options {
                 start: Start::Nested,
@@ -68,7 +79,8 @@ fn main() {
             let total = t.elapsed().as_secs_f64();
             let (tm, st) = (&r.timings, &r.solution.obstacle.stats);
             println!(
-                "contact {mesh} vertices={} mesh={:.3} assembly={:.3} coarse={:.3} symbolic={:.3} numeric={:.3} solve={:.3} postprocess={:.3} write={:.3} contact_solve={:.3} total={:.3} iterations={} local_iterations={} coarse_iterations={} factorizations={} peak_mb={:.0}",
+                "{}{mesh} vertices={} mesh={:.3} assembly={:.3} coarse={:.3} symbolic={:.3} numeric={:.3} solve={:.3} postprocess={:.3} write={:.3} contact_solve={:.3} total={:.3} iterations={} local_iterations={} coarse_iterations={} factorizations={} cg_v={} cg={} coarse_cg_max={} peak_mb={:.0}",
+                if st.linear == LinearSolver::Multigrid { "contact-mg " } else { "contact " },
                 r.problem.mesh.n_vertices(),
                 tm.mesh,
                 tm.assembly,
@@ -82,12 +94,16 @@ fn main() {
                 total,
                 st.iterations,
                 st.local_iterations,
-                st.coarse_iterations.iter().map(|i| i.to_string()).collect::<Vec<_>>().join(","),
+                join(&st.coarse_iterations),
                 st.factorizations,
+                st.v_cg_iterations,
+                join(&st.cg_iterations),
+                join(&(st.coarse_cg_iterations.iter()).map(|l| l.iter().copied().max().unwrap_or(0)).collect::<Vec<_>>()),
                 peak_mb()
             );
         }
-        "poisson" => {
+        ("poisson", LinearSolver::Multigrid) => poisson_mg(&case, mesh),
+        ("poisson", LinearSolver::Direct) => {
             let mesh_built = case.mesh().expect("the mesh");
             let k = Stiffness::assemble(&mesh_built);
             let t = Instant::now();
@@ -109,4 +125,52 @@ fn main() {
         }
         _ => panic!("unknown benchmark {what}"),
     }
+}
+
+/// CPU seconds of this thread.
+fn thread_cpu() -> f64 {
+    let mut t = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes the timespec it is given.
+    unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut t) };
+    t.tv_sec as f64 + t.tv_nsec as f64 * 1e-9
+}
+
+fn join(v: &[usize]) -> String {
+    v.iter().map(|i| i.to_string()).collect::<Vec<_>>().join(",")
+}
+
+/// One Poisson solve by CG preconditioned by V-cycles: K u = 1 inside, from zero.
+fn poisson_mg(case: &Case, name: &str) {
+    let t = Instant::now();
+    let (mesh, coarser) = case.hierarchy(true).expect("the meshes");
+    let k = Stiffness::assemble(&mesh);
+    let mesh_seconds = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let meshes: Vec<&Mesh> = std::iter::once(&mesh).chain(&coarser).collect();
+    let prolongations: Vec<Prolongation> = meshes.windows(2).map(|w| Prolongation::new(w[0], w[1])).collect();
+    let transfers = Transfers::new(&meshes, &prolongations);
+    let sys = InteriorSystem::numbering(&mesh.on_boundary);
+    let hierarchy = Hierarchy::new(&k, &sys, &transfers, 0);
+    let transfer = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let mut mg = hierarchy.preconditioner(&vec![false; sys.n()]).expect("SPD");
+    let setup = t.elapsed().as_secs_f64();
+    let b = vec![1.0; sys.n()];
+    let (mut solve, mut cpu, mut iterations) = (f64::INFINITY, f64::INFINITY, 0);
+    for _ in 0..3 {
+        let (t, c) = (Instant::now(), thread_cpu());
+        let mut x = vec![0.0; sys.n()];
+        iterations = mg.solve(&b, &mut x, 1e-12, 200).expect("converges");
+        solve = solve.min(t.elapsed().as_secs_f64());
+        cpu = cpu.min(thread_cpu() - c);
+    }
+    println!(
+        "poisson-mg {name} levels={} mesh={mesh_seconds:.3} transfers={transfer:.3} setup={setup:.3} solve={solve:.3} solve_cpu={cpu:.3} total={:.3} cg={iterations} peak_mb={:.0}",
+        hierarchy.levels(),
+        transfer + setup + solve,
+        peak_mb()
+    );
 }

@@ -2,7 +2,7 @@
 //! The format is documented in `data/cases/README.md`. Every error names the file and the key.
 
 use crate::assembly::Quadrature;
-use crate::contact::SolverOptions;
+use crate::contact::{LinearSolver, SolverOptions};
 use crate::expr::{Expr, ExprError, Names};
 use crate::mesh::{self, Curves, Diagonal, Domain, Mesh};
 use crate::norms::Exact;
@@ -113,13 +113,21 @@ impl Default for QuadratureTable {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SolverTable {
+    #[serde(default = "default_max_iterations")]
     max_iterations: usize,
+    #[serde(default)]
+    linear: Option<String>,
+}
+
+fn default_max_iterations() -> usize {
+    SolverOptions::default().max_iterations
 }
 
 impl Default for SolverTable {
     fn default() -> Self {
         SolverTable {
-            max_iterations: SolverOptions::default().max_iterations,
+            max_iterations: default_max_iterations(),
+            linear: None,
         }
     }
 }
@@ -313,6 +321,15 @@ impl Case {
         if file.solver.max_iterations == 0 {
             return Err(err("key 'solver.max_iterations' must be at least 1".into()));
         }
+        let linear = match file.solver.linear.as_deref() {
+            None => LinearSolver::default(),
+            Some(name) => LinearSolver::from_name(name).ok_or_else(|| {
+                err(format!(
+                    "key 'solver.linear' = \"{name}\": expected one of {}",
+                    LinearSolver::NAMES.map(|n| format!("\"{n}\"")).join(", ")
+                ))
+            })?,
+        };
         let data = Data::new(
             [file.mu1, file.mu2],
             expr("f1", &file.f1)?,
@@ -360,6 +377,7 @@ impl Case {
             mesh,
             solver: SolverOptions {
                 max_iterations: file.solver.max_iterations,
+                linear,
             },
             refine: file.mesh.refine.unwrap_or(0),
             validation,
@@ -852,6 +870,23 @@ mod tests {
         assert!(err(&format!("{disk}[validation]\nsizes = [8]\n")).contains("validation.refine"));
         let mut c = Case::parse(&disk, "t", PathBuf::new()).unwrap();
         assert!(c.set_cells(8).unwrap_err().0.contains("use --refine"));
+        // [solver] linear: the two names, anything else named with the key.
+        let solver = |v: &str| format!("{base}[solver]\nlinear = {v}\n");
+        let mg = Case::parse(&solver("\"multigrid\""), "t", PathBuf::new()).unwrap();
+        assert_eq!(mg.solver.linear, LinearSolver::Multigrid);
+        assert_eq!(mg.solver.max_iterations, SolverOptions::default().max_iterations);
+        let direct = Case::parse(&solver("\"direct\""), "t", PathBuf::new()).unwrap();
+        assert_eq!(direct.solver.linear, LinearSolver::Direct);
+        assert_eq!(
+            Case::parse(base, "t", PathBuf::new()).unwrap().solver.linear,
+            LinearSolver::Direct
+        );
+        let bad = err(&solver("\"cholesky\""));
+        assert!(
+            bad.contains("key 'solver.linear' = \"cholesky\": expected one of \"direct\", \"multigrid\""),
+            "{bad}"
+        );
+        assert!(err(&solver("3")).contains("linear"));
         let long = err(&base.replace("f1 = \"1\"", &format!("f1 = \"{}+\"", "x+".repeat(10_000))));
         assert!(long.len() < 300 && long.contains("20001 characters"), "{long}");
     }

@@ -63,6 +63,7 @@ pub mod expr;
 pub mod flux;
 pub mod linear;
 pub mod mesh;
+pub mod multigrid;
 pub mod norms;
 pub mod problem;
 mod quadrature_tables;

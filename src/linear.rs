@@ -19,12 +19,19 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
-/// The interior block K_II (lower triangle, CSC in interior numbering) and its symbolic analysis.
+/// The interior unknowns of a Dirichlet problem and, for the direct solver, the interior block K_II
+/// (lower triangle, CSC in interior numbering) with its symbolic analysis.
 pub struct InteriorSystem {
     /// The vertex of each unknown, increasing.
     pub(crate) vertices: Vec<usize>,
     /// Unknown of each vertex (`usize::MAX` where the value is fixed).
     pub(crate) unknown: Vec<usize>,
+    /// K_II and its analysis; `None` for the numbering alone ([`InteriorSystem::numbering`]).
+    direct: Option<Direct>,
+}
+
+/// K_II (lower triangle, CSC) and its symbolic Cholesky analysis.
+struct Direct {
     col_ptr: Vec<usize>,
     row_idx: Vec<usize>,
     k_val: Vec<f64>,
@@ -38,7 +45,15 @@ pub struct NotPositiveDefinite;
 impl InteriorSystem {
     /// Extracts K_II from K and runs the symbolic analysis (AMD ordering).
     pub fn new(k: &Stiffness, on_boundary: &[bool]) -> Self {
-        let mut unknown = vec![usize::MAX; k.n()];
+        let mut system = Self::numbering(on_boundary);
+        system.direct = Some(Direct::new(k, &system.vertices, &system.unknown));
+        system
+    }
+
+    /// The interior unknowns alone, without K_II and its analysis (for iterative solvers:
+    /// [`Factorization`]s of it cannot be made).
+    pub fn numbering(on_boundary: &[bool]) -> Self {
+        let mut unknown = vec![usize::MAX; on_boundary.len()];
         let mut vertices = Vec::new();
         for (a, &b) in on_boundary.iter().enumerate() {
             if !b {
@@ -46,12 +61,28 @@ impl InteriorSystem {
                 vertices.push(a);
             }
         }
+        InteriorSystem {
+            vertices,
+            unknown,
+            direct: None,
+        }
+    }
+
+    /// K_II and its analysis: only a system made by [`InteriorSystem::new`] has them.
+    fn direct(&self) -> &Direct {
+        (self.direct.as_ref()).expect("an InteriorSystem made by `new`, with its Cholesky analysis")
+    }
+}
+
+impl Direct {
+    /// K_II of K on the `vertices` (with `unknown` their numbers), and its analysis.
+    fn new(k: &Stiffness, vertices: &[usize], unknown: &[usize]) -> Self {
         let n = vertices.len();
         let mut col_ptr = Vec::with_capacity(n + 1);
         let mut row_idx = Vec::new();
         let mut k_val = Vec::new();
         col_ptr.push(0);
-        for &a in &vertices {
+        for &a in vertices {
             let j = unknown[a];
             for (b, v) in k.row(a) {
                 let i = unknown[b];
@@ -70,16 +101,16 @@ impl InteriorSystem {
             CholeskySymbolicParams::default(),
         )
         .expect("symbolic Cholesky of a valid pattern");
-        InteriorSystem {
-            vertices,
-            unknown,
+        Direct {
             col_ptr,
             row_idx,
             k_val,
             symbolic,
         }
     }
+}
 
+impl InteriorSystem {
     /// The number of unknowns.
     pub fn n(&self) -> usize {
         self.vertices.len()
@@ -110,7 +141,7 @@ impl InteriorSystem {
 
     /// Number of nonzeros in the Cholesky factor.
     pub fn factor_nnz(&self) -> usize {
-        self.symbolic.len_val()
+        self.direct.as_ref().map_or(0, |d| d.symbolic.len_val())
     }
 
     /// An empty factorization of this system.
@@ -135,16 +166,17 @@ impl InteriorSystem {
         if !held.iter().any(|&h| h) {
             return vec![false; self.n()];
         }
+        let d = self.direct();
         let mut dist: Vec<usize> = held.iter().map(|&h| if h { usize::MAX } else { 0 }).collect();
         for _ in 0..margin {
             for j in 0..self.n() {
-                for &i in &self.row_idx[self.col_ptr[j]..self.col_ptr[j + 1]] {
+                for &i in &d.row_idx[d.col_ptr[j]..d.col_ptr[j + 1]] {
                     dist[i] = dist[i].min(dist[j].saturating_add(1));
                     dist[j] = dist[j].min(dist[i].saturating_add(1));
                 }
             }
         }
-        dist.iter().map(|&d| d > margin).collect()
+        dist.iter().map(|&k| k > margin).collect()
     }
 
     /// K restricted to the unknowns not `left_out`, with its symbolic analysis in the ordering
@@ -153,6 +185,7 @@ impl InteriorSystem {
         if !left_out.iter().any(|&h| h) {
             return None;
         }
+        let d = self.direct();
         let n = self.n();
         let mut index = vec![usize::MAX; n];
         let mut free = Vec::new();
@@ -164,17 +197,17 @@ impl InteriorSystem {
         }
         let (mut col_ptr, mut row_idx, mut val) = (vec![0], Vec::new(), Vec::new());
         for &j in &free {
-            for p in self.col_ptr[j]..self.col_ptr[j + 1] {
-                let i = index[self.row_idx[p]];
+            for p in d.col_ptr[j]..d.col_ptr[j + 1] {
+                let i = index[d.row_idx[p]];
                 if i != usize::MAX {
                     row_idx.push(i);
-                    val.push(self.k_val[p]);
+                    val.push(d.k_val[p]);
                 }
             }
             col_ptr.push(row_idx.len());
         }
         let m = free.len();
-        let order = self.symbolic.perm().expect("AMD gives an ordering").arrays().0;
+        let order = d.symbolic.perm().expect("AMD gives an ordering").arrays().0;
         let forward: Vec<usize> = order
             .iter()
             .map(|&i| index[i])
@@ -212,6 +245,68 @@ pub fn dirichlet_solve(k: &Stiffness, fixed: &[bool], load: &[f64], scale: f64, 
     let mut x = system.lifted_rhs(k, |a| load[a], scale, bc);
     factor.solve(&mut x);
     system.scatter(&x, bc)
+}
+
+/// A sparse Cholesky factorization that owns its matrix: faer's supernodal LLᵀ with an AMD
+/// ordering, as [`Factorization`], for a matrix given by its values alone (the coarsest level of
+/// [`crate::multigrid`]).
+pub struct Cholesky {
+    n: usize,
+    symbolic: SymbolicCholesky<usize>,
+    factor: Vec<f64>,
+    buffer: MemBuffer,
+}
+
+impl Cholesky {
+    /// Factorizes the symmetric positive definite matrix of order `n` whose lower triangle is
+    /// given by columns: rows `row_idx[col_ptr[j]..col_ptr[j + 1]]`, increasing, of column j.
+    pub fn new(
+        n: usize,
+        col_ptr: &[usize],
+        row_idx: &[usize],
+        val: &[f64],
+    ) -> Result<Self, NotPositiveDefinite> {
+        let pattern = SymbolicSparseColMatRef::new_checked(n, n, col_ptr, None, row_idx);
+        let symbolic = factorize_symbolic_cholesky(
+            pattern,
+            Side::Lower,
+            SymmetricOrdering::Amd,
+            CholeskySymbolicParams::default(),
+        )
+        .map_err(|_| NotPositiveDefinite)?;
+        let scratch = symbolic
+            .factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default())
+            .or(symbolic.solve_in_place_scratch::<f64>(1, Par::Seq));
+        let mut buffer = MemBuffer::new(scratch);
+        let mut factor = vec![0.0; symbolic.len_val()];
+        symbolic
+            .factorize_numeric_llt(
+                &mut factor,
+                SparseColMatRef::new(pattern, val),
+                Side::Lower,
+                Default::default(),
+                Par::Seq,
+                MemStack::new(&mut buffer),
+                Default::default(),
+            )
+            .map_err(|_| NotPositiveDefinite)?;
+        Ok(Cholesky {
+            n,
+            symbolic,
+            factor,
+            buffer,
+        })
+    }
+
+    /// Solves in place.
+    pub fn solve(&mut self, x: &mut [f64]) {
+        LltRef::new(&self.symbolic, &self.factor).solve_in_place_with_conj(
+            Conj::No,
+            MatMut::from_column_major_slice_mut(x, self.n, 1),
+            Par::Seq,
+            MemStack::new(&mut self.buffer),
+        );
+    }
 }
 
 /// Graph steps between the free unknowns and those left out of the pattern of K_FF.
@@ -270,7 +365,10 @@ impl Factorization<'_> {
             self.pattern_set = true;
             self.analyses += 1;
         }
-        let symbolic = self.reduced.as_ref().map_or(&s.symbolic, |r| &r.symbolic);
+        let symbolic = self
+            .reduced
+            .as_ref()
+            .map_or(&s.direct().symbolic, |r| &r.symbolic);
         self.factor.resize(symbolic.len_val(), 0.0);
         self.analysed = Some(held.to_vec());
     }
@@ -287,7 +385,10 @@ impl Factorization<'_> {
         let s = self.system;
         let (symbolic, col_ptr, row_idx, val) = match &self.reduced {
             Some(r) => (&r.symbolic, &r.col_ptr, &r.row_idx, &r.val),
-            None => (&s.symbolic, &s.col_ptr, &s.row_idx, &s.k_val),
+            None => {
+                let d = s.direct();
+                (&d.symbolic, &d.col_ptr, &d.row_idx, &d.k_val)
+            }
         };
         let unknown = |k: usize| self.reduced.as_ref().map_or(k, |r| r.free[k]);
         // Held unknowns inside the pattern become decoupled rows K_aa w_a = 0.
@@ -334,7 +435,7 @@ impl Factorization<'_> {
         let s = self.system;
         match &self.reduced {
             None => {
-                let llt = LltRef::new(&s.symbolic, &self.factor);
+                let llt = LltRef::new(&s.direct().symbolic, &self.factor);
                 llt.solve_in_place_with_conj(
                     Conj::No,
                     MatMut::from_column_major_slice_mut(rhs, s.n(), 1),

@@ -5,7 +5,7 @@
 use crate::action::{Action, CheckError};
 use crate::atomic::{OutputError, Staging};
 use crate::case::{Case, CaseError};
-use crate::contact::{self, Solution, SolveError, Start};
+use crate::contact::{self, LinearSolver, Solution, SolveError, Start};
 use crate::estimator::Estimate;
 use crate::flux::Fluxes;
 use crate::mesh::{DualMesh, Mesh};
@@ -74,7 +74,9 @@ pub fn solve<'c>(case: &'c Case, options: &Options, target: &Path) -> Result<Run
 /// Computes a run without writing it.
 pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
     let clock = Instant::now();
-    let (mesh, coarser) = case.hierarchy(matches!(options.start, Start::Nested))?;
+    // The coarser meshes serve nested iteration and multigrid.
+    let multigrid = case.solver.linear == LinearSolver::Multigrid;
+    let (mesh, coarser) = case.hierarchy(multigrid || matches!(options.start, Start::Nested))?;
     case.check_on(&mesh)?;
     on_mesh(case, mesh, coarser, options, clock.elapsed().as_secs_f64())
 }

@@ -236,7 +236,16 @@ fn nested_iteration_and_cold_start_agree() {
 fn iteration_cap_is_an_error() {
     let c = Case::default_case();
     let p = DiscreteProblem::new(c.mesh().unwrap(), &c.data).unwrap();
-    let err = contact::solve(&p, Start::Cold, Vec::new(), SolverOptions { max_iterations: 2 }).unwrap_err();
+    let err = contact::solve(
+        &p,
+        Start::Cold,
+        Vec::new(),
+        SolverOptions {
+            max_iterations: 2,
+            ..Default::default()
+        },
+    )
+    .unwrap_err();
     assert!(
         matches!(err, SolveError::IterationCap { iterations: 2, .. }),
         "{err}"

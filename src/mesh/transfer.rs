@@ -16,18 +16,34 @@ impl Prolongation {
     /// The interpolation from `coarse` onto the vertices of `fine`.
     pub fn new(fine: &Mesh, coarse: &Mesh) -> Self {
         let locator = Locator::new(coarse);
-        let weights = fine
-            .points
-            .iter()
-            .map(|&p| {
-                let (t, bary) = locator.locate(coarse, p);
-                (coarse.triangles[t], bary)
-            })
-            .collect();
+        // Consecutive vertices are mostly near each other: the last triangle is tried first.
+        // The two halves of the fine vertices on two threads.
+        let [mut weights, second] = crate::assembly::in_two_halves(fine.n_vertices(), |range| {
+            let mut hint = 0;
+            (fine.points[range].iter())
+                .map(|&p| {
+                    let (t, bary) = locator.locate(coarse, p, hint);
+                    hint = t;
+                    (coarse.triangles[t], bary)
+                })
+                .collect::<Vec<_>>()
+        });
+        weights.extend(second);
         Prolongation {
             coarse_vertices: coarse.n_vertices(),
             weights,
         }
+    }
+
+    /// The coarse vertices of the triangle that holds the fine vertex `a`, with the weights of the
+    /// interpolation: row a of P.
+    pub fn row(&self, a: usize) -> ([usize; 3], [f64; 3]) {
+        self.weights[a]
+    }
+
+    /// The number of coarse vertices (the columns of P).
+    pub fn coarse_vertices(&self) -> usize {
+        self.coarse_vertices
     }
 
     /// The fine P1 interpolant of the coarse P1 field `values`.
@@ -65,23 +81,29 @@ impl Locator {
         }
     }
 
-    fn locate(&self, mesh: &Mesh, p: [f64; 2]) -> (usize, [f64; 3]) {
+    /// The triangle of `mesh` that holds p (the triangle `hint` if it does), with p's
+    /// barycentric coordinates there.
+    fn locate(&self, mesh: &Mesh, p: [f64; 2], hint: usize) -> (usize, [f64; 3]) {
         let mut best = (0, [1.0, 0.0, 0.0], f64::NEG_INFINITY);
-        let candidates = self.grid.near_box(p, p);
-        let search: Box<dyn Iterator<Item = usize>> = if self.grid.near_box(p, p).next().is_some() {
-            Box::new(candidates)
-        } else {
-            Box::new(0..mesh.triangles.len())
-        };
-        for t in search {
+        // Whether t holds p (then it is the answer), keeping the nearest miss in `best`.
+        let mut holds = |t: usize| {
             let b = barycentric(mesh.corners(t), p);
             let worst = b[0].min(b[1]).min(b[2]);
             if worst > best.2 {
                 best = (t, b, worst);
-                if worst >= -1e-12 {
-                    break;
-                }
             }
+            worst >= -1e-12
+        };
+        let found = (hint < mesh.triangles.len() && holds(hint)) || {
+            let mut candidates = self.grid.near_box(p, p).peekable();
+            if candidates.peek().is_some() {
+                candidates.any(&mut holds)
+            } else {
+                (0..mesh.triangles.len()).any(&mut holds)
+            }
+        };
+        if found {
+            return (best.0, best.1);
         }
         // Outside every triangle (a point of a finer boundary): clamp to the closest one.
         let b = best.1.map(|v| v.max(0.0));

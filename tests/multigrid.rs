@@ -1,0 +1,142 @@
+//! `[solver] linear = "multigrid"` against the direct solver on the case files: the same fields
+//! and active sets, and CG iterations per solve bounded independently of the mesh size.
+
+use membrane_contact::case::Case;
+use membrane_contact::contact::{LinearSolver, SolverStats, Start};
+use membrane_contact::run::{self, Run};
+use std::path::Path;
+
+fn with(case: &Case, linear: LinearSolver) -> Case {
+    let mut c = case.clone();
+    c.solver.linear = linear;
+    c
+}
+
+fn solve(case: &Case) -> Run<'_> {
+    let options = run::Options {
+        start: Start::Nested,
+        hminus1: false,
+        flux: false,
+        estimate: false,
+    };
+    run::run(case, &options).unwrap_or_else(|e| panic!("{}: {e}", case.origin))
+}
+
+/// max |a − b| / max(max |b|, floor).
+fn relative(a: &[f64], b: &[f64], floor: f64) -> f64 {
+    let scale = b.iter().fold(floor, |m, v| m.max(v.abs()));
+    let diff = a.iter().zip(b).fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
+    diff / scale.max(f64::MIN_POSITIVE)
+}
+
+/// Solves `case` both ways; asserts that u1, u2, the gap agree to 1e-10 relative, λ to 1e-8, and
+/// the contact sets exactly. Returns the multigrid run's statistics.
+fn agree(case: &Case) -> SolverStats {
+    let (direct, multigrid) = (
+        with(case, LinearSolver::Direct),
+        with(case, LinearSolver::Multigrid),
+    );
+    let (d, m) = (solve(&direct), solve(&multigrid));
+    let (ds, ms) = (&d.solution, &m.solution);
+    // λ is a residual: where it vanishes, its round-off is measured against the loads' size.
+    let p = &d.problem;
+    let load = (0..p.mass.len())
+        .map(|a| (p.load1[a].abs() + p.load2[a].abs()) / p.mass[a])
+        .fold(0.0, f64::max);
+    for (name, a, b, tolerance, floor) in [
+        ("u1", &ms.u1, &ds.u1, 1e-10, 0.0),
+        ("u2", &ms.u2, &ds.u2, 1e-10, 0.0),
+        ("gap", &ms.obstacle.gap, &ds.obstacle.gap, 1e-10, 0.0),
+        ("lambda", &ms.obstacle.lambda, &ds.obstacle.lambda, 1e-8, load),
+    ] {
+        let r = relative(a, b, floor);
+        eprintln!("{}: {name} {r:.1e}", case.origin);
+        assert!(
+            r <= tolerance,
+            "{}: {name} differs by {r:.1e} relative",
+            case.origin
+        );
+    }
+    assert_eq!(
+        ms.obstacle.contact, ds.obstacle.contact,
+        "{}: the contact sets",
+        case.origin
+    );
+    let stats = ms.obstacle.stats.clone();
+    assert_eq!(stats.linear, LinearSolver::Multigrid);
+    assert_eq!(stats.cg_iterations.len(), stats.iterations, "{}", case.origin);
+    stats
+}
+
+#[test]
+fn every_case_file_agrees_with_the_direct_solver() {
+    let mut paths: Vec<_> = std::fs::read_dir("data/cases")
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+        .collect();
+    paths.sort();
+    assert!(paths.len() >= 10);
+    for path in &paths {
+        let case = Case::read(path).unwrap();
+        let stats = agree(&case);
+        // Every case has coarser levels: the refinements of its mesh, the built-in meshes of
+        // half the cells, or the domain meshed coarser.
+        assert!(stats.multigrid_levels >= 2, "{}: {stats:?}", path.display());
+    }
+}
+
+/// The largest CG iteration count of any solve of a run: v, each active-set step, each step of
+/// the coarser levels of nested iteration.
+fn most_cg(stats: &SolverStats) -> usize {
+    let coarse = stats.coarse_cg_iterations.iter().flatten();
+    (stats.cg_iterations.iter().chain(coarse))
+        .copied()
+        .chain([stats.v_cg_iterations])
+        .max()
+        .unwrap_or(0)
+}
+
+#[test]
+fn cg_iterations_stay_bounded_under_refinement() {
+    // Four consecutive levels of three kinds of hierarchy: built-in squares (n, n/2, … 8),
+    // L-shapes, and a disk refined with curved boundary (its coarsest levels not nested).
+    let square = Case::default_case();
+    let lshape = Case::read(Path::new("data/cases/lshape_pressed.toml")).unwrap();
+    let disk = Case::read(Path::new("data/cases/disk_contact.toml")).unwrap();
+    let mut counts = Vec::new();
+    for (k, n) in [16, 32, 64, 128].into_iter().enumerate() {
+        let mut cases = Vec::new();
+        for base in [&square, &lshape] {
+            let mut c = with(base, LinearSolver::Multigrid);
+            c.set_cells(n).unwrap();
+            cases.push(c);
+        }
+        let mut d = with(&disk, LinearSolver::Multigrid);
+        d.refine = k + 1;
+        cases.push(d);
+        for c in &cases {
+            let r = solve(c);
+            let stats = &r.solution.obstacle.stats;
+            counts.push((
+                c.kind(),
+                r.problem.mesh.n_vertices(),
+                most_cg(stats),
+                stats.cg_iterations.clone(),
+            ));
+        }
+    }
+    eprintln!("{counts:?}");
+    assert!(counts.iter().all(|c| c.2 <= 15), "{counts:?}");
+}
+
+#[test]
+fn multigrid_on_a_mesh_without_coarser_levels_is_the_coarsest_solve() {
+    // A file mesh that is not refined has no hierarchy: the "V-cycle" is the Cholesky solve of
+    // K_FF, and CG converges in one iteration per solve.
+    let mut case = Case::read(Path::new("data/cases/gmsh_square.toml")).unwrap();
+    case.refine = 0;
+    let stats = agree(&case);
+    assert_eq!(stats.multigrid_levels, 1);
+    assert!(stats.cg_iterations.iter().all(|&i| i <= 1), "{stats:?}");
+}
