@@ -99,7 +99,8 @@ pub struct SolverStats {
     pub symbolic_seconds: f64,
     /// Symbolic analyses of K_FF patterns (a pattern serves while the held set moves little).
     pub analyses: usize,
-    /// Seconds in numeric factorizations and in triangular solves, summed over threads.
+    /// Seconds in numeric factorizations (triangular solves are in `solve_seconds`), summed over
+    /// threads.
     pub numeric_seconds: f64,
     /// Seconds in triangular solves, summed over threads.
     pub solve_seconds: f64,
