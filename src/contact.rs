@@ -145,8 +145,9 @@ pub struct SolverStats {
     pub symbolic_seconds: f64,
     /// Symbolic analyses of K_FF patterns (a pattern serves while the held set moves little).
     pub analyses: usize,
-    /// Seconds in numeric factorizations and in triangular solves, summed over threads; with
-    /// multigrid, in the coarse operators and the coarsest factorization of each held set.
+    /// Seconds in numeric factorizations (triangular solves are in `solve_seconds`), summed over
+    /// threads; with multigrid, in the coarse operators and the coarsest factorization of each
+    /// held set.
     pub numeric_seconds: f64,
     /// Seconds in triangular solves, summed over threads; with multigrid, in CG.
     pub solve_seconds: f64,
