@@ -105,14 +105,15 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
             None
         } else {
             let marks = dorfler(&r.estimate.as_ref().expect("estimated").indicator, settings.theta);
-            let labelled = if step == 0 {
-                r.problem.mesh.longest_edge_labelled()
+            // Meshes made by bisection carry their labels; the first one gets them here.
+            let labelled;
+            let mesh = if step == 0 {
+                labelled = r.problem.mesh.longest_edge_labelled();
+                &labelled
             } else {
-                r.problem.mesh.clone()
+                &r.problem.mesh
             };
-            let fine = labelled
-                .bisected(&marks, &curves)
-                .map_err(|e| mesh_error(case, &e))?;
+            let fine = mesh.bisected(&marks, &curves).map_err(|e| mesh_error(case, &e))?;
             let count = marks.iter().filter(|&&m| m).count();
             (fine.n_vertices() <= settings.max_vertices).then_some((fine, count))
         };
@@ -128,8 +129,7 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
             mesh: &r.problem.mesh,
             obstacle: &r.solution.obstacle,
         };
-        let next = run::on_mesh(case, fine, Vec::new(), &estimating(start), 0.0)?;
-        r = next;
+        r = run::on_mesh(case, fine, Vec::new(), &estimating(start), 0.0)?;
     }
     let last = adaptive.last().map_or(0, |s| s.vertices);
     let uniform = uniform(case, last)?;
@@ -166,11 +166,7 @@ fn estimating(start: Start) -> run::Options {
 
 /// A mesh refinement refused, named with the case.
 fn mesh_error(case: &Case, e: &dyn std::fmt::Display) -> RunError {
-    crate::case::CaseError(format!(
-        "{}: cannot refine the mesh by bisection: {e}",
-        case.origin
-    ))
-    .into()
+    crate::case::CaseError(format!("{}: cannot refine the mesh: {e}", case.origin)).into()
 }
 
 /// Writes one step's result directory inside the staging directory.

@@ -184,7 +184,7 @@ fn cell_loads(problem: &DiscreteProblem, dual: &DualMesh, alpha: f64) -> Vec<Cel
         let mut out = Vec::with_capacity(range.len());
         data.quadrature
             .visit(corners, range, [&data.f1, &data.f2], |s, points, [f1, f2]| {
-                let frame = cell_frame(s);
+                let frame = DualMesh::frame(s);
                 let mut l = CellLoads::default();
                 let f = |k: usize| [f1[k], f2[k], alpha * f1[k] - (1.0 - alpha) * f2[k]];
                 let (mut mean, mut area) = ([0.0; 3], 0.0);
@@ -215,25 +215,10 @@ fn cell_loads(problem: &DiscreteProblem, dual: &DualMesh, alpha: f64) -> Vec<Cel
     parts.into_iter().flatten().collect()
 }
 
-/// The barycentric coordinates, in its triangle K, of the corners of cell s of S_h: cell 2k is
-/// [v_k, m_{k,k+1}, g], cell 2k + 1 is [v_k, g, m_{k+2,k}] (DualMesh::new).
-fn cell_frame(s: usize) -> [[f64; 3]; 3] {
-    let k = (s % 6) / 2;
-    let vertex = |j: usize| std::array::from_fn(|i| f64::from(u8::from(i == j)));
-    let mid =
-        |a: usize, b: usize| std::array::from_fn(|i| 0.5 * f64::from(u8::from(i == a) + u8::from(i == b)));
-    let centre = [1.0 / 3.0; 3];
-    if s.is_multiple_of(2) {
-        [vertex(k), mid(k, (k + 1) % 3), centre]
-    } else {
-        [vertex(k), centre, mid(k, (k + 2) % 3)]
-    }
-}
-
 /// The mean over cell s of a P1 field `v` of T_h (its value at the cell's centroid).
 fn cell_mean(mesh: &Mesh, s: usize, v: &[f64]) -> f64 {
     let tri = mesh.triangles[s / 6];
-    let frame = cell_frame(s);
+    let frame = DualMesh::frame(s);
     (0..3)
         .map(|j| (0..3).map(|c| frame[c][j]).sum::<f64>() / 3.0 * v[tri[j]])
         .sum()

@@ -48,6 +48,22 @@ impl DualMesh {
         }
     }
 
+    /// The barycentric coordinates, in its triangle K, of the corners of cell s of S_h: cell 2k is
+    /// [v_k, m_{k,k+1}, g], cell 2k + 1 is [v_k, g, m_{k+2,k}] (the order of `new`).
+    pub fn frame(s: usize) -> [[f64; 3]; 3] {
+        let k = (s % 6) / 2;
+        let vertex = |j: usize| std::array::from_fn(|i| f64::from(u8::from(i == j)));
+        let mid = |a: usize, b: usize| {
+            std::array::from_fn(|i| 0.5 * f64::from(u8::from(i == a) + u8::from(i == b)))
+        };
+        let centre = [1.0 / 3.0; 3];
+        if s.is_multiple_of(2) {
+            [vertex(k), mid(k, (k + 1) % 3), centre]
+        } else {
+            [vertex(k), centre, mid(k, (k + 2) % 3)]
+        }
+    }
+
     /// The field Σ_a v_a χ_{D_a}, constant on each dual cell, as cell data of S_h.
     pub fn cell_field(&self, values: &[f64]) -> Vec<f64> {
         self.owner.iter().map(|&a| values[a]).collect()
@@ -73,6 +89,23 @@ mod tests {
         }
         for (a, m) in area.iter().zip(mass) {
             assert!((a - m).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn the_frame_gives_each_cell_corner_in_its_triangle() {
+        let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 3, 2, Diagonal::Crossed).unwrap();
+        let dual = DualMesh::new(&mesh);
+        for (s, cell) in dual.triangles.iter().enumerate() {
+            let k = mesh.corners(s / 6);
+            for (c, b) in DualMesh::frame(s).iter().enumerate() {
+                let x = [0, 1].map(|i| (0..3).map(|j| b[j] * k[j][i]).sum::<f64>());
+                let p = dual.points[cell[c]];
+                assert!(
+                    (x[0] - p[0]).abs() + (x[1] - p[1]).abs() < 1e-15,
+                    "cell {s}, corner {c}"
+                );
+            }
         }
     }
 }
