@@ -15,7 +15,7 @@
 
 use crate::linear::{Factorization, InteriorSystem};
 use crate::mesh::{Mesh, Prolongation};
-use crate::multigrid::{Hierarchy, Multigrid, NotConverged, Transfers};
+use crate::multigrid::{Hierarchy, Multigrid, NotConverged};
 use crate::problem::{DataError, DiscreteProblem};
 use crate::result::{Attr, Attribute, Describe, Field, Place};
 use std::fmt;
@@ -263,17 +263,16 @@ pub fn solve(
     let clock = Instant::now();
     let (mu1, mu2) = (problem.data.mu1, problem.data.mu2);
     let multigrid = options.linear == LinearSolver::Multigrid;
-    // Multigrid needs the transfers on both threads from the start; the direct path builds them
-    // for nested iteration on the w thread, beside the symbolic analysis.
-    let (prolongations, transfers) = multigrid.then(|| transfers(&problem.mesh, &coarser)).unzip();
+    // Multigrid needs the interpolations on both threads from the start; the direct path builds
+    // them for nested iteration on the w thread, beside the symbolic analysis.
+    let prolongations = multigrid.then(|| chain(&problem.mesh, &coarser));
     let transfer_seconds = clock.elapsed().as_secs_f64();
     let shared = OnceLock::new();
-    let turn = Mutex::new(());
-    // Two solves at once contend for memory bandwidth; factorizations take turns (see take_turn).
-    let turn = (!multigrid).then_some(&turn);
+    // The two solves on the final mesh take turns (see take_turn).
+    let turn = &Mutex::new(());
     let analyse = || {
         let t = Instant::now();
-        let (system, hierarchy) = analysed(problem, transfers.as_ref(), 0);
+        let (system, hierarchy) = analysed(problem, prolongations.as_deref());
         (system, hierarchy, t.elapsed().as_secs_f64())
     };
     let v_job = || {
@@ -286,7 +285,7 @@ pub fn solve(
         let multigrid = hierarchy.as_ref().map(|h| (h, CG_TOLERANCE));
         let mut solver = Inner::new(system, multigrid, None);
         let x = {
-            let _turn = turn.map(take_turn);
+            let _turn = take_turn(turn);
             solver.prepare(&vec![false; system.n()], &mut stats)?;
             solver.solve(&rhs, &mut stats)?
         };
@@ -305,7 +304,7 @@ pub fn solve(
                         &built
                     }
                 };
-                nested_guess(problem, coarser, prolongations, transfers.as_ref(), options)?
+                nested_guess(problem, coarser, prolongations, options)?
             }
             Start::From { mesh, obstacle } => {
                 let p = Prolongation::new(&problem.mesh, mesh);
@@ -315,7 +314,7 @@ pub fn solve(
         let coarse_seconds = t.elapsed().as_secs_f64();
         let (system, hierarchy, _) = shared.get_or_init(analyse);
         let multigrid = hierarchy.as_ref().map(|h| (h, CG_TOLERANCE));
-        let mut w = obstacle(problem, system, multigrid, guess.as_ref(), options, turn)?;
+        let mut w = obstacle(problem, system, multigrid, guess.as_ref(), options, Some(turn))?;
         w.stats.coarse_iterations = coarse_iterations;
         w.stats.coarse_cg_iterations = coarse_cg;
         w.stats.coarse_seconds = coarse_seconds;
@@ -353,30 +352,16 @@ pub fn solve(
     Ok(Solution { u1, u2, obstacle })
 }
 
-/// The interpolations between `fine` and the `coarser` meshes ([`chain`]) and the multigrid
-/// transfers made of them.
-fn transfers(fine: &Mesh, coarser: &[Mesh]) -> (Vec<Prolongation>, Transfers) {
-    let prolongations = chain(fine, coarser);
-    let meshes: Vec<&Mesh> = std::iter::once(fine).chain(coarser).collect();
-    let transfers = Transfers::new(&meshes, &prolongations);
-    (prolongations, transfers)
-}
-
-/// The interior unknowns of `problem` (level `level` of `transfers`) with, for the direct solver
-/// (no `transfers`), the Cholesky analysis of K_II, or else its multigrid hierarchy.
+/// The interior unknowns of `problem` with, for the direct solver (no `prolongations`), the
+/// Cholesky analysis of K_II, or else its multigrid hierarchy on the `prolongations` below it.
 fn analysed<'t>(
-    problem: &DiscreteProblem,
-    transfers: Option<&'t Transfers>,
-    level: usize,
+    problem: &'t DiscreteProblem,
+    prolongations: Option<&'t [Prolongation]>,
 ) -> (InteriorSystem, Option<Hierarchy<'t>>) {
     let (k, on_boundary) = (&problem.stiffness, &problem.mesh.on_boundary);
-    match transfers {
+    match prolongations {
         None => (InteriorSystem::new(k, on_boundary), None),
-        Some(t) => {
-            let system = InteriorSystem::numbering(on_boundary);
-            let hierarchy = Hierarchy::new(k, &system, t, level);
-            (system, Some(hierarchy))
-        }
+        Some(p) => (InteriorSystem::numbering(on_boundary), Some(Hierarchy::new(k, p))),
     }
 }
 
@@ -400,14 +385,14 @@ type NestedGuess = (Option<Guess>, Vec<usize>, Vec<Vec<usize>>);
 /// Nested iteration: the obstacle problem on the `coarser` meshes (from fine to coarse, with the
 /// `prolongations` between them), each level's loads restricted from the one above, solved from
 /// the coarsest up, each warm-started from the one below; the last one prolonged onto `problem`'s
-/// mesh is the guess. With `transfers`, each level is solved by multigrid on the levels below it.
+/// mesh is the guess. With multigrid, each level is solved by multigrid on the levels below it.
 fn nested_guess(
     problem: &DiscreteProblem,
     coarser: Vec<Mesh>,
     prolongations: &[Prolongation],
-    transfers: Option<&Transfers>,
     options: SolverOptions,
 ) -> Result<NestedGuess, SolveError> {
+    let multigrid = options.linear == LinearSolver::Multigrid;
     let mut levels: Vec<DiscreteProblem> = Vec::new();
     for (mesh, p) in coarser.into_iter().zip(prolongations) {
         let finer = levels.last().unwrap_or(problem);
@@ -416,7 +401,8 @@ fn nested_guess(
     }
     let (mut guess, mut iterations, mut cg) = (None, Vec::new(), Vec::new());
     for (k, level) in levels.iter().enumerate().rev() {
-        let (system, hierarchy) = analysed(level, transfers, k + 1);
+        let below = multigrid.then(|| &prolongations[k + 1..]);
+        let (system, hierarchy) = analysed(level, below);
         let multigrid = hierarchy.as_ref().map(|h| (h, NESTED_CG_TOLERANCE));
         let o = obstacle(level, &system, multigrid, guess.as_ref(), options, None)?;
         iterations.push(o.stats.iterations);
@@ -669,7 +655,10 @@ fn interface(problem: &DiscreteProblem, system: &InteriorSystem, active: &[bool]
 /// the truncated V-cycle of K_FF with the last solution as the next start.
 enum Inner<'s> {
     Direct(Factorization<'s>),
+    /// Multigrid works on all vertices of the mesh, the boundary ones skipped: `x` is the last
+    /// solution there.
     Multigrid {
+        system: &'s InteriorSystem,
         hierarchy: &'s Hierarchy<'s>,
         cycle: Option<Multigrid<'s>>,
         x: Vec<f64>,
@@ -688,9 +677,10 @@ impl<'s> Inner<'s> {
         match multigrid {
             None => Inner::Direct(system.factorization()),
             Some((hierarchy, tolerance)) => Inner::Multigrid {
+                system,
                 hierarchy,
                 cycle: None,
-                x: start.unwrap_or_else(|| vec![0.0; system.n()]),
+                x: system.extended(&start.unwrap_or_else(|| vec![0.0; system.n()])),
                 tolerance,
             },
         }
@@ -709,10 +699,16 @@ impl<'s> Inner<'s> {
     fn prepare(&mut self, held: &[bool], stats: &mut SolverStats) -> Result<(), SolveError> {
         match self {
             Inner::Direct(factor) => factorize(factor, held, stats),
-            Inner::Multigrid { hierarchy, cycle, .. } => {
+            Inner::Multigrid {
+                system,
+                hierarchy,
+                cycle,
+                ..
+            } => {
                 let t = Instant::now();
                 *cycle = None;
-                *cycle = Some((hierarchy.preconditioner(held)).map_err(|_| SolveError::NotPositiveDefinite)?);
+                let skip = system.skipped(held);
+                *cycle = Some((hierarchy.preconditioner(skip)).map_err(|_| SolveError::NotPositiveDefinite)?);
                 stats.factorizations += 1;
                 stats.numeric_seconds += t.elapsed().as_secs_f64();
                 Ok(())
@@ -725,15 +721,19 @@ impl<'s> Inner<'s> {
         match self {
             Inner::Direct(factor) => Ok(solve_with(factor, b, stats)),
             Inner::Multigrid {
-                cycle, x, tolerance, ..
+                system,
+                cycle,
+                x,
+                tolerance,
+                ..
             } => {
                 let t = Instant::now();
                 let cycle = cycle.as_mut().expect("prepared before solving");
-                let iterations =
-                    (cycle.solve(b, x, *tolerance, CG_MAX_ITERATIONS)).map_err(SolveError::NotConverged)?;
+                let iterations = (cycle.solve(&system.extended(b), x, *tolerance, CG_MAX_ITERATIONS))
+                    .map_err(SolveError::NotConverged)?;
                 stats.cg_iterations.push(iterations);
                 stats.solve_seconds += t.elapsed().as_secs_f64();
-                Ok(x.clone())
+                Ok(system.gather(x))
             }
         }
     }
@@ -756,9 +756,11 @@ const NESTED_CG_TOLERANCE: f64 = 1e-8;
 /// CG iterations before giving up (a V-cycle preconditioner needs about 10).
 const CG_MAX_ITERATIONS: usize = 200;
 
-/// The v and w factorizations on the final mesh take turns: two large sparse factorizations at
-/// once contend for memory bandwidth and were measured slower together than one after the other
-/// (at 1024² cells 3.3 s and 2.7 s side by side, 1.5 s and 1.2 s in turn). The coarse levels of
+/// The v and w solves on the final mesh take turns: two large sparse factorizations at once
+/// contend for memory bandwidth and were measured slower together than one after the other
+/// (at 1024² cells 3.3 s and 2.7 s side by side, 1.5 s and 1.2 s in turn); with multigrid, whose
+/// sweeps are bound by memory bandwidth too, taking turns also keeps the vectors of the two solves
+/// from being in memory at once (the v solve holds the turn throughout). The coarse levels of
 /// nested iteration run beside the v factorization.
 fn take_turn(turn: &Mutex<()>) -> MutexGuard<'_, ()> {
     turn.lock().unwrap_or_else(|e| e.into_inner())
@@ -918,13 +920,17 @@ mod tests {
     }
 
     #[test]
-    fn interface_and_band_follow_the_mesh_edges() {
+    fn interface_and_band_follow_the_couplings_of_k() {
         let p = problem(8, "-10", "0.05");
         let system = InteriorSystem::new(&p.stiffness, &p.mesh.on_boundary);
         let n = system.n();
-        // The unknowns' neighbours along the edges of the mesh (not of K's pattern).
+        // The unknowns' neighbours along the edges of the mesh whose vertices K couples (not
+        // the diagonals of this right-angled mesh, across which the coupling vanishes).
         let mut neighbours = vec![Vec::new(); n];
-        for (a, b) in p.mesh.edges() {
+        let coupled = |&(a, b): &(usize, usize)| p.stiffness.matrix().get(a, b) != 0.0;
+        let edges = p.mesh.edges();
+        assert_eq!(edges.iter().filter(|e| coupled(e)).count(), edges.len() - 64);
+        for (a, b) in edges.into_iter().filter(coupled) {
             let (i, j) = (system.unknown[a], system.unknown[b]);
             if i != usize::MAX && j != usize::MAX {
                 neighbours[i].push(j);

@@ -69,4 +69,5 @@ pub mod problem;
 mod quadrature_tables;
 pub mod result;
 pub mod run;
+pub mod sparse;
 pub mod study;

@@ -130,13 +130,39 @@ impl InteriorSystem {
             .collect()
     }
 
+    /// x on the unknowns, extended by 0 to every vertex.
+    pub fn extended(&self, x: &[f64]) -> Vec<f64> {
+        let mut u = vec![0.0; self.unknown.len()];
+        self.place(x, &mut u);
+        u
+    }
+
+    /// The values at the unknowns of a field on every vertex.
+    pub fn gather(&self, u: &[f64]) -> Vec<f64> {
+        self.vertices.iter().map(|&a| u[a]).collect()
+    }
+
+    /// The vertices a solver on every vertex skips: the fixed ones and the unknowns `held`.
+    pub fn skipped(&self, held: &[bool]) -> Vec<bool> {
+        let mut skip = vec![true; self.unknown.len()];
+        for (i, &a) in self.vertices.iter().enumerate() {
+            skip[a] = held[i];
+        }
+        skip
+    }
+
     /// The vertex field with the values `x` at the unknowns and `bc` elsewhere.
     pub fn scatter(&self, x: &[f64], bc: &[f64]) -> Vec<f64> {
         let mut u = bc.to_vec();
+        self.place(x, &mut u);
+        u
+    }
+
+    /// u = x at the unknowns.
+    fn place(&self, x: &[f64], u: &mut [f64]) {
         for (i, &a) in self.vertices.iter().enumerate() {
             u[a] = x[i];
         }
-        u
     }
 
     /// Number of nonzeros in the Cholesky factor.

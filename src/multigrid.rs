@@ -49,330 +49,104 @@
 //! iterations in the two active-set steps (8 and 4 truncated), and more with every refinement.
 
 use crate::assembly::Stiffness;
-use crate::linear::{Cholesky, InteriorSystem, NotPositiveDefinite};
-use crate::mesh::{Mesh, Prolongation};
-
-/// Weights of the interpolation below this are dropped (round-off of barycentric coordinates
-/// that are 0 on nested meshes).
-const WEIGHT_EPS: f64 = 1e-12;
-
-/// Entries below this times their row's diagonal entry are dropped from the operators: the zero
-/// couplings across the diagonals of right-angled triangles (2 of the 7 entries per row of a
-/// built-in mesh with `diagonal = "right"` or `"left"`), which would only cost memory traffic.
-const NEGLIGIBLE: f64 = 1e-14;
+use crate::linear::{Cholesky, NotPositiveDefinite};
+use crate::mesh::Prolongation;
+use crate::sparse::{Csr, NEGLIGIBLE};
 
 /// Gauss–Seidel sweeps before and after the coarse correction (forward, backward, … before; the
 /// reverse after, so that the cycle is symmetric).
 const SWEEPS: usize = 1;
 
-/// A sparse matrix by rows with 32-bit column numbers, rows sorted; for the operators, the
-/// position of each row's diagonal entry.
-#[derive(Debug, Clone, Default)]
-pub struct Csr {
-    row_ptr: Vec<u32>,
-    col: Vec<u32>,
-    val: Vec<f64>,
-    cols: usize,
-    /// Where row i's diagonal entry is (the start of the row where it has none); empty for the
-    /// interpolations.
-    diag: Vec<u32>,
-    /// 1/a_ii (0 where there is none): the smoother multiplies, off its chain of dependent rows.
-    inv_diag: Vec<f64>,
-}
-
-impl Csr {
-    /// The number of rows.
-    pub fn rows(&self) -> usize {
-        self.row_ptr.len() - 1
-    }
-
-    /// The number of stored entries.
-    pub fn nnz(&self) -> usize {
-        self.col.len()
-    }
-
-    /// Row i: its columns and values.
-    #[inline]
-    fn row(&self, i: usize) -> (&[u32], &[f64]) {
-        let r = self.row_ptr[i] as usize..self.row_ptr[i + 1] as usize;
-        (&self.col[r.clone()], &self.val[r])
-    }
-
-    /// The entry (i, j), 0 off the pattern.
-    pub fn get(&self, i: usize, j: usize) -> f64 {
-        let (cols, vals) = self.row(i);
-        cols.binary_search(&(j as u32)).map_or(0.0, |p| vals[p])
-    }
-
-    /// Finds the diagonal entries.
-    fn with_diagonal(mut self) -> Self {
-        self.diag = (0..self.rows())
-            .map(|i| {
-                let (cols, _) = self.row(i);
-                self.row_ptr[i] + cols.partition_point(|&j| (j as usize) < i) as u32
-            })
-            .collect();
-        self.inv_diag = (0..self.rows())
-            .map(|i| match self.get(i, i) {
-                d if d > 0.0 => 1.0 / d,
-                _ => 0.0,
-            })
-            .collect();
-        self
-    }
-
-    /// Σ_j a_ij x_j.
-    #[inline]
-    fn row_dot(&self, i: usize, x: &[f64]) -> f64 {
-        let (cols, vals) = self.row(i);
-        self.gather(cols, vals, x)
-    }
-
-    /// Σ_k vals[k] x[cols[k]] over a part (`cols`, `vals`) of a row of this matrix: the inner
-    /// loop of every sweep, without bounds checks on x (a third of a product's time).
-    #[inline(always)]
-    fn gather(&self, cols: &[u32], vals: &[f64], x: &[f64]) -> f64 {
-        assert!(x.len() >= self.cols, "a vector of the matrix's columns");
-        let mut s = 0.0;
-        for (&j, &v) in cols.iter().zip(vals) {
-            debug_assert!((j as usize) < self.cols);
-            // SAFETY: every column number of a Csr is below its `cols` (asserted by
-            // `Csr::checked` when it is made; the fields are private and never changed after),
-            // and x has at least `cols` entries (asserted above).
-            s += v * unsafe { *x.get_unchecked(j as usize) };
+/// The Galerkin product P̃ᵀ A P̃, P̃ = D P E with D zeroing the rows i of P where `alive[i]` is
+/// false and E the columns J where `kept[J]` is false (`pt` = Pᵀ): row by row over the
+/// coarse unknowns with a dense accumulator (Gustavson's method). Rows not kept are empty.
+fn galerkin(a: &Csr, p: &Csr, pt: &Csr, alive: &[bool], kept: &[bool]) -> Csr {
+    let nc = pt.rows();
+    let mut out = Csr {
+        row_ptr: Vec::with_capacity(nc + 1),
+        cols: nc,
+        ..Default::default()
+    };
+    out.row_ptr.push(0);
+    let mut marker = vec![usize::MAX; nc];
+    let mut acc = vec![0.0; nc];
+    for big_i in 0..nc {
+        let start = out.col.len();
+        if !kept[big_i] {
+            out.row_ptr.push(start as u32);
+            continue;
         }
-        s
-    }
-
-    /// [`Csr::gather`] in reverse order (the nearest column right of the diagonal last).
-    #[inline(always)]
-    fn gather_rev(&self, cols: &[u32], vals: &[f64], x: &[f64]) -> f64 {
-        assert!(x.len() >= self.cols, "a vector of the matrix's columns");
-        let mut s = 0.0;
-        for (&j, &v) in cols.iter().zip(vals).rev() {
-            debug_assert!((j as usize) < self.cols);
-            // SAFETY: as in `gather`.
-            s += v * unsafe { *x.get_unchecked(j as usize) };
-        }
-        s
-    }
-
-    /// Asserts that every column number is below `cols`, which [`Csr::gather`] relies on.
-    fn checked(self) -> Self {
-        assert!(
-            self.col.iter().all(|&j| (j as usize) < self.cols),
-            "column numbers in range"
-        );
-        assert_eq!(self.row_ptr.last().map(|&e| e as usize), Some(self.col.len()));
-        self
-    }
-
-    /// K_II: K on the unknowns of `system`, in its numbering.
-    pub fn interior(k: &Stiffness, system: &InteriorSystem) -> Csr {
-        let mut m = Csr {
-            row_ptr: Vec::with_capacity(system.n() + 1),
-            cols: system.n(),
-            ..Default::default()
-        };
-        m.row_ptr.push(0);
-        for &a in &system.vertices {
-            let small = NEGLIGIBLE * k.diagonal(a);
-            for (b, v) in k.row(a) {
-                let j = system.unknown[b];
-                if j != usize::MAX && v.abs() > small {
-                    m.col.push(j as u32);
-                    m.val.push(v);
-                }
-            }
-            m.row_ptr.push(m.col.len() as u32);
-        }
-        m.checked().with_diagonal()
-    }
-
-    /// The transpose.
-    fn transpose(&self) -> Csr {
-        let mut count = vec![0u32; self.cols + 1];
-        for &j in &self.col {
-            count[j as usize + 1] += 1;
-        }
-        for j in 0..self.cols {
-            count[j + 1] += count[j];
-        }
-        let mut fill: Vec<usize> = count.iter().map(|&c| c as usize).collect();
-        let (mut col, mut val) = (vec![0u32; self.nnz()], vec![0.0; self.nnz()]);
-        for i in 0..self.rows() {
-            let (cols, vals) = self.row(i);
-            for (&j, &v) in cols.iter().zip(vals) {
-                let p = &mut fill[j as usize];
-                col[*p] = i as u32;
-                val[*p] = v;
-                *p += 1;
-            }
-        }
-        Csr {
-            row_ptr: count,
-            col,
-            val,
-            cols: self.rows(),
-            diag: Vec::new(),
-            inv_diag: Vec::new(),
-        }
-        .checked()
-    }
-
-    /// The Galerkin product P̃ᵀ A P̃, P̃ = D P E with D zeroing the rows i of P where `alive[i]` is
-    /// false and E the columns J where `kept[J]` is false (`pt` = Pᵀ): row by row over the
-    /// coarse unknowns with a dense accumulator (Gustavson's method). Rows not kept are empty.
-    fn galerkin(&self, p: &Csr, pt: &Csr, alive: &[bool], kept: &[bool]) -> Csr {
-        let nc = pt.rows();
-        let mut out = Csr {
-            row_ptr: Vec::with_capacity(nc + 1),
-            cols: nc,
-            ..Default::default()
-        };
-        out.row_ptr.push(0);
-        let mut marker = vec![usize::MAX; nc];
-        let mut acc = vec![0.0; nc];
-        for big_i in 0..nc {
-            let start = out.col.len();
-            if !kept[big_i] {
-                out.row_ptr.push(start as u32);
+        let (fine, weights) = pt.row(big_i);
+        for (&i, &w) in fine.iter().zip(weights) {
+            let i = i as usize;
+            if !alive[i] {
                 continue;
             }
-            let (fine, weights) = pt.row(big_i);
-            for (&i, &w) in fine.iter().zip(weights) {
-                let i = i as usize;
-                if !alive[i] {
+            let (ks, avals) = a.row(i);
+            for (&k, &a) in ks.iter().zip(avals) {
+                let k = k as usize;
+                if !alive[k] {
                     continue;
                 }
-                let (ks, avals) = self.row(i);
-                for (&k, &a) in ks.iter().zip(avals) {
-                    let k = k as usize;
-                    if !alive[k] {
+                let f = w * a;
+                let (js, pvals) = p.row(k);
+                for (&j, &q) in js.iter().zip(pvals) {
+                    let j = j as usize;
+                    if !kept[j] {
                         continue;
                     }
-                    let f = w * a;
-                    let (js, pvals) = p.row(k);
-                    for (&j, &q) in js.iter().zip(pvals) {
-                        let j = j as usize;
-                        if !kept[j] {
-                            continue;
-                        }
-                        if marker[j] == big_i {
-                            acc[j] += f * q;
-                        } else {
-                            marker[j] = big_i;
-                            acc[j] = f * q;
-                            out.col.push(j as u32);
-                        }
+                    if marker[j] == big_i {
+                        acc[j] += f * q;
+                    } else {
+                        marker[j] = big_i;
+                        acc[j] = f * q;
+                        out.col.push(j as u32);
                     }
                 }
             }
-            out.col[start..].sort_unstable();
-            let small = NEGLIGIBLE
-                * if marker[big_i] == big_i {
-                    acc[big_i].abs()
-                } else {
-                    0.0
-                };
-            let mut kept = start;
-            for q in start..out.col.len() {
-                let j = out.col[q];
-                if acc[j as usize].abs() > small {
-                    out.col[kept] = j;
-                    out.val.push(acc[j as usize]);
-                    kept += 1;
-                }
-            }
-            out.col.truncate(kept);
-            out.row_ptr.push(out.col.len() as u32);
         }
-        out.checked().with_diagonal()
-    }
-}
-
-/// The interpolations between consecutive levels of a hierarchy of meshes, on their interior
-/// unknowns (numbered as [`InteriorSystem`] numbers them: interior vertices in increasing order).
-pub struct Transfers {
-    /// p[l]: level l + 1 → level l.
-    p: Vec<Csr>,
-    /// pt[l] = p[l]ᵀ.
-    pt: Vec<Csr>,
-}
-
-impl Transfers {
-    /// The transfers of the hierarchy `meshes` (finest first), `prolongations[l]` interpolating
-    /// from `meshes[l + 1]` onto `meshes[l]`.
-    pub fn new(meshes: &[&Mesh], prolongations: &[Prolongation]) -> Self {
-        assert_eq!(
-            meshes.len(),
-            prolongations.len() + 1,
-            "one prolongation between two levels"
-        );
-        let numbers = |m: &Mesh| InteriorSystem::numbering(&m.on_boundary);
-        let mut fine = numbers(meshes[0]);
-        let (mut p, mut pt) = (Vec::new(), Vec::new());
-        for (coarse_mesh, prolongation) in meshes[1..].iter().zip(prolongations) {
-            let coarse = numbers(coarse_mesh);
-            assert_eq!(prolongation.coarse_vertices(), coarse_mesh.n_vertices());
-            let mut m = Csr {
-                row_ptr: vec![0],
-                cols: coarse.n(),
-                ..Default::default()
+        out.col[start..].sort_unstable();
+        let small = NEGLIGIBLE
+            * if marker[big_i] == big_i {
+                acc[big_i].abs()
+            } else {
+                0.0
             };
-            for &a in &fine.vertices {
-                let (tri, weights) = prolongation.row(a);
-                let mut entries = [(u32::MAX, 0.0); 3];
-                for k in 0..3 {
-                    if coarse.unknown[tri[k]] != usize::MAX && weights[k].abs() > WEIGHT_EPS {
-                        entries[k] = (coarse.unknown[tri[k]] as u32, weights[k]);
-                    }
-                }
-                entries.sort_unstable_by_key(|e| e.0);
-                for &(j, w) in entries.iter().filter(|e| e.0 != u32::MAX) {
-                    m.col.push(j);
-                    m.val.push(w);
-                }
-                m.row_ptr.push(m.col.len() as u32);
+        let mut kept = start;
+        for q in start..out.col.len() {
+            let j = out.col[q];
+            if acc[j as usize].abs() > small {
+                out.col[kept] = j;
+                out.val.push(acc[j as usize]);
+                kept += 1;
             }
-            let m = m.checked();
-            pt.push(m.transpose());
-            p.push(m);
-            fine = coarse;
         }
-        Transfers { p, pt }
+        out.col.truncate(kept);
+        out.row_ptr.push(out.col.len() as u32);
     }
-
-    /// The number of levels.
-    pub fn levels(&self) -> usize {
-        self.p.len() + 1
-    }
+    out.checked().with_diagonal()
 }
 
-/// The multigrid hierarchy below one level of [`Transfers`]: its assembled K_II and the
-/// interpolations below it. [`Hierarchy::preconditioner`] makes the V-cycle for a held set.
-pub struct Hierarchy<'t> {
-    fine: Csr,
-    p: &'t [Csr],
-    pt: &'t [Csr],
+/// The multigrid hierarchy below one mesh: its stiffness matrix K and the interpolations below it,
+/// all in the vertex numbering of their meshes. [`Hierarchy::preconditioner`] makes the V-cycle
+/// for a set of skipped (boundary and held) vertices.
+pub struct Hierarchy<'h> {
+    fine: &'h Csr,
+    p: &'h [Prolongation],
 }
 
-impl<'t> Hierarchy<'t> {
-    /// Level `level` of `transfers`, whose interior stiffness matrix is K on `system`.
-    pub fn new(k: &Stiffness, system: &InteriorSystem, transfers: &'t Transfers, level: usize) -> Self {
-        let p = &transfers.p[level.min(transfers.p.len())..];
+impl<'h> Hierarchy<'h> {
+    /// The hierarchy of the mesh of stiffness matrix `k`, with `p[l]` interpolating from level
+    /// l + 1 onto level l (level 0: this mesh).
+    pub fn new(k: &'h Stiffness, p: &'h [Prolongation]) -> Self {
         if let Some(p0) = p.first() {
             assert_eq!(
-                p0.rows(),
-                system.n(),
-                "the transfers' level {level} is this system's mesh"
+                p0.matrix().rows(),
+                k.n(),
+                "the first interpolation is onto this mesh"
             );
         }
-        Hierarchy {
-            fine: Csr::interior(k, system),
-            p,
-            pt: &transfers.pt[level.min(transfers.pt.len())..],
-        }
+        Hierarchy { fine: k.matrix(), p }
     }
 
     /// The number of levels.
@@ -380,27 +154,26 @@ impl<'t> Hierarchy<'t> {
         self.p.len() + 1
     }
 
-    /// The V-cycle for K_FF, F the unknowns not `held`: the truncated coarse operators (Galerkin
-    /// products) and the Cholesky factorization of the coarsest one.
-    pub fn preconditioner(&self, held: &[bool]) -> Result<Multigrid<'_>, NotPositiveDefinite> {
-        let n = self.fine.rows();
-        assert_eq!(held.len(), n);
-        let mut levels = vec![Work::new(held.to_vec())];
+    /// The V-cycle for K_FF, F the vertices not `skip`ped (the boundary vertices and the held
+    /// ones): the truncated coarse operators (Galerkin products) and the Cholesky factorization
+    /// of the coarsest one.
+    pub fn preconditioner(&self, skip: Vec<bool>) -> Result<Multigrid<'_>, NotPositiveDefinite> {
+        assert_eq!(skip.len(), self.fine.rows());
+        let mut levels = vec![Work::new(skip, false)];
         let mut coarse: Vec<Csr> = Vec::with_capacity(self.p.len());
-        for (p, pt) in self.p.iter().zip(self.pt) {
-            let finer = coarse.last().unwrap_or(&self.fine);
+        for p in self.p {
+            let (p, finer) = (p.matrix(), coarse.last().unwrap_or(self.fine));
             let alive: Vec<bool> = levels.last().expect("a level").skip.iter().map(|&s| !s).collect();
             let kept = kept(p, &alive);
-            let a = finer.galerkin(p, pt, &alive, &kept);
-            levels.push(Work::new(kept.iter().map(|&k| !k).collect()));
+            let a = galerkin(finer, p, &p.transpose(), &alive, &kept);
+            levels.push(Work::new(kept.iter().map(|&k| !k).collect(), true));
             coarse.push(a);
         }
-        let last = coarse.last().unwrap_or(&self.fine);
+        let last = coarse.last().unwrap_or(self.fine);
         let coarsest = Coarsest::new(last, &levels.last().expect("a level").skip)?;
         Ok(Multigrid {
-            fine: &self.fine,
+            fine: self.fine,
             p: self.p,
-            pt: self.pt,
             coarse,
             levels,
             coarsest,
@@ -437,6 +210,7 @@ const KEEP_WEIGHT: f64 = 0.6;
 
 /// The vectors of one level: the unknowns skipped (held or dropped), the iterate, the
 /// right-hand side and the residual.
+/// (Level 0's iterate and right-hand side are CG's: it has no vectors of its own for them.)
 struct Work {
     skip: Vec<bool>,
     x: Vec<f64>,
@@ -445,12 +219,12 @@ struct Work {
 }
 
 impl Work {
-    fn new(skip: Vec<bool>) -> Self {
-        let n = skip.len();
+    fn new(skip: Vec<bool>, coarse: bool) -> Self {
+        let (n, m) = (skip.len(), if coarse { skip.len() } else { 0 });
         Work {
             skip,
-            x: vec![0.0; n],
-            b: vec![0.0; n],
+            x: vec![0.0; m],
+            b: vec![0.0; m],
             r: vec![0.0; n],
         }
     }
@@ -524,8 +298,7 @@ pub struct NotConverged {
 /// The V-cycle for one held set (see the module's documentation), and CG preconditioned by it.
 pub struct Multigrid<'h> {
     fine: &'h Csr,
-    p: &'h [Csr],
-    pt: &'h [Csr],
+    p: &'h [Prolongation],
     /// Levels 1 … L's operators.
     coarse: Vec<Csr>,
     levels: Vec<Work>,
@@ -581,13 +354,16 @@ impl Multigrid<'_> {
         let (mut bc, mut xc) = {
             let (fine, coarse) = self.levels.split_at_mut(l + 1);
             let (fine, coarse) = (&fine[l], &mut coarse[0]);
-            for (big_i, b) in coarse.b.iter_mut().enumerate() {
-                let (rows, weights) = self.pt[l].row(big_i);
-                *b = rows
-                    .iter()
-                    .zip(weights)
-                    .map(|(&i, &w)| w * fine.r[i as usize])
-                    .sum();
+            // b_c = Pᵀ r, by the rows of P (r is 0 where skipped).
+            coarse.b.fill(0.0);
+            let p = self.p[l].matrix();
+            for (i, (&r, &skip)) in fine.r.iter().zip(&fine.skip).enumerate() {
+                if !skip {
+                    let (cols, weights) = p.row(i);
+                    for (&j, &w) in cols.iter().zip(weights) {
+                        coarse.b[j as usize] += w * r;
+                    }
+                }
             }
             (std::mem::take(&mut coarse.b), std::mem::take(&mut coarse.x))
         };
@@ -596,7 +372,7 @@ impl Multigrid<'_> {
         let skip = &self.levels[l].skip;
         for (i, x) in x.iter_mut().enumerate() {
             if !skip[i] {
-                *x += self.p[l].row_dot(i, &xc);
+                *x += self.p[l].matrix().row_dot(i, &xc);
             }
         }
         let bx = postsmooth::<AX>(a, skip, b, x, ax, self.sweeps);
@@ -803,20 +579,19 @@ fn backward<const AX: bool>(a: &Csr, skip: &[bool], b: &[f64], x: &mut [f64], ax
 mod tests {
     use super::*;
     use crate::linear::InteriorSystem;
-    use crate::mesh::Diagonal;
+    use crate::mesh::{Diagonal, Mesh};
 
-    /// The unit square with n, n/2, … down to 4 cells per side, finest first, and its transfers.
-    fn square(n: usize, diagonal: Diagonal) -> (Vec<Mesh>, Transfers) {
+    /// The unit square with n, n/2, … down to 4 cells per side, finest first, and the
+    /// interpolations between them.
+    fn square(n: usize, diagonal: Diagonal) -> (Vec<Mesh>, Vec<Prolongation>) {
         let meshes: Vec<Mesh> = std::iter::successors(Some(n), |&m| (m > 4).then_some(m / 2))
             .map(|m| Mesh::rectangle([0.0, 0.0], [1.0, 1.0], m, m, diagonal).unwrap())
             .collect();
-        let prolongations: Vec<Prolongation> = meshes
+        let prolongations = meshes
             .windows(2)
             .map(|w| Prolongation::new(&w[0], &w[1]))
             .collect();
-        let refs: Vec<&Mesh> = meshes.iter().collect();
-        let transfers = Transfers::new(&refs, &prolongations);
-        (meshes, transfers)
+        (meshes, prolongations)
     }
 
     /// A deterministic pseudo-random vector in [−1, 1].
@@ -832,23 +607,29 @@ mod tests {
             .collect()
     }
 
+    /// With nothing held, the coarse operators are the coarse meshes' stiffness matrices on their
+    /// interior vertices (and empty rows on their boundary).
     #[test]
     fn galerkin_equals_rediscretisation() {
         for diagonal in [Diagonal::Right, Diagonal::Left, Diagonal::Crossed] {
-            let (meshes, transfers) = square(16, diagonal);
+            let (meshes, prolongations) = square(16, diagonal);
             let k = Stiffness::assemble(&meshes[0]);
-            let system = InteriorSystem::numbering(&meshes[0].on_boundary);
-            let h = Hierarchy::new(&k, &system, &transfers, 0);
-            let mg = h.preconditioner(&vec![false; system.n()]).unwrap();
+            let h = Hierarchy::new(&k, &prolongations);
+            let mg = h.preconditioner(meshes[0].on_boundary.clone()).unwrap();
+            assert_eq!(mg.coarse.len(), 2);
             for (level, a) in mg.coarse.iter().enumerate() {
                 let mesh = &meshes[level + 1];
-                let kc = Stiffness::assemble(mesh);
-                let sc = InteriorSystem::numbering(&mesh.on_boundary);
-                let direct = Csr::interior(&kc, &sc);
-                assert_eq!(a.rows(), direct.rows());
+                let direct = Stiffness::assemble(mesh);
+                assert_eq!(a.rows(), mesh.n_vertices());
+                let interior = |i: usize| !mesh.on_boundary[i];
                 for i in 0..a.rows() {
                     for j in 0..a.rows() {
-                        let d = (a.get(i, j) - direct.get(i, j)).abs();
+                        let expected = if interior(i) && interior(j) {
+                            direct.matrix().get(i, j)
+                        } else {
+                            0.0
+                        };
+                        let d = (a.get(i, j) - expected).abs();
                         assert!(d < 1e-13, "{diagonal:?} level {level} ({i}, {j}): {d}");
                     }
                 }
@@ -896,18 +677,17 @@ mod tests {
         for diagonal in [Diagonal::Right, Diagonal::Crossed] {
             let mut rates: Vec<[f64; 3]> = Vec::new();
             for n in [32, 64, 128] {
-                let (meshes, transfers) = square(n, diagonal);
+                let (meshes, prolongations) = square(n, diagonal);
                 let k = Stiffness::assemble(&meshes[0]);
-                let system = InteriorSystem::numbering(&meshes[0].on_boundary);
-                let h = Hierarchy::new(&k, &system, &transfers, 0);
-                let mut mg = h.preconditioner(&vec![false; system.n()]).unwrap();
+                let h = Hierarchy::new(&k, &prolongations);
+                let mut mg = h.preconditioner(meshes[0].on_boundary.clone()).unwrap();
                 assert_eq!(mg.sweeps, 1);
                 let v11 = contraction(&mut mg, 12);
                 mg.sweeps = 2;
                 let v22 = contraction(&mut mg, 12);
                 mg.sweeps = 1;
-                let b = noise(system.n(), 5);
-                let mut x = vec![0.0; system.n()];
+                let b = noise(k.n(), 5);
+                let mut x = vec![0.0; k.n()];
                 let iterations = mg.solve(&b, &mut x, 1e-10, 100).unwrap();
                 let cg = 1e-10_f64.powf(1.0 / iterations as f64);
                 rates.push([v22, v11, cg]);
@@ -938,16 +718,16 @@ mod tests {
 
     #[test]
     fn the_v_cycle_is_symmetric() {
-        let (meshes, transfers) = square(32, Diagonal::Left);
+        let (meshes, prolongations) = square(32, Diagonal::Left);
         let k = Stiffness::assemble(&meshes[0]);
         let system = InteriorSystem::numbering(&meshes[0].on_boundary);
-        let h = Hierarchy::new(&k, &system, &transfers, 0);
-        let held = held_disk(&meshes[0], &system);
-        let mut mg = h.preconditioner(&held).unwrap();
-        let n = system.n();
+        let h = Hierarchy::new(&k, &prolongations);
+        let skip = system.skipped(&held_disk(&meshes[0], &system));
+        let mut mg = h.preconditioner(skip.clone()).unwrap();
+        let n = k.n();
         let (mut u, mut v) = (noise(n, 1), noise(n, 2));
         for i in 0..n {
-            if held[i] {
+            if skip[i] {
                 u[i] = 0.0;
                 v[i] = 0.0;
             }
@@ -965,33 +745,32 @@ mod tests {
     /// the coarse matrix singular; the rule keeps neither, and CG solves the 1 × 1 system.
     #[test]
     fn a_lone_free_midpoint_keeps_no_coarse_unknown() {
-        let (meshes, transfers) = square(8, Diagonal::Right);
+        let (meshes, prolongations) = square(8, Diagonal::Right);
         let k = Stiffness::assemble(&meshes[0]);
-        let system = InteriorSystem::numbering(&meshes[0].on_boundary);
-        let h = Hierarchy::new(&k, &system, &transfers, 0);
-        let midpoint = (system.vertices.iter())
-            .position(|&a| meshes[0].points[a] == [0.375, 0.5])
+        let h = Hierarchy::new(&k, &prolongations);
+        let midpoint = (meshes[0].points.iter())
+            .position(|&p| p == [0.375, 0.5])
             .unwrap();
-        let held: Vec<bool> = (0..system.n()).map(|i| i != midpoint).collect();
-        let alive: Vec<bool> = held.iter().map(|&h| !h).collect();
-        let row = transfers.p[0].row(midpoint);
-        assert_eq!(row.1, &[0.5, 0.5], "the midpoint of a coarse edge");
-        let mut mg = h.preconditioner(&held).unwrap();
-        let b = vec![1.0; system.n()];
-        let mut x = vec![0.0; system.n()];
+        let skip: Vec<bool> = (0..k.n()).map(|i| i != midpoint).collect();
+        let alive: Vec<bool> = skip.iter().map(|&h| !h).collect();
+        let p = prolongations[0].matrix();
+        assert_eq!(p.row(midpoint).1, &[0.5, 0.5], "the midpoint of a coarse edge");
+        let mut mg = h.preconditioner(skip).unwrap();
+        let b = vec![1.0; k.n()];
+        let mut x = vec![0.0; k.n()];
         assert_eq!(mg.solve(&b, &mut x, 1e-12, 10), Ok(1));
-        assert!((x[midpoint] - 1.0 / mg.fine.get(midpoint, midpoint)).abs() < 1e-15);
-        assert!(kept(&transfers.p[0], &alive).iter().all(|&k| !k));
+        assert!((x[midpoint] - 1.0 / k.diagonal(midpoint)).abs() < 1e-15);
+        assert!(kept(p, &alive).iter().all(|&k| !k));
     }
 
     #[test]
     fn truncated_cg_reaches_the_cholesky_solution_in_few_iterations() {
         let mut iterations = Vec::new();
         for n in [32, 64, 128, 256] {
-            let (meshes, transfers) = square(n, Diagonal::Right);
+            let (meshes, prolongations) = square(n, Diagonal::Right);
             let k = Stiffness::assemble(&meshes[0]);
             let system = InteriorSystem::new(&k, &meshes[0].on_boundary);
-            let h = Hierarchy::new(&k, &system, &transfers, 0);
+            let h = Hierarchy::new(&k, &prolongations);
             let held = held_disk(&meshes[0], &system);
             let b: Vec<f64> = noise(system.n(), 3).iter().map(|v| 1.0 + v).collect();
             let mut factor = system.factorization();
@@ -1002,9 +781,10 @@ mod tests {
                 factor.factorize(&held).unwrap();
                 let mut direct = b.clone();
                 factor.solve(&mut direct);
-                let mut mg = h.preconditioner(&held).unwrap();
-                let mut x = vec![0.0; system.n()];
-                iterations.push(mg.solve(&b, &mut x, 1e-12, 100).unwrap());
+                let mut mg = h.preconditioner(system.skipped(&held)).unwrap();
+                let mut x = vec![0.0; k.n()];
+                iterations.push(mg.solve(&system.extended(&b), &mut x, 1e-12, 100).unwrap());
+                let x = system.gather(&x);
                 let scale = direct.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
                 let error = x
                     .iter()

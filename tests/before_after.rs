@@ -1,16 +1,24 @@
-//! Results are bit-identical to those written before the pipeline was restructured: the files in
+//! Results agree with those written before the pipeline was restructured: the files in
 //! `tests/data/before-*.h5` were written by the earlier program (`solve CASE --n 16 --hminus1
-//! --flux`). Every dataset and every attribute the two share must agree to the bit, but for the
+//! --flux`). Every dataset and every attribute the two share must agree to the bit — or, since K
+//! leaves out the couplings that vanish (which changes the order of the Cholesky factorization's
+//! sums), to 1e-12 of the dataset's largest magnitude (of the attribute's magnitude) — but for the
 //! intended changes: λ_h on the dual cells of boundary vertices is now 0 (the paper's λ_h), not
 //! NaN, `error_hm1_lambda` is now spelled `error_hminus1_lambda`, the absolute checks gave way
 //! to relative ones (`check_*`), and a zero may change sign (`min` and `max` of case expressions
-//! now give −0 and +0 on a tie of ±0, where `f64::min` and `f64::max` left it open). Timings are
-//! not compared.
+//! now give −0 and +0 on a tie of ±0, where `f64::min` and `f64::max` left it open). Timings,
+//! the relative round-off of the checks (`check_*`, `flux_conservation_*`) and the nonzeros of the Cholesky factor
+//! (`factor_nnz`) are not compared.
 
 use membrane_contact::case::Case;
 use membrane_contact::contact::Start;
 use membrane_contact::run;
 use std::path::Path;
+
+/// Equal to the bit, or within 1e-12 of `scale`.
+fn close(a: f64, b: f64, scale: f64) -> bool {
+    a.to_bits() == b.to_bits() || (a - b).abs() <= 1e-12 * scale
+}
 
 fn compare(case_file: &str, before: &str) {
     let mut case = Case::read(Path::new(case_file)).unwrap();
@@ -35,12 +43,13 @@ fn compare(case_file: &str, before: &str) {
             let (x, y) = (a.dataset(&name).unwrap(), b.dataset(&name).unwrap());
             let (x, y) = (x.read_raw::<f64>().unwrap(), y.read_raw::<f64>().unwrap());
             assert_eq!(x.len(), y.len(), "{group}/{name}");
+            let scale = x.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
             for (i, (p, q)) in x.iter().zip(&y).enumerate() {
                 let boundary_lambda = group == "dual" && name == "lambda" && p.is_nan() && *q == 0.0;
                 // Only the sign of a zero: min and max of the expressions now settle a tie of ±0.
                 let zero_sign = p == q;
                 assert!(
-                    p.to_bits() == q.to_bits() || boundary_lambda || zero_sign,
+                    p.to_bits() == q.to_bits() || boundary_lambda || zero_sign || close(*p, *q, scale),
                     "{case_file}: {group}/{name}[{i}]: {p:e} before, {q:e} after"
                 );
             }
@@ -64,7 +73,9 @@ fn compare(case_file: &str, before: &str) {
             "min_gap",
             "min_lambda",
         ];
-        if name.starts_with("seconds") || dropped.contains(&name.as_str()) {
+        let noise =
+            name.starts_with("check_") || name.starts_with("flux_conservation") || name == "factor_nnz";
+        if name.starts_with("seconds") || noise || dropped.contains(&name.as_str()) {
             continue;
         }
         assert!(after.contains(&now), "{case_file}: attribute {name} is missing");
@@ -75,10 +86,8 @@ fn compare(case_file: &str, before: &str) {
             assert_eq!(text(x), text(y), "{case_file}: attribute {name}");
         } else {
             let (p, q) = (x.read_raw::<f64>().unwrap(), y.read_raw::<f64>().unwrap());
-            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            assert_eq!(
-                bits(&p),
-                bits(&q),
+            assert!(
+                p.len() == q.len() && p.iter().zip(&q).all(|(&a, &b)| close(a, b, a.abs())),
                 "{case_file}: attribute {name}: {p:?} before, {q:?} after"
             );
         }
@@ -88,12 +97,12 @@ fn compare(case_file: &str, before: &str) {
 }
 
 #[test]
-fn the_default_case_is_bit_identical() {
+fn the_default_case_agrees_with_the_earlier_program() {
     compare("data/cases/default.toml", "tests/data/before-default-16.h5");
 }
 
 #[test]
-fn the_l_shaped_case_is_bit_identical() {
+fn the_l_shaped_case_agrees_with_the_earlier_program() {
     compare(
         "data/cases/lshape_corner.toml",
         "tests/data/before-lshape_corner-16.h5",

@@ -2,15 +2,21 @@
 //! fine one, and its transpose, which restricts nodal loads.
 
 use super::{max2, min2, orient, Buckets, Mesh};
+use crate::sparse::Csr;
 
 /// P1 interpolation from a coarse mesh onto the vertices of a fine one: each fine vertex is
 /// located in the coarse mesh (or, outside it, at the nearest triangle) with its barycentric
-/// coordinates. Its transpose restricts nodal loads: Pᵀ(f, φ_a)_a = (f, φ_A)_A exactly when the
-/// meshes are nested, since then every coarse hat function is a combination of fine ones.
+/// coordinates, the rows of a sparse matrix P (fine vertices × coarse vertices; weights that are
+/// zero but for round-off left out). Its transpose restricts nodal loads: Pᵀ(f, φ_a)_a =
+/// (f, φ_A)_A exactly when the meshes are nested, since then every coarse hat function is a
+/// combination of fine ones. Multigrid interpolates its corrections with the same P.
 pub struct Prolongation {
-    coarse_vertices: usize,
-    weights: Vec<([usize; 3], [f64; 3])>,
+    matrix: Csr,
 }
+
+/// Barycentric weights below this are left out of P (round-off of coordinates that are 0 on
+/// nested meshes).
+const WEIGHT_EPS: f64 = 1e-12;
 
 impl Prolongation {
     /// The interpolation from `coarse` onto the vertices of `fine`.
@@ -18,47 +24,48 @@ impl Prolongation {
         let locator = Locator::new(coarse);
         // Consecutive vertices are mostly near each other: the last triangle is tried first.
         // The two halves of the fine vertices on two threads.
-        let [mut weights, second] = crate::assembly::in_two_halves(fine.n_vertices(), |range| {
+        let halves = crate::assembly::in_two_halves(fine.n_vertices(), |range| {
             let mut hint = 0;
             (fine.points[range].iter())
                 .map(|&p| {
                     let (t, bary) = locator.locate(coarse, p, hint);
                     hint = t;
-                    (coarse.triangles[t], bary)
+                    let mut row = [0, 1, 2].map(|k| (coarse.triangles[t][k], bary[k]));
+                    row.sort_unstable_by_key(|e| e.0);
+                    row
                 })
                 .collect::<Vec<_>>()
         });
-        weights.extend(second);
+        let rows = halves.iter().flatten().map(|row| row.iter().copied());
         Prolongation {
-            coarse_vertices: coarse.n_vertices(),
-            weights,
+            matrix: Csr::from_rows(rows, coarse.n_vertices(), |_, w| w.abs() > WEIGHT_EPS),
         }
     }
 
-    /// The coarse vertices of the triangle that holds the fine vertex `a`, with the weights of the
-    /// interpolation: row a of P.
-    pub fn row(&self, a: usize) -> ([usize; 3], [f64; 3]) {
-        self.weights[a]
+    /// P.
+    pub fn matrix(&self) -> &Csr {
+        &self.matrix
     }
 
     /// The number of coarse vertices (the columns of P).
     pub fn coarse_vertices(&self) -> usize {
-        self.coarse_vertices
+        self.matrix.cols()
     }
 
     /// The fine P1 interpolant of the coarse P1 field `values`.
     pub fn apply(&self, values: &[f64]) -> Vec<f64> {
-        (self.weights.iter())
-            .map(|(tri, bary)| (0..3).map(|k| bary[k] * values[tri[k]]).sum())
+        (0..self.matrix.rows())
+            .map(|a| self.matrix.row_dot(a, values))
             .collect()
     }
 
     /// Pᵀ `fine`: a fine nodal load restricted to the coarse vertices.
     pub fn restrict(&self, fine: &[f64]) -> Vec<f64> {
-        let mut coarse = vec![0.0; self.coarse_vertices];
-        for ((tri, bary), f) in self.weights.iter().zip(fine) {
-            for k in 0..3 {
-                coarse[tri[k]] += bary[k] * f;
+        let mut coarse = vec![0.0; self.coarse_vertices()];
+        for (a, f) in fine.iter().enumerate() {
+            let (cols, weights) = self.matrix.row(a);
+            for (&b, &w) in cols.iter().zip(weights) {
+                coarse[b as usize] += w * f;
             }
         }
         coarse
