@@ -314,7 +314,12 @@ pub fn solve(
         let coarse_seconds = t.elapsed().as_secs_f64();
         let (system, hierarchy, _) = shared.get_or_init(analyse);
         let multigrid = hierarchy.as_ref().map(|h| (h, CG_TOLERANCE));
-        let mut w = obstacle(problem, system, multigrid, guess.as_ref(), options, Some(turn))?;
+        // With multigrid the whole w solve waits for the v solve (their vectors are never in
+        // memory at once); Cholesky factorizations take turns step by step.
+        let whole = hierarchy.is_some().then(|| take_turn(turn));
+        let steps = whole.is_none().then_some(turn);
+        let mut w = obstacle(problem, system, multigrid, guess, options, steps)?;
+        drop(whole);
         w.stats.coarse_iterations = coarse_iterations;
         w.stats.coarse_cg_iterations = coarse_cg;
         w.stats.coarse_seconds = coarse_seconds;
@@ -400,11 +405,13 @@ fn nested_guess(
         levels.push(coarse);
     }
     let (mut guess, mut iterations, mut cg) = (None, Vec::new(), Vec::new());
-    for (k, level) in levels.iter().enumerate().rev() {
+    // Each level is dropped once solved.
+    while let Some(level) = levels.pop() {
+        let k = levels.len();
         let below = multigrid.then(|| &prolongations[k + 1..]);
-        let (system, hierarchy) = analysed(level, below);
+        let (system, hierarchy) = analysed(&level, below);
         let multigrid = hierarchy.as_ref().map(|h| (h, NESTED_CG_TOLERANCE));
-        let o = obstacle(level, &system, multigrid, guess.as_ref(), options, None)?;
+        let o = obstacle(&level, &system, multigrid, guess.take(), options, None)?;
         iterations.push(o.stats.iterations);
         cg.push(o.stats.cg_iterations.clone());
         guess = Some(Guess::prolong(&prolongations[k], &o));
@@ -414,12 +421,12 @@ fn nested_guess(
 
 /// The obstacle problem for w on `problem`'s mesh by primal–dual active sets, its linear solves
 /// by Cholesky or, with `multigrid` = (hierarchy, tolerance), by CG preconditioned by V-cycles;
-/// from the guess `warm` when given.
+/// from the guess `warm` when given (dropped once it has given the first active set and CG's start).
 fn obstacle(
     problem: &DiscreteProblem,
     system: &InteriorSystem,
     multigrid: Option<(&Hierarchy, f64)>,
-    warm: Option<&Guess>,
+    warm: Option<Guess>,
     options: SolverOptions,
     turn: Option<&Mutex<()>>,
 ) -> Result<Obstacle, SolveError> {
@@ -431,13 +438,13 @@ fn obstacle(
     };
     let w_problem = WProblem::new(problem);
     let rhs = w_problem.rhs(system, &problem.g_h);
-    let mut active: Vec<bool> = match warm {
+    let mut active: Vec<bool> = match &warm {
         Some(guess) => (system.vertices.iter())
             .map(|&a| w_problem.predicts_contact(a, guess.lambda[a] * problem.mass[a], guess.gap[a]))
             .collect(),
         None => vec![false; n],
     };
-    if let Some(guess) = warm {
+    if let Some(guess) = &warm {
         // The guess's free boundary is off by a few mesh sizes: settle it locally first, with the
         // guess (and g_h on ∂ω) as Dirichlet data.
         let data: Vec<f64> = (guess.gap.iter().zip(&problem.g_h).enumerate())
@@ -495,8 +502,10 @@ fn obstacle(
     }
 }
 
-/// Rings of vertices around the changed ones on which a local correction solves.
-const BAND_RINGS: usize = 16;
+/// Rings of vertices around the changed ones on which a local correction solves: steps along
+/// K's couplings (on right-angled meshes not across the diagonals, so that 24 of them reach about
+/// as far as 16 mesh edges; with 16, one more global step at 1024² cells).
+const BAND_RINGS: usize = 24;
 /// Active-set iterations of one local correction.
 const LOCAL_ITERATIONS: usize = 20;
 /// A local correction is skipped when its band would hold more than this share of the unknowns.
@@ -729,7 +738,7 @@ impl<'s> Inner<'s> {
             } => {
                 let t = Instant::now();
                 let cycle = cycle.as_mut().expect("prepared before solving");
-                let iterations = (cycle.solve(&system.extended(b), x, *tolerance, CG_MAX_ITERATIONS))
+                let iterations = (cycle.solve(system.extended(b), x, *tolerance, CG_MAX_ITERATIONS))
                     .map_err(SolveError::NotConverged)?;
                 stats.cg_iterations.push(iterations);
                 stats.solve_seconds += t.elapsed().as_secs_f64();

@@ -146,8 +146,12 @@ impl Csr {
         s
     }
 
-    /// Asserts that every column number is below `cols`, which [`Csr::gather`] relies on.
-    pub(crate) fn checked(self) -> Self {
+    /// Asserts that every column number is below `cols`, which [`Csr::gather`] relies on, and
+    /// gives back the room of vectors grown entry by entry (up to half of it).
+    pub(crate) fn checked(mut self) -> Self {
+        self.row_ptr.shrink_to_fit();
+        self.col.shrink_to_fit();
+        self.val.shrink_to_fit();
         assert!(
             self.col.iter().all(|&j| (j as usize) < self.cols),
             "column numbers in range"
