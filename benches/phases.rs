@@ -151,7 +151,8 @@ fn poisson_mg(case: &Case, name: &str) {
     let t = Instant::now();
     let meshes: Vec<&Mesh> = std::iter::once(&mesh).chain(&coarser).collect();
     let prolongations: Vec<Prolongation> = meshes.windows(2).map(|w| Prolongation::new(w[0], w[1])).collect();
-    let hierarchy = Hierarchy::new(&k, &prolongations);
+    let mass = membrane_contact::assembly::lumped_mass(&mesh);
+    let hierarchy = Hierarchy::new(&k, &mass, &prolongations);
     let transfer = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let mut mg = hierarchy.preconditioner(mesh.on_boundary.clone()).expect("SPD");

@@ -879,7 +879,7 @@ mod tests {
         assert_eq!(direct.solver.linear, LinearSolver::Direct);
         assert_eq!(
             Case::parse(base, "t", PathBuf::new()).unwrap().solver.linear,
-            LinearSolver::Direct
+            LinearSolver::Multigrid
         );
         let bad = err(&solver("\"cholesky\""));
         assert!(

@@ -132,13 +132,16 @@ fn galerkin(a: &Csr, p: &Csr, pt: &Csr, alive: &[bool], kept: &[bool]) -> Csr {
 /// for a set of skipped (boundary and held) vertices.
 pub struct Hierarchy<'h> {
     fine: &'h Csr,
+    mass: &'h [f64],
     p: &'h [Prolongation],
 }
 
 impl<'h> Hierarchy<'h> {
-    /// The hierarchy of the mesh of stiffness matrix `k`, with `p[l]` interpolating from level
-    /// l + 1 onto level l (level 0: this mesh).
-    pub fn new(k: &'h Stiffness, p: &'h [Prolongation]) -> Self {
+    /// The hierarchy of the mesh of stiffness matrix `k` and masses m_a = ∫φ_a `mass` (which
+    /// weigh CG's residual), with `p[l]` interpolating from level l + 1 onto level l (level 0:
+    /// this mesh).
+    pub fn new(k: &'h Stiffness, mass: &'h [f64], p: &'h [Prolongation]) -> Self {
+        assert_eq!(mass.len(), k.n());
         if let Some(p0) = p.first() {
             assert_eq!(
                 p0.matrix().rows(),
@@ -146,7 +149,11 @@ impl<'h> Hierarchy<'h> {
                 "the first interpolation is onto this mesh"
             );
         }
-        Hierarchy { fine: k.matrix(), p }
+        Hierarchy {
+            fine: k.matrix(),
+            mass,
+            p,
+        }
     }
 
     /// The number of levels.
@@ -173,6 +180,7 @@ impl<'h> Hierarchy<'h> {
         let coarsest = Coarsest::new(last, &levels.last().expect("a level").skip)?;
         Ok(Multigrid {
             fine: self.fine,
+            mass: self.mass,
             p: self.p,
             coarse,
             levels,
@@ -291,13 +299,14 @@ impl Coarsest {
 pub struct NotConverged {
     /// Iterations done.
     pub iterations: usize,
-    /// ‖r‖/‖b‖ reached.
+    /// max |r_a|/m_a over max |b_a|/m_a reached (see [`Multigrid::solve`]).
     pub relative_residual: f64,
 }
 
 /// The V-cycle for one held set (see the module's documentation), and CG preconditioned by it.
 pub struct Multigrid<'h> {
     fine: &'h Csr,
+    mass: &'h [f64],
     p: &'h [Prolongation],
     /// Levels 1 … L's operators.
     coarse: Vec<Csr>,
@@ -382,9 +391,12 @@ impl Multigrid<'_> {
         bx
     }
 
-    /// Solves K_FF x = b (taken: its room holds the residual) on the free unknowns by CG preconditioned by the V-cycle, from the
-    /// guess `x` (its held entries are set to 0), until ‖b − K_FF x‖₂ ≤ `tolerance` ‖b_F‖₂ (the
-    /// recursively updated residual). Returns the iterations.
+    /// Solves K_FF x = b (b taken: its room holds the residual) on the free unknowns by CG
+    /// preconditioned by the V-cycle, from the guess `x` (its held entries are set to 0), until
+    /// max_a |r_a|/m_a ≤ `tolerance` max_a |b_a|/m_a over the free unknowns, r = b − K_FF x the
+    /// recursively updated residual and m_a = ∫φ_a: the residual as a load density against the
+    /// largest one, in the units of λ_h = r_a/m_a (4.5). (A relative ‖r‖₂ does not bound λ_h's
+    /// error: it leaves up to √n times the tolerance at a vertex.) Returns the iterations.
     ///
     /// K_FF of the search direction comes from the recurrence K p = K z + β K p_old, with K z
     /// from the V-cycle's last sweep: no matrix product of its own per iteration.
@@ -401,11 +413,7 @@ impl Multigrid<'_> {
                 *x = 0.0;
             }
         }
-        let norm_b = (0..n)
-            .filter(|&i| !self.held(i))
-            .map(|i| b[i] * b[i])
-            .sum::<f64>()
-            .sqrt();
+        let target = tolerance * self.density(&b);
         // r = b − K_FF x, in b's place.
         let mut r = b;
         for (i, r) in r.iter_mut().enumerate() {
@@ -415,9 +423,7 @@ impl Multigrid<'_> {
                 *r - self.fine.row_dot(i, x)
             };
         }
-        let target = tolerance * norm_b;
-        let mut norm_r = dot(&r, &r).sqrt();
-        if norm_r <= target {
+        if self.density(&r) <= target {
             return Ok(0);
         }
         let (mut z, mut kz) = (vec![0.0; n], vec![0.0; n]);
@@ -426,14 +432,11 @@ impl Multigrid<'_> {
         let mut pq = dot(&p, &q);
         for iteration in 1..=max_iterations {
             let alpha = rz / pq;
-            let mut rr = 0.0;
             for i in 0..n {
                 x[i] += alpha * p[i];
                 r[i] -= alpha * q[i];
-                rr += r[i] * r[i];
             }
-            norm_r = rr.sqrt();
-            if norm_r <= target {
+            if self.density(&r) <= target {
                 return Ok(iteration);
             }
             let rz_next = self.cycle::<true>(0, &r, &mut z, &mut kz);
@@ -448,8 +451,17 @@ impl Multigrid<'_> {
         }
         Err(NotConverged {
             iterations: max_iterations,
-            relative_residual: norm_r / norm_b,
+            relative_residual: self.density(&r) * tolerance / target,
         })
+    }
+}
+
+impl Multigrid<'_> {
+    /// max_a |r_a|/m_a over the free unknowns: r as a load density.
+    fn density(&self, r: &[f64]) -> f64 {
+        (r.iter().zip(self.mass).zip(&self.levels[0].skip))
+            .filter(|(_, &skip)| !skip)
+            .fold(0.0_f64, |m, ((r, w), _)| m.max(r.abs() / w))
     }
 }
 
@@ -618,7 +630,8 @@ mod tests {
         for diagonal in [Diagonal::Right, Diagonal::Left, Diagonal::Crossed] {
             let (meshes, prolongations) = square(16, diagonal);
             let k = Stiffness::assemble(&meshes[0]);
-            let h = Hierarchy::new(&k, &prolongations);
+            let mass = crate::assembly::lumped_mass(&meshes[0]);
+            let h = Hierarchy::new(&k, &mass, &prolongations);
             let mg = h.preconditioner(meshes[0].on_boundary.clone()).unwrap();
             assert_eq!(mg.coarse.len(), 2);
             for (level, a) in mg.coarse.iter().enumerate() {
@@ -683,7 +696,8 @@ mod tests {
             for n in [32, 64, 128] {
                 let (meshes, prolongations) = square(n, diagonal);
                 let k = Stiffness::assemble(&meshes[0]);
-                let h = Hierarchy::new(&k, &prolongations);
+                let mass = crate::assembly::lumped_mass(&meshes[0]);
+                let h = Hierarchy::new(&k, &mass, &prolongations);
                 let mut mg = h.preconditioner(meshes[0].on_boundary.clone()).unwrap();
                 assert_eq!(mg.sweeps, 1);
                 let v11 = contraction(&mut mg, 12);
@@ -725,7 +739,8 @@ mod tests {
         let (meshes, prolongations) = square(32, Diagonal::Left);
         let k = Stiffness::assemble(&meshes[0]);
         let system = InteriorSystem::numbering(&meshes[0].on_boundary);
-        let h = Hierarchy::new(&k, &prolongations);
+        let mass = crate::assembly::lumped_mass(&meshes[0]);
+        let h = Hierarchy::new(&k, &mass, &prolongations);
         let skip = system.skipped(&held_disk(&meshes[0], &system));
         let mut mg = h.preconditioner(skip.clone()).unwrap();
         let n = k.n();
@@ -751,7 +766,8 @@ mod tests {
     fn a_lone_free_midpoint_keeps_no_coarse_unknown() {
         let (meshes, prolongations) = square(8, Diagonal::Right);
         let k = Stiffness::assemble(&meshes[0]);
-        let h = Hierarchy::new(&k, &prolongations);
+        let mass = crate::assembly::lumped_mass(&meshes[0]);
+        let h = Hierarchy::new(&k, &mass, &prolongations);
         let midpoint = (meshes[0].points.iter())
             .position(|&p| p == [0.375, 0.5])
             .unwrap();
@@ -774,7 +790,8 @@ mod tests {
             let (meshes, prolongations) = square(n, Diagonal::Right);
             let k = Stiffness::assemble(&meshes[0]);
             let system = InteriorSystem::new(&k, &meshes[0].on_boundary);
-            let h = Hierarchy::new(&k, &prolongations);
+            let mass = crate::assembly::lumped_mass(&meshes[0]);
+            let h = Hierarchy::new(&k, &mass, &prolongations);
             let held = held_disk(&meshes[0], &system);
             let b: Vec<f64> = noise(system.n(), 3).iter().map(|v| 1.0 + v).collect();
             let mut factor = system.factorization();
