@@ -10,6 +10,8 @@ DEBIAN_PACKAGES := libhdf5-dev pkg-config python3-dolfinx python3-petsc4py pytho
 	python3-h5py python3-paraview python3-matplotlib python3-sympy fonts-dejavu-core
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 BENCH_SIZES ?= 256 512 1024 disk-6
+# Multigrid only (Cholesky would not fit): 16.8M vertices, about 6 GB.
+BENCH_LARGE ?= 4096
 BENCH_REPEAT ?= 3
 
 .PHONY: all deps build run test cargo-test validate bench bench-reference study fuzz lint mutants expr-property clean
@@ -40,10 +42,14 @@ validate: build
 
 bench: deps
 	cargo build --release --benches
-	@for n in $(BENCH_SIZES); do for r in $$(seq $(BENCH_REPEAT)); do \
-		cargo bench -q --bench phases -- poisson $$n | grep '^poisson' ; \
-		cargo bench -q --bench phases -- contact $$n | grep '^contact' ; \
-	done; done | tee target/bench.log | $(PY) -m reference.bench_table
+	@{ for n in $(BENCH_SIZES); do for r in $$(seq $(BENCH_REPEAT)); do \
+		for what in poisson contact contact-mg; do \
+			cargo bench -q --bench phases -- $$what $$n | grep -E '^(poisson|contact)' ; \
+		done; \
+	done; done; \
+	for n in $(BENCH_LARGE); do for r in $$(seq $(BENCH_REPEAT)); do \
+		cargo bench -q --bench phases -- contact-mg $$n | grep '^contact' ; \
+	done; done; } | tee target/bench.log | $(PY) -m reference.bench_table
 
 bench-reference: build
 	$(PY) -m reference.bench_reference --bin $(BIN)

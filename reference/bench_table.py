@@ -1,15 +1,19 @@
-"""Formats the lines printed by `cargo bench --bench phases` (stdin) as the `make bench` table:
-phases of the contact solve beside one Poisson factorization + solve on the same mesh, the ratio
-(target <= 3 at 1024^2 cells) and peak memory (target <= 3 GB).
+"""Formats the lines printed by `cargo bench --bench phases` (stdin) as the `make bench` tables and
+checks the targets of the multilevel solver (issue #14):
+- at 1024^2 cells the multigrid contact solve <= 0.5 x one Cholesky Poisson solve on the same mesh;
+- at 4096^2 cells (16.8M vertices) the peak memory of the whole run <= 400 bytes per vertex, and its
+  contact solve <= 20 x the 1024^2 one;
+- CG iterations per level printed (flat from level to level).
 
-Each size is run several times, alternating the two; timings on a shared machine vary by tens of
-per cent from run to run, so the table shows the fastest run of each (its phases) and the median,
-and the ratio of both.
+Each size is run several times; timings on a shared machine vary by tens of per cent from run to
+run, so the tables show the fastest run of each (its phases) and the median, and ratios of both.
 
 Usage (from the repository root): ... | /usr/bin/python3 -m reference.bench_table
 """
 import statistics
 import sys
+
+KINDS = ("poisson", "contact", "contact-mg")
 
 
 def parse(line):
@@ -26,35 +30,83 @@ def order(mesh):
     return (not mesh.isdigit(), int(mesh.split("-")[-1]))
 
 
+def fastest(rows, key):
+    return min(rows, key=lambda r: float(r[key]))
+
+
+def median(rows, key):
+    return statistics.median(float(r[key]) for r in rows)
+
+
+def per_vertex(row):
+    return float(row["peak_mb"]) * 2**20 / float(row["vertices"])
+
+
 def main():
     runs = {}
     for line in sys.stdin:
-        if line.startswith(("poisson ", "contact ")):
+        if line.startswith(tuple(k + " " for k in KINDS)):
             kind, n, values = parse(line)
             runs.setdefault(n, {}).setdefault(kind, []).append(values)
-    cols = ("mesh", "vertices", "runs", "mesh", "assembly", "coarse", "symbolic", "numeric", "solve",
-            "postprocess", "write", "contact solve", "iterations", "Poisson", "ratio", "median ratio", "peak MB",
-            "Poisson MB")
+    meshes = sorted(runs, key=order)
+
+    print("Multigrid contact solve (`[solver] linear = \"multigrid\"`, the default):\n")
+    cols = ("mesh", "vertices", "runs", "mesh", "assembly", "coarse levels", "transfers", "coarse operators",
+            "CG", "postprocess", "write", "contact solve", "active-set iterations", "CG iterations v; steps",
+            "CG iterations per coarser level (most)", "peak MB", "bytes/vertex")
     print("| " + " | ".join(cols) + " |")
     print("|" + "---|" * len(cols))
-    for n in sorted(runs, key=order):
-        cs, ps = runs[n].get("contact"), runs[n].get("poisson")
-        if not cs or not ps:
+    for n in meshes:
+        cs = runs[n].get("contact-mg")
+        if not cs:
             continue
-        c = min(cs, key=lambda r: float(r["contact_solve"]))
-        p = min(ps, key=lambda r: float(r["total"]))
-        c_med = statistics.median(float(r["contact_solve"]) for r in cs)
-        p_med = statistics.median(float(r["total"]) for r in ps)
-        print("| %s | %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s (median %.3f) | %s + %s local (coarse %s) "
-              "| %s (median %.3f) | **%.2f** | %.2f | %s | %s |" % (
-                  label(n), c["vertices"], len(cs), c["mesh"], c["assembly"], c["coarse"], c["symbolic"], c["numeric"],
-                  c["solve"], c["postprocess"], c["write"], c["contact_solve"], c_med, c["iterations"],
-                  c["local_iterations"], c["coarse_iterations"], p["total"], p_med,
-                  float(c["contact_solve"]) / float(p["total"]), c_med / p_med, max(r["peak_mb"] for r in cs), p["peak_mb"]))
-    print("\nseconds; fastest run of each (median in brackets); ratio = contact solve / Poisson (symbolic + "
-          "numeric + solve, one thread). The contact solve is wall clock: symbolic analysis, the v solve, "
-          "the coarse levels of nested iteration and the active-set iterations for w on two threads. "
-          "Targets at 1024²: ratio <= 3, peak <= 3000 MB.")
+        c = fastest(cs, "contact_solve")
+        peak = max(cs, key=per_vertex)
+        print("| %s | %s | %d | %s | %s | %s | %s | %s | %s | %s | %s | %s (median %.3f) | %s + %s local (coarser: %s) "
+              "| %s; %s | %s | %s | %.0f |" % (
+                  label(n), c["vertices"], len(cs), c["mesh"], c["assembly"], c["coarse"], c["symbolic"],
+                  c["numeric"], c["solve"], c["postprocess"], c["write"], c["contact_solve"],
+                  median(cs, "contact_solve"), c["iterations"], c["local_iterations"], c["coarse_iterations"],
+                  c["cg_v"], c["cg"], c["coarse_cg_max"], peak["peak_mb"], per_vertex(peak)))
+
+    print("\nAgainst one Cholesky Poisson solve (symbolic + numeric + solve, one thread) on the same mesh:\n")
+    cols = ("mesh", "Poisson, Cholesky", "contact, direct", "contact, multigrid", "multigrid / Poisson",
+            "median ratio", "direct / Poisson", "peak MB Poisson / direct / multigrid")
+    print("| " + " | ".join(cols) + " |")
+    print("|" + "---|" * len(cols))
+    ratios = {}
+    for n in meshes:
+        ps, ds, ms = (runs[n].get(k) for k in KINDS)
+        if not ps or not ms:
+            continue
+        p, m = fastest(ps, "total"), fastest(ms, "contact_solve")
+        ratio = float(m["contact_solve"]) / float(p["total"])
+        ratios[n] = ratio
+        d = fastest(ds, "contact_solve") if ds else None
+        print("| %s | %s (median %.3f) | %s | %s (median %.3f) | **%.2f** | %.2f | %s | %s / %s / %s |" % (
+            label(n), p["total"], median(ps, "total"), d["contact_solve"] if d else "—", m["contact_solve"],
+            median(ms, "contact_solve"), ratio, median(ms, "contact_solve") / median(ps, "total"),
+            "%.2f" % (float(d["contact_solve"]) / float(p["total"])) if d else "—", p["peak_mb"],
+            max(r["peak_mb"] for r in ds) if ds else "—", max(r["peak_mb"] for r in ms)))
+
+    print("\nseconds; fastest run of each (median in brackets). The contact solve is wall clock: the v "
+          "solve and the coarser levels of nested iteration on two threads, then the active-set steps "
+          "for w.\n")
+    print("Targets:")
+    verdict = lambda ok: "met" if ok else "NOT MET"
+    if "1024" in ratios:
+        print("- 1024²: multigrid contact solve / Poisson Cholesky = %.2f (target <= 0.5, stretch 0.25): %s"
+              % (ratios["1024"], verdict(ratios["1024"] <= 0.5)))
+    big, small = runs.get("4096", {}).get("contact-mg"), runs.get("1024", {}).get("contact-mg")
+    if big:
+        worst = max(per_vertex(r) for r in big)
+        print("- 4096²: peak memory %.0f bytes per vertex (target <= 400, stretch 250): %s"
+              % (worst, verdict(worst <= 400)))
+        if small:
+            growth = float(fastest(big, "contact_solve")["contact_solve"]) / float(
+                fastest(small, "contact_solve")["contact_solve"])
+            print("- 4096²: contact solve %.1f x the 1024² one (target <= 20; 16 = linear): %s"
+                  % (growth, verdict(growth <= 20)))
 
 
 if __name__ == "__main__":

@@ -505,6 +505,14 @@ impl Case {
         }
     }
 
+    /// The memory guard's peak per vertex for this case's linear solver.
+    fn bytes_per_vertex(&self) -> f64 {
+        match self.solver.linear {
+            LinearSolver::Multigrid => mesh::MULTIGRID_BYTES_PER_VERTEX,
+            LinearSolver::Direct => mesh::DIRECT_BYTES_PER_VERTEX,
+        }
+    }
+
     /// Builds or reads the mesh before refinement, after checking that it fits in memory once
     /// refined (built-in meshes and domains before building them, files after reading them).
     fn given_mesh(&self) -> Result<Mesh, CaseError> {
@@ -523,11 +531,13 @@ impl Case {
                 let mesh =
                     mesh::file::read(&self.base_dir.join(path)).map_err(|e| CaseError(e.to_string()))?;
                 let refined = mesh.n_vertices().saturating_mul(self.refinement_factor());
-                mesh::check_memory(refined).map_err(|e| err(format!("{}{refine}: {e}", path.display())))?;
+                mesh::check_memory(refined, self.bytes_per_vertex())
+                    .map_err(|e| err(format!("{}{refine}: {e}", path.display())))?;
                 return Ok(mesh);
             }
         };
-        mesh::check_memory(self.estimated_vertices()).map_err(|e| err(format!("{keys}: {e}")))?;
+        mesh::check_memory(self.estimated_vertices(), self.bytes_per_vertex())
+            .map_err(|e| err(format!("{keys}: {e}")))?;
         let built = match &self.mesh {
             MeshSpec::Rectangle { corners, n, diagonal } => {
                 Mesh::rectangle(corners[0], corners[1], n[0], n[1], *diagonal)

@@ -177,7 +177,11 @@ fn read_table<T: hdf5::H5Type>(
     let data = file
         .dataset(dataset)
         .map_err(|e| err(format!("no such dataset: {e}")))?;
-    super::check_memory(data.shape().first().copied().unwrap_or(0)).map_err(|e| err(e.to_string()))?;
+    super::check_memory(
+        data.shape().first().copied().unwrap_or(0),
+        super::MULTIGRID_BYTES_PER_VERTEX,
+    )
+    .map_err(|e| err(e.to_string()))?;
     data.read_2d::<T>()
         .map_err(|e| err(format!("cannot read {what}: {e}")))
 }

@@ -142,13 +142,16 @@ impl fmt::Display for MeshError {
 
 impl std::error::Error for MeshError {}
 
-/// Peak memory of a run per mesh vertex, with a margin: measured at 1.05M vertices, 1.9 GB for a
-/// solve with nested iteration and the written result, 2.6 GB with `--flux`.
-const BYTES_PER_VERTEX: f64 = 2700.0;
+/// Peak memory of a run per mesh vertex with the multigrid solver, with a margin for the flux and
+/// the estimator (the measured peaks are in the README's speed section).
+pub const MULTIGRID_BYTES_PER_VERTEX: f64 = 800.0;
+/// The same with the direct solver (whose Cholesky factors grow like n log n).
+pub const DIRECT_BYTES_PER_VERTEX: f64 = 2700.0;
 
 /// Fails early, with an estimate, when a mesh of `vertices` vertices would not fit in the memory
-/// available now (`MemAvailable` of /proc/meminfo; no check where that cannot be read).
-pub fn check_memory(vertices: usize) -> Result<(), MeshError> {
+/// available now at `bytes_per_vertex` (`MemAvailable` of /proc/meminfo; no check where that
+/// cannot be read).
+pub fn check_memory(vertices: usize, bytes_per_vertex: f64) -> Result<(), MeshError> {
     let available = std::fs::read_to_string("/proc/meminfo").ok().and_then(|s| {
         let line = s.lines().find(|l| l.starts_with("MemAvailable:"))?;
         line.split_whitespace()
@@ -157,7 +160,7 @@ pub fn check_memory(vertices: usize) -> Result<(), MeshError> {
             .ok()
             .map(|kb| kb * 1024.0)
     });
-    let needed = vertices as f64 * BYTES_PER_VERTEX;
+    let needed = vertices as f64 * bytes_per_vertex;
     match available {
         Some(available) if needed > available => Err(MeshError::TooLarge {
             vertices,

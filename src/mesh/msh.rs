@@ -53,7 +53,8 @@ pub(super) fn read(path: &Path) -> Result<RawMesh, FileError> {
         ));
     }
     let coordinates = nodes(&msh, &node_tags(&bytes).map_err(err)?).map_err(err)?;
-    super::check_memory(coordinates.len()).map_err(|e| err(e.to_string()))?;
+    super::check_memory(coordinates.len(), super::MULTIGRID_BYTES_PER_VERTEX)
+        .map_err(|e| err(e.to_string()))?;
     // Number the nodes the triangles use by increasing tag; ignore the others.
     let mut used: Vec<u64> = triangles.iter().flatten().copied().collect();
     used.sort_unstable();
