@@ -4,9 +4,9 @@
 //! refined K times (`disk-K`: about 1.1M vertices at K = 6).
 //!
 //! Usage: `cargo bench --bench phases -- contact MESH` or `-- poisson MESH` (one process per figure,
-//! so that the peak resident memory is that of one run); `contact-mg` and `poisson-mg` solve with
-//! multigrid (`[solver] linear = "multigrid"`; `poisson-mg`: one MG-preconditioned CG solve
-//! from zero to the contact solve's tolerance, setup included).
+//! so that the peak resident memory is that of one run), both by Cholesky (`[solver] linear =
+//! "direct"`); `contact-mg` and `poisson-mg` solve with multigrid (the default; `poisson-mg`: one
+//! MG-preconditioned CG solve from zero, setup included).
 
 use membrane_contact::assembly::Stiffness;
 use membrane_contact::case::{Case, MeshSpec};
@@ -58,13 +58,11 @@ fn main() {
         std::process::exit(2);
     };
     let mut case = case(mesh);
-    let what = match what.strip_suffix("-mg") {
-        Some(w) => {
-            case.solver.linear = LinearSolver::Multigrid;
-            w
-        }
-        None => what.as_str(),
+    let (what, linear) = match what.strip_suffix("-mg") {
+        Some(w) => (w, LinearSolver::Multigrid),
+        None => (what.as_str(), LinearSolver::Direct),
     };
+    case.solver.linear = linear;
     match (what, case.solver.linear) {
         ("contact", _) => {
             let dir = tempfile::tempdir().expect("a temporary directory");

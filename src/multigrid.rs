@@ -59,72 +59,92 @@ const SWEEPS: usize = 1;
 
 /// The Galerkin product P̃ᵀ A P̃, P̃ = D P E with D zeroing the rows i of P where `alive[i]` is
 /// false and E the columns J where `kept[J]` is false (`pt` = Pᵀ): row by row over the
-/// coarse unknowns with a dense accumulator (Gustavson's method). Rows not kept are empty.
+/// coarse unknowns with a dense accumulator (Gustavson's method), the two halves of the rows on
+/// two threads. Rows not kept are empty.
 fn galerkin(a: &Csr, p: &Csr, pt: &Csr, alive: &[bool], kept: &[bool]) -> Csr {
     let nc = pt.rows();
+    let halves = crate::assembly::in_two_halves(nc, |rows| galerkin_rows(a, p, pt, alive, kept, rows));
     let mut out = Csr {
         row_ptr: Vec::with_capacity(nc + 1),
         cols: nc,
         ..Default::default()
     };
     out.row_ptr.push(0);
+    for (lengths, col, val) in halves {
+        let start = out.col.len() as u32;
+        out.row_ptr.extend(lengths.iter().map(|&end| start + end));
+        out.col.extend(col);
+        out.val.extend(val);
+    }
+    out.checked().with_diagonal()
+}
+
+/// Rows `rows` of [`galerkin`]: where each row ends (counted from the first), the columns and
+/// the values.
+fn galerkin_rows(
+    a: &Csr,
+    p: &Csr,
+    pt: &Csr,
+    alive: &[bool],
+    kept: &[bool],
+    rows: std::ops::Range<usize>,
+) -> (Vec<u32>, Vec<u32>, Vec<f64>) {
+    let nc = pt.rows();
+    let (mut ends, mut col, mut val) = (Vec::with_capacity(rows.len()), Vec::new(), Vec::new());
     let mut marker = vec![usize::MAX; nc];
     let mut acc = vec![0.0; nc];
-    for big_i in 0..nc {
-        let start = out.col.len();
-        if !kept[big_i] {
-            out.row_ptr.push(start as u32);
-            continue;
-        }
-        let (fine, weights) = pt.row(big_i);
-        for (&i, &w) in fine.iter().zip(weights) {
-            let i = i as usize;
-            if !alive[i] {
-                continue;
-            }
-            let (ks, avals) = a.row(i);
-            for (&k, &a) in ks.iter().zip(avals) {
-                let k = k as usize;
-                if !alive[k] {
+    for big_i in rows {
+        let start = col.len();
+        if kept[big_i] {
+            let (fine, weights) = pt.row(big_i);
+            for (&i, &w) in fine.iter().zip(weights) {
+                let i = i as usize;
+                if !alive[i] {
                     continue;
                 }
-                let f = w * a;
-                let (js, pvals) = p.row(k);
-                for (&j, &q) in js.iter().zip(pvals) {
-                    let j = j as usize;
-                    if !kept[j] {
+                let (ks, avals) = a.row(i);
+                for (&k, &a) in ks.iter().zip(avals) {
+                    let k = k as usize;
+                    if !alive[k] {
                         continue;
                     }
-                    if marker[j] == big_i {
-                        acc[j] += f * q;
-                    } else {
-                        marker[j] = big_i;
-                        acc[j] = f * q;
-                        out.col.push(j as u32);
+                    let f = w * a;
+                    let (js, pvals) = p.row(k);
+                    for (&j, &q) in js.iter().zip(pvals) {
+                        let j = j as usize;
+                        if !kept[j] {
+                            continue;
+                        }
+                        if marker[j] == big_i {
+                            acc[j] += f * q;
+                        } else {
+                            marker[j] = big_i;
+                            acc[j] = f * q;
+                            col.push(j as u32);
+                        }
                     }
                 }
             }
-        }
-        out.col[start..].sort_unstable();
-        let small = NEGLIGIBLE
-            * if marker[big_i] == big_i {
+            col[start..].sort_unstable();
+            let diagonal = if marker[big_i] == big_i {
                 acc[big_i].abs()
             } else {
                 0.0
             };
-        let mut kept = start;
-        for q in start..out.col.len() {
-            let j = out.col[q];
-            if acc[j as usize].abs() > small {
-                out.col[kept] = j;
-                out.val.push(acc[j as usize]);
-                kept += 1;
+            let mut end = start;
+            for q in start..col.len() {
+                let j = col[q];
+                if acc[j as usize].abs() > NEGLIGIBLE * diagonal {
+                    col[end] = j;
+                    val.push(acc[j as usize]);
+                    end += 1;
+                }
             }
+            col.truncate(end);
         }
-        out.col.truncate(kept);
-        out.row_ptr.push(out.col.len() as u32);
+        ends.push(col.len() as u32);
     }
-    out.checked().with_diagonal()
+    (ends, col, val)
 }
 
 /// The multigrid hierarchy below one mesh: its stiffness matrix K and the interpolations below it,
