@@ -1,5 +1,5 @@
-//! Geometric multigrid for the Dirichlet P1 Laplacian on the interior unknowns of a hierarchy of
-//! meshes, as the preconditioner of conjugate gradients: for K (the Poisson problem of v) and for
+//! Geometric multigrid for the Dirichlet P1 Laplacian on a hierarchy of meshes, as the
+//! preconditioner of conjugate gradients: for K (the Poisson problem of v) and for
 //! K_FF, the Laplacian on the free unknowns of the obstacle problem with the held (active) ones
 //! fixed at zero (the linear solve of each primal–dual active-set step).
 //!
@@ -14,9 +14,10 @@
 //!
 //! ## The V-cycle
 //! Levels 0 (the mesh solved on) … L (the coarsest); `P_l` interpolates P1 functions of level
-//! l + 1 onto level l (rows: the interior vertices of level l, columns: those of level l + 1;
-//! boundary columns dropped, corrections vanish on ∂ω). Level 0's operator is the assembled
-//! K_II; the coarser ones are Galerkin products A_{l+1} = P_lᵀ A_l P_l. On nested P1 meshes
+//! l + 1 onto level l (the [`Prolongation`] that nested iteration uses too). Everything works on
+//! all vertices of each level, in the meshes' own numbering, with the boundary vertices skipped
+//! like held ones (corrections vanish on ∂ω): level 0's operator is the problem's K itself, no
+//! copy; the coarser ones are Galerkin products A_{l+1} = P_lᵀ A_l P_l. On nested P1 meshes
 //! P_l is exact (every coarse hat function is a combination of fine ones), so the Galerkin
 //! operator *is* the coarse stiffness matrix (rediscretisation; `galerkin_equals_rediscretisation`
 //! checks it to round-off), and on meshes that are not nested (the coarse generated levels below a
@@ -26,9 +27,7 @@
 //!
 //! Smoothing: one forward Gauss–Seidel sweep before the coarse correction and one backward sweep
 //! after (V(1,1)), so that the cycle is symmetric. Two sweeps each side, V(2,2), contract more
-//! (0.16 against 0.30 per cycle on the square) but cost more than they save under CG: at 1024²
-//! cells one Poisson solve to 1e-12 took 11 iterations and 0.92 s with V(2,2), 14 and 0.65 s with
-//! V(1,1). Each sweep is one pass over the matrix: the forward sweep starts from zero and reads
+//! but cost more than they save under CG (measured, README). Each sweep is one pass over the matrix: the forward sweep starts from zero and reads
 //! each row up to its diagonal only, scattering the residual for the restriction as it goes; the
 //! backward sweep also yields K z, so that CG needs no product of its own (K p = K z + β K p_old).
 //!
@@ -45,8 +44,8 @@
 //! above 1/2 — on nested meshes, the coarse vertices that are free fine vertices (the function `kept`):
 //! this keeps P̃ of full rank, so that the coarse operators stay definite and the coarsest can be
 //! factorized. The alternative of truncating the transfers but keeping the coarse operators of K
-//! (no recomputation) is not variational, and measured so: at 1024² cells its CG took 39 and 22
-//! iterations in the two active-set steps (8 and 4 truncated), and more with every refinement.
+//! (no recomputation) is not variational, and its CG iterations grew with every refinement
+//! (README).
 
 use crate::assembly::Stiffness;
 use crate::linear::{Cholesky, NotPositiveDefinite};
