@@ -21,37 +21,34 @@ pub struct Edges {
 
 impl Edges {
     /// The edges of `mesh`, in O(n): the edges (a, b), a < b, grouped by a, each group sorted
-    /// and deduplicated (a vertex has a few neighbours).
+    /// (a vertex has a few neighbours) and deduplicated.
     pub fn new(mesh: &Mesh) -> Self {
         let n = mesh.n_vertices();
         let index = |v: usize| u32::try_from(v).expect("fewer than 2³² edges and vertices");
         let (start, mut larger) = super::by_smaller_vertex(n, &mesh.triangles, |_, b| index(b));
-        // Sort and deduplicate each group in place: `first[a]` is then the number of a's first edge.
-        let mut first = Vec::with_capacity(n + 1);
-        let mut edges = 0;
         for a in 0..n {
-            first.push(edges);
             larger[start[a]..start[a + 1]].sort_unstable();
-            for i in start[a]..start[a + 1] {
-                if edges == first[a] || larger[edges - 1] != larger[i] {
-                    larger[edges] = larger[i];
-                    edges += 1;
-                }
-            }
         }
-        first.push(edges);
-        larger.truncate(edges);
+        let neighbours = |a: usize| (larger[start[a]..start[a + 1]].chunk_by(|x, y| x == y)).map(|b| b[0]);
+        // `first[a]`: the number of a's first edge.
+        let mut first = Vec::with_capacity(n + 1);
+        first.push(0);
+        for a in 0..n {
+            first.push(first[a] + neighbours(a).count());
+        }
+        let mut ends = Vec::with_capacity(first[n]);
+        ends.extend((0..n).flat_map(|a| neighbours(a).map(move |b| [index(a), b])));
+        drop((start, larger));
         let number = |a: usize, b: usize| {
             let (a, b) = (a.min(b), a.max(b));
-            let group = &larger[first[a]..first[a + 1]];
-            index(first[a] + group.binary_search(&index(b)).expect("an edge of the mesh"))
+            let group = &ends[first[a]..first[a + 1]];
+            let k = group
+                .binary_search_by_key(&index(b), |e| e[1])
+                .expect("an edge of the mesh");
+            index(first[a] + k)
         };
         let of_triangle = (mesh.triangles.iter())
             .map(|tri| [0, 1, 2].map(|k| number(tri[k], tri[(k + 1) % 3])))
-            .collect();
-        let ends = (0..n)
-            .flat_map(|a| (first[a]..first[a + 1]).map(move |e| (a, e)))
-            .map(|(a, e)| [index(a), larger[e]])
             .collect();
         Edges { ends, of_triangle }
     }
