@@ -36,16 +36,17 @@ impl Flux {
             })
             .collect();
         let edges = dual.edges();
+        let edge = |t: usize, k: usize| edges.between(mesh.triangles[t][k], mesh.triangles[t][(k + 1) % 3]);
         let (mut sum, mut count) = (vec![[0.0; 2]; edges.count()], vec![0.0; edges.count()]);
         for (t, f) in flux.iter().enumerate() {
             for k in 0..3 {
-                let e = edges.of_triangle(t, k);
+                let e = edge(t, k);
                 sum[e] = [sum[e][0] + f[0], sum[e][1] + f[1]];
                 count[e] += 1.0;
             }
         }
         let mean = |t: usize, k: usize| {
-            let e = edges.of_triangle(t, k);
+            let e = edge(t, k);
             [sum[e][0] / count[e], sum[e][1] / count[e]]
         };
         // S_h lists six cells per triangle: [a, m_ab, c] then [a, c, m_ca] for each vertex a of K
