@@ -12,7 +12,6 @@
 //! misses them by more than [`TOLERANCE`] is not a solution of (3.4): the run fails.
 
 use crate::contact::Solution;
-use crate::mesh::DualMesh;
 use crate::problem::DiscreteProblem;
 use crate::result::{Attribute, Describe, Field, Place};
 use std::fmt;
@@ -200,11 +199,6 @@ impl Action {
             contact_area,
             checks,
         }
-    }
-
-    /// λ_h = Σ_a λ_a χ_{D_a} as cell data of S_h (0 on the cells of boundary vertices).
-    pub fn on_dual_cells(&self, dual: &DualMesh) -> Vec<f64> {
-        dual.cell_field(&self.lambda)
     }
 }
 

@@ -173,7 +173,7 @@ fn mesh_error(case: &Case, e: &dyn std::fmt::Display) -> RunError {
 fn write_step(staging: &Staging, dir: &str, r: &Run) -> Result<(), RunError> {
     let path = staging.path().join(dir);
     std::fs::create_dir(&path).map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
-    result::write(&path, &r.problem.mesh, &r.dual, &r.fields(), &r.attributes())
+    result::write(&path, &r.problem.mesh, &r.dual(), &r.fields(), &r.attributes())
         .map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
     Ok(())
 }

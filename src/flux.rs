@@ -35,33 +35,31 @@ impl Flux {
                 [0, 1].map(|k| -mu * (0..3).map(|i| g[i][k] * u[tri[i]]).sum::<f64>())
             })
             .collect();
-        let edges = mesh.edges();
-        let edge = |a: usize, b: usize| edges.binary_search(&(a.min(b), a.max(b))).unwrap();
-        let (mut sum, mut count) = (vec![[0.0; 2]; edges.len()], vec![0.0; edges.len()]);
-        for (t, tri) in mesh.triangles.iter().enumerate() {
+        let edges = dual.edges();
+        let edge = |t: usize, k: usize| edges.between(mesh.triangles[t][k], mesh.triangles[t][(k + 1) % 3]);
+        let (mut sum, mut count) = (vec![[0.0; 2]; edges.count()], vec![0.0; edges.count()]);
+        for (t, f) in flux.iter().enumerate() {
             for k in 0..3 {
-                let e = edge(tri[k], tri[(k + 1) % 3]);
-                sum[e] = [sum[e][0] + flux[t][0], sum[e][1] + flux[t][1]];
+                let e = edge(t, k);
+                sum[e] = [sum[e][0] + f[0], sum[e][1] + f[1]];
                 count[e] += 1.0;
             }
         }
-        let mean = |a: usize, b: usize| {
-            let e = edge(a, b);
+        let mean = |t: usize, k: usize| {
+            let e = edge(t, k);
             [sum[e][0] / count[e], sum[e][1] / count[e]]
         };
         // S_h lists six cells per triangle: [a, m_ab, c] then [a, c, m_ca] for each vertex a of K
-        // (see DualMesh::new); the half of ∂K is edge 0 of the first and edge 2 of the second.
-        let edge_flux = (dual.triangles.iter().enumerate())
-            .map(|(s, cell)| {
-                let t = s / 6;
-                let tri = mesh.triangles[t];
-                let k = (s % 6) / 2;
+        // (see DualMesh); the half of ∂K is edge 0 of the first and edge 2 of the second.
+        let edge_flux = (0..dual.n_cells())
+            .map(|s| {
+                let (t, k) = (s / 6, (s % 6) / 2);
                 let half = if s % 2 == 0 {
-                    (0, mean(tri[k], tri[(k + 1) % 3]))
+                    (0, mean(t, k))
                 } else {
-                    (2, mean(tri[(k + 2) % 3], tri[k]))
+                    (2, mean(t, (k + 2) % 3))
                 };
-                let p = cell.map(|v| dual.points[v]);
+                let p = dual.corners(s);
                 [0, 1, 2].map(|j| {
                     let q = if j == half.0 { half.1 } else { flux[t] };
                     let (a, b) = (p[j], p[(j + 1) % 3]);
@@ -75,9 +73,9 @@ impl Flux {
 
     /// div t_ih on each cell of S_h (a constant): Σ_k F_k / |κ|.
     pub fn divergence(&self, dual: &DualMesh) -> Vec<f64> {
-        (dual.triangles.iter().zip(&self.edge_flux))
-            .map(|(cell, f)| {
-                let p = cell.map(|v| dual.points[v]);
+        (self.edge_flux.iter().enumerate())
+            .map(|(s, f)| {
+                let p = dual.corners(s);
                 (f[0] + f[1] + f[2]) / (0.5 * orient(p[0], p[1], p[2]))
             })
             .collect()
@@ -86,9 +84,9 @@ impl Flux {
     /// t_ih at the centroid of each cell of S_h: Σ_k F_k ψ_k with ψ_k(x) = (x − p_{k+2})/(2|κ|),
     /// the basis function of edge k (unit flux through it, none through the others).
     pub fn at_centroids(&self, dual: &DualMesh) -> Vec<[f64; 2]> {
-        (dual.triangles.iter().zip(&self.edge_flux))
-            .map(|(cell, f)| {
-                let p = cell.map(|v| dual.points[v]);
+        (self.edge_flux.iter().enumerate())
+            .map(|(s, f)| {
+                let p = dual.corners(s);
                 let c = [0, 1].map(|i| (p[0][i] + p[1][i] + p[2][i]) / 3.0);
                 let two_area = orient(p[0], p[1], p[2]);
                 [0, 1].map(|i| (0..3).map(|k| f[k] * (c[i] - p[(k + 2) % 3][i]) / two_area).sum())
@@ -99,8 +97,8 @@ impl Flux {
     /// ∫_{D_a} div t_ih at every vertex a.
     pub fn over_dual_cells(&self, mesh: &Mesh, dual: &DualMesh) -> Vec<f64> {
         let mut total = vec![0.0; mesh.n_vertices()];
-        for (f, &a) in self.edge_flux.iter().zip(&dual.owner) {
-            total[a] += f[0] + f[1] + f[2];
+        for (s, f) in self.edge_flux.iter().enumerate() {
+            total[dual.owner(s)] += f[0] + f[1] + f[2];
         }
         total
     }
@@ -179,27 +177,29 @@ impl Describe for Fluxes {
 mod tests {
     use super::*;
     use crate::assembly::Stiffness;
-    use crate::mesh::Diagonal;
+    use crate::mesh::{Diagonal, Edges};
     use std::collections::HashMap;
 
-    fn setting() -> (Mesh, DualMesh, Vec<f64>) {
+    fn setting() -> (Mesh, Edges, Vec<f64>) {
         let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 5, 7, Diagonal::Crossed).unwrap();
-        let dual = DualMesh::new(&mesh);
+        let edges = Edges::new(&mesh);
         let u = mesh
             .points
             .iter()
             .map(|p| (3.0 * p[0]).sin() + p[0] * p[1] * p[1])
             .collect();
-        (mesh, dual, u)
+        (mesh, edges, u)
     }
 
     #[test]
     fn the_normal_flux_is_single_valued() {
-        let (mesh, dual, u) = setting();
+        let (mesh, edges, u) = setting();
+        let dual = DualMesh::new(&mesh, &edges);
         let flux = Flux::reconstruct(&mesh, &dual, &u, 1.5);
         let mut seen: HashMap<(usize, usize), f64> = HashMap::new();
         let mut interior = 0;
-        for (cell, f) in dual.triangles.iter().zip(&flux.edge_flux) {
+        for (s, f) in flux.edge_flux.iter().enumerate() {
+            let cell = dual.cell(s);
             for k in 0..3 {
                 let (a, b) = (cell[k], cell[(k + 1) % 3]);
                 if let Some(other) = seen.remove(&(b, a)) {
@@ -216,7 +216,8 @@ mod tests {
     #[test]
     fn a_linear_field_gives_its_exact_flux() {
         let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], 4, 3, Diagonal::Left).unwrap();
-        let dual = DualMesh::new(&mesh);
+        let edges = Edges::new(&mesh);
+        let dual = DualMesh::new(&mesh, &edges);
         let u: Vec<f64> = mesh
             .points
             .iter()
@@ -232,7 +233,8 @@ mod tests {
     #[test]
     fn divergence_over_a_dual_cell_is_the_stiffness_row() {
         // ∫_{D_a} div t_h = μ ∫∇u_h·∇φ_a (4.18) at every interior vertex.
-        let (mesh, dual, u) = setting();
+        let (mesh, edges, u) = setting();
+        let dual = DualMesh::new(&mesh, &edges);
         let flux = Flux::reconstruct(&mesh, &dual, &u, 1.5);
         let k = Stiffness::assemble(&mesh);
         let total = flux.over_dual_cells(&mesh, &dual);

@@ -73,12 +73,12 @@ impl Errors {
         let mesh = &problem.mesh;
         let (l2_u1, h1_u1) = p1_errors(mesh, &solution.u1, &exact.u1, exact.grad_u1.as_ref());
         let (l2_u2, h1_u2) = p1_errors(mesh, &solution.u2, &exact.u2, exact.grad_u2.as_ref());
-        let lambda_h = action.on_dual_cells(dual);
-        let l2_lambda: f64 = in_two_halves(dual.triangles.len(), |range| {
+        let lambda_h = |s: usize| action.lambda[dual.owner(s)];
+        let l2_lambda: f64 = in_two_halves(dual.n_cells(), |range| {
             let mut sum = 0.0;
-            let corners = |t: usize| dual.triangles[t].map(|v| dual.points[v]);
-            ERROR_QUADRATURE.visit(corners, range, [&exact.lambda], |t, points, [lambda]| {
-                let l = lambda_h[t];
+            let corners = |s: usize| dual.corners(s);
+            ERROR_QUADRATURE.visit(corners, range, [&exact.lambda], |s, points, [lambda]| {
+                let l = lambda_h(s);
                 sum += points
                     .iter()
                     .zip(lambda)
@@ -99,7 +99,7 @@ impl Errors {
             h1_u2,
             energy,
             l2_lambda: l2_lambda.sqrt(),
-            hminus1_lambda: hminus1.then(|| hminus1_lambda(dual, &lambda_h, &exact.lambda)),
+            hminus1_lambda: hminus1.then(|| hminus1_lambda(dual, &action.lambda, &exact.lambda)),
         }
     }
 }
@@ -179,12 +179,13 @@ fn p1_error_sums(
 /// ‖λ − λ_h‖_H⁻¹(ω), approximated by the dual norm over P1 functions on the dual submesh S_h
 /// (mesh size about h/2): sup_{v ∈ P1_0(S_h)} (λ − λ_h, v)/|v|_H¹ = |z|_H¹ with z ∈ P1_0(S_h),
 /// (∇z, ∇v) = (λ − λ_h, v). A lower bound of the true norm that converges to it; λ_h is constant on
-/// each sub-triangle (`lambda_h` by cell of S_h), so the integrals are exact up to the quadrature of
-/// λ.
+/// each sub-triangle (`lambda_h` by vertex: λ_a on D_a), so the integrals are exact up to the
+/// quadrature of λ. S_h is built as a mesh here (this norm is optional and costs a solve on it).
 pub fn hminus1_lambda(dual: &DualMesh, lambda_h: &[f64], lambda: &Expr) -> f64 {
-    let sub = Mesh::new(dual.points.clone(), dual.triangles.clone())
-        .expect("the dual submesh of a valid mesh is valid");
-    dual_norm(&sub, lambda, |t| lambda_h[t])
+    let points = (0..dual.n_points()).map(|p| dual.point(p)).collect();
+    let cells = (0..dual.n_cells()).map(|s| dual.cell(s)).collect();
+    let sub = Mesh::new(points, cells).expect("the dual submesh of a valid mesh is valid");
+    dual_norm(&sub, lambda, |s| lambda_h[dual.owner(s)])
 }
 
 /// sup over v ∈ P1_0(mesh) of (r, v)/|v|_H¹ for r = f − c_t on each triangle t.

@@ -7,16 +7,25 @@
 //!   (float data with `Precision="8"`).
 //!
 //! Each quantity describes itself ([`Describe`]); a result writes what its parts describe.
+//!
+//! The writer streams: grids and fields go to their datasets a million rows at a time, S_h is
+//! computed as it is written, and a field constant on the dual cells is given per vertex
+//! ([`Values::PerVertex`]), so writing costs no copy of a grid or a field.
 
 use crate::mesh::{DualMesh, Mesh};
 use hdf5::types::VarLenUnicode;
-use ndarray::{Array2, ArrayView1};
+use hdf5::H5Type;
+use ndarray::{ArrayView1, ArrayView2};
 use std::borrow::Cow;
 use std::fmt::Write as _;
+use std::ops::Range;
 use std::path::Path;
 
 /// The HDF5 file of a result directory.
 pub const SOLUTION_H5: &str = "solution.h5";
+
+/// Rows written to a dataset at a time (a few MB of buffer).
+const CHUNK_ROWS: usize = 1 << 20;
 
 /// Where a field lives.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -37,7 +46,17 @@ pub struct Field<'a> {
     /// Where it lives.
     pub place: Place,
     /// Its values.
-    pub values: Cow<'a, [f64]>,
+    pub values: Values<'a>,
+}
+
+/// The values of a field.
+#[derive(Debug, Clone)]
+pub enum Values<'a> {
+    /// One per item of the field's place.
+    Items(Cow<'a, [f64]>),
+    /// One value v_a per vertex a of T_h, for the field Σ_a v_a χ_{D_a} on the cells of S_h
+    /// (`Place::DualCells`), constant on each dual cell D_a: the writer expands it as it writes.
+    PerVertex(Cow<'a, [f64]>),
 }
 
 impl<'a> Field<'a> {
@@ -46,7 +65,7 @@ impl<'a> Field<'a> {
         Field {
             name,
             place,
-            values: Cow::Borrowed(values),
+            values: Values::Items(Cow::Borrowed(values)),
         }
     }
 
@@ -55,7 +74,17 @@ impl<'a> Field<'a> {
         Field {
             name,
             place,
-            values: Cow::Owned(values),
+            values: Values::Items(Cow::Owned(values)),
+        }
+    }
+
+    /// The field Σ_a v_a χ_{D_a} of S_h, constant on each dual cell D_a, by its values v_a at the
+    /// vertices of T_h.
+    pub fn on_dual_cells(name: &'static str, per_vertex: impl Into<Cow<'a, [f64]>>) -> Self {
+        Field {
+            name,
+            place: Place::DualCells,
+            values: Values::PerVertex(per_vertex.into()),
         }
     }
 }
@@ -108,26 +137,36 @@ pub fn write(
     fields: &[Field],
     attrs: &[Attribute],
 ) -> Result<(), String> {
+    write_in_chunks(dir, mesh, dual, fields, attrs, CHUNK_ROWS)
+}
+
+/// [`write()`], `chunk` rows at a time.
+fn write_in_chunks(
+    dir: &Path,
+    mesh: &Mesh,
+    dual: &DualMesh,
+    fields: &[Field],
+    attrs: &[Attribute],
+    chunk: usize,
+) -> Result<(), String> {
     let grids = [
         Grid {
             name: "mesh",
             xdmf: "solution.xdmf",
-            points: &mesh.points,
-            triangles: &mesh.triangles,
+            triangulation: Triangulation::Mesh(mesh),
             places: &[Place::Vertices, Place::Cells],
         },
         Grid {
             name: "dual",
             xdmf: "dual.xdmf",
-            points: &dual.points,
-            triangles: &dual.triangles,
+            triangulation: Triangulation::Dual(*dual),
             places: &[Place::DualCells],
         },
     ];
     check_space(dir, &grids, fields)?;
-    write_hdf5(&dir.join(SOLUTION_H5), &grids, fields, attrs).map_err(|e| no_space_hint(dir, e))?;
+    write_hdf5(&dir.join(SOLUTION_H5), &grids, fields, attrs, chunk).map_err(|e| no_space_hint(dir, e))?;
     for g in &grids {
-        let text = xdmf(g, fields.iter().filter(|f| g.places.contains(&f.place)));
+        let text = xdmf(g, g.fields(fields));
         std::fs::write(dir.join(g.xdmf), text).map_err(|e| format!("{}: {e}", g.xdmf))?;
     }
     Ok(())
@@ -137,29 +176,100 @@ pub fn write(
 struct Grid<'a> {
     name: &'static str,
     xdmf: &'static str,
-    points: &'a [[f64; 2]],
-    triangles: &'a [[usize; 3]],
+    triangulation: Triangulation<'a>,
     /// Where the fields of this grid live.
     places: &'static [Place],
 }
 
+/// The triangles of a grid: T_h as stored, or S_h computed as it is written.
+#[derive(Clone, Copy)]
+enum Triangulation<'a> {
+    Mesh(&'a Mesh),
+    Dual(DualMesh<'a>),
+}
+
 impl Grid<'_> {
+    fn n_points(&self) -> usize {
+        match self.triangulation {
+            Triangulation::Mesh(m) => m.n_vertices(),
+            Triangulation::Dual(d) => d.n_points(),
+        }
+    }
+
+    fn n_cells(&self) -> usize {
+        match self.triangulation {
+            Triangulation::Mesh(m) => m.triangles.len(),
+            Triangulation::Dual(d) => d.n_cells(),
+        }
+    }
+
     /// Values per field at `place`, and XDMF's name for it.
     fn layout(&self, place: Place) -> (usize, &'static str) {
         match place {
-            Place::Vertices => (self.points.len(), "Node"),
-            Place::Cells | Place::DualCells => (self.triangles.len(), "Cell"),
+            Place::Vertices => (self.n_points(), "Node"),
+            Place::Cells | Place::DualCells => (self.n_cells(), "Cell"),
+        }
+    }
+
+    /// The fields of `fields` that live on this grid.
+    fn fields<'f>(&self, fields: &'f [Field<'f>]) -> impl Iterator<Item = &'f Field<'f>> + use<'f, '_> {
+        fields.iter().filter(|f| self.places.contains(&f.place))
+    }
+
+    /// The coordinates of the points `rows`, appended row by row to `out`.
+    fn geometry(&self, rows: Range<usize>, out: &mut Vec<f64>) {
+        match self.triangulation {
+            Triangulation::Mesh(m) => out.extend(m.points[rows].iter().flatten()),
+            Triangulation::Dual(d) => out.extend(rows.flat_map(|p| d.point(p))),
+        }
+    }
+
+    /// The points of the cells `rows`, appended row by row to `out` (32-bit: [`write_hdf5`] checks
+    /// that they fit).
+    fn topology(&self, rows: Range<usize>, out: &mut Vec<i32>) {
+        match self.triangulation {
+            Triangulation::Mesh(m) => out.extend(m.triangles[rows].iter().flatten().map(|&v| v as i32)),
+            Triangulation::Dual(d) => out.extend(rows.flat_map(|s| d.cell(s)).map(|v| v as i32)),
+        }
+    }
+
+    /// The values of `f` on the items `rows`, appended to `out`.
+    fn values(&self, f: &Field, rows: Range<usize>, out: &mut Vec<f64>) {
+        match (&f.values, self.triangulation) {
+            (Values::Items(v), _) => out.extend_from_slice(&v[rows]),
+            (Values::PerVertex(v), Triangulation::Dual(d)) => out.extend(rows.map(|s| v[d.owner(s)])),
+            (Values::PerVertex(_), Triangulation::Mesh(_)) => {
+                panic!("field {}: values per vertex describe a field of S_h", f.name)
+            }
+        }
+    }
+
+    /// How many values `f` holds when it is whole: one per item, or one per vertex of T_h.
+    fn stored_len(&self, f: &Field) -> usize {
+        match (&f.values, self.triangulation) {
+            (Values::PerVertex(_), Triangulation::Dual(d)) => d.mesh().n_vertices(),
+            _ => self.layout(f.place).0,
+        }
+    }
+}
+
+impl Values<'_> {
+    /// The number of values held.
+    fn len(&self) -> usize {
+        match self {
+            Values::Items(v) | Values::PerVertex(v) => v.len(),
         }
     }
 }
 
 /// Fails early, naming both sizes, when the result would not fit on its device.
 fn check_space(dir: &Path, grids: &[Grid], fields: &[Field]) -> Result<(), String> {
-    let bytes: usize = grids
-        .iter()
-        .map(|g| 16 * g.points.len() + 12 * g.triangles.len())
-        .sum::<usize>()
-        + fields.iter().map(|f| 8 * f.values.len()).sum::<usize>();
+    let bytes: usize = (grids.iter())
+        .map(|g| {
+            let data: usize = g.fields(fields).map(|f| 8 * g.layout(f.place).0).sum();
+            16 * g.n_points() + 12 * g.n_cells() + data
+        })
+        .sum();
     match free_bytes(dir) {
         Some(free) if (bytes as f64) * 1.05 > free as f64 => Err(format!(
             "the result needs about {:.1} MB, but only {:.1} MB are free on its device",
@@ -187,39 +297,54 @@ fn no_space_hint(dir: &Path, e: String) -> String {
     }
 }
 
-fn write_hdf5(path: &Path, grids: &[Grid], fields: &[Field], attrs: &[Attribute]) -> Result<(), String> {
+/// Writes the grids, their fields and the attributes to the HDF5 file `path`, `chunk` rows at a
+/// time.
+fn write_hdf5(
+    path: &Path,
+    grids: &[Grid],
+    fields: &[Field],
+    attrs: &[Attribute],
+    chunk: usize,
+) -> Result<(), String> {
     let named = |e: hdf5::Error| format!("{SOLUTION_H5}: cannot write HDF5: {e}");
     let file = hdf5::File::create(path).map_err(named)?;
     for grid in grids {
         let group = file.create_group(grid.name).map_err(named)?;
-        let points = Array2::from_shape_fn((grid.points.len(), 2), |(i, k)| grid.points[i][k]);
         // 32-bit vertex indices (XDMF `Int`, `Precision="4"`): the memory guard stops meshes
         // long before 2³¹ vertices.
-        if i32::try_from(grid.points.len()).is_err() {
+        if i32::try_from(grid.n_points()).is_err() {
             return Err(format!("{SOLUTION_H5}: more than 2³¹ vertices"));
         }
-        let cells = Array2::from_shape_fn((grid.triangles.len(), 3), |(i, k)| grid.triangles[i][k] as i32);
-        group
-            .new_dataset_builder()
-            .with_data(&points)
-            .create("geometry")
+        let geometry = Dataset {
+            name: "geometry",
+            rows: grid.n_points(),
+            columns: 2,
+        };
+        geometry
+            .write(&group, chunk, |rows, out| grid.geometry(rows, out))
             .map_err(named)?;
-        group
-            .new_dataset_builder()
-            .with_data(&cells)
-            .create("topology")
+        let topology = Dataset {
+            name: "topology",
+            rows: grid.n_cells(),
+            columns: 3,
+        };
+        topology
+            .write(&group, chunk, |rows, out| grid.topology(rows, out))
             .map_err(named)?;
-        for f in fields.iter().filter(|f| grid.places.contains(&f.place)) {
+        for f in grid.fields(fields) {
             assert_eq!(
                 f.values.len(),
-                grid.layout(f.place).0,
+                grid.stored_len(f),
                 "field {} has one value per item",
                 f.name
             );
-            group
-                .new_dataset_builder()
-                .with_data(ArrayView1::from(&f.values[..]))
-                .create(f.name)
+            let values = Dataset {
+                name: f.name,
+                rows: grid.layout(f.place).0,
+                columns: 1,
+            };
+            values
+                .write(&group, chunk, |rows, out| grid.values(f, rows, out))
                 .map_err(named)?;
         }
     }
@@ -250,6 +375,45 @@ fn write_hdf5(path: &Path, grids: &[Grid], fields: &[Field], attrs: &[Attribute]
     file.close().map_err(named)
 }
 
+/// A dataset of `rows` rows of `columns` values (one column: a 1-D dataset).
+struct Dataset {
+    name: &'static str,
+    rows: usize,
+    columns: usize,
+}
+
+impl Dataset {
+    /// Creates the dataset in `group` with its full shape and writes it `chunk` rows at a time,
+    /// `fill(rows, out)` appending the values of `rows` to `out`.
+    fn write<T: H5Type>(
+        &self,
+        group: &hdf5::Group,
+        chunk: usize,
+        mut fill: impl FnMut(Range<usize>, &mut Vec<T>),
+    ) -> hdf5::Result<()> {
+        let builder = group.new_dataset::<T>();
+        let dataset = match self.columns {
+            1 => builder.shape(self.rows),
+            c => builder.shape((self.rows, c)),
+        }
+        .create(self.name)?;
+        let mut buffer = Vec::with_capacity(chunk.min(self.rows) * self.columns);
+        for start in (0..self.rows).step_by(chunk) {
+            let rows = start..self.rows.min(start + chunk);
+            buffer.clear();
+            fill(rows.clone(), &mut buffer);
+            match self.columns {
+                1 => dataset.write_slice(ArrayView1::from(&buffer[..]), rows),
+                c => {
+                    let view = ArrayView2::from_shape((rows.len(), c), &buffer).expect("whole rows");
+                    dataset.write_slice(view, (rows, ..))
+                }
+            }?;
+        }
+        Ok(())
+    }
+}
+
 /// The XDMF description of a grid and its fields; the heavy data are in `solution.h5` beside it.
 fn xdmf<'a>(g: &Grid, fields: impl Iterator<Item = &'a Field<'a>>) -> String {
     let grid = grid_element(g, fields, SOLUTION_H5, "");
@@ -263,7 +427,7 @@ fn grid_element<'a>(g: &Grid, fields: impl Iterator<Item = &'a Field<'a>>, h5: &
         let precision = if number == "Int" { 4 } else { 8 };
         format!("<DataItem Dimensions=\"{dims}\" NumberType=\"{number}\" Precision=\"{precision}\" Format=\"HDF\">{h5}:{path}</DataItem>")
     };
-    let (np, nc) = (g.points.len(), g.triangles.len());
+    let (np, nc) = (g.n_points(), g.n_cells());
     let mut s = format!("    <Grid Name=\"{}\" GridType=\"Uniform\">\n{time}", g.name);
     let _ = writeln!(
         s,
@@ -294,13 +458,11 @@ pub fn step_grid(dir: &str, time: f64, mesh: &Mesh, fields: &[Field]) -> String 
     let g = Grid {
         name: "mesh",
         xdmf: "",
-        points: &mesh.points,
-        triangles: &mesh.triangles,
+        triangulation: Triangulation::Mesh(mesh),
         places: &[Place::Vertices, Place::Cells],
     };
     let time = format!("      <Time Value=\"{time}\"/>\n");
-    let fields = fields.iter().filter(|f| g.places.contains(&f.place));
-    grid_element(&g, fields, &format!("{dir}/{SOLUTION_H5}"), &time)
+    grid_element(&g, g.fields(fields), &format!("{dir}/{SOLUTION_H5}"), &time)
 }
 
 /// Writes the XDMF time series of the `grids` of [`step_grid`] to `path`: ParaView opens the
@@ -314,4 +476,62 @@ pub fn time_series(path: &Path, grids: &[String]) -> Result<(), String> {
     }
     s += "  </Grid>\n  </Domain>\n</Xdmf>\n";
     std::fs::write(path, s).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{Diagonal, Edges};
+
+    #[test]
+    fn a_result_written_a_few_rows_at_a_time_holds_the_values_in_memory() {
+        let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 3, 4, Diagonal::Crossed).unwrap();
+        let edges = Edges::new(&mesh);
+        let dual = DualMesh::new(&mesh, &edges);
+        let u: Vec<f64> = (0..mesh.n_vertices()).map(|a| (a as f64).sin()).collect();
+        let on_cells: Vec<f64> = (0..mesh.triangles.len()).map(|t| t as f64 / 7.0).collect();
+        let on_dual: Vec<f64> = (0..dual.n_cells()).map(|s| s as f64 / 3.0).collect();
+        let fields = [
+            Field::new("u", Place::Vertices, &u),
+            Field::owned("k", Place::Cells, on_cells.clone()),
+            Field::on_dual_cells("u_dual", &u[..]),
+            Field::new("s", Place::DualCells, &on_dual),
+        ];
+        let chunk = 5;
+        assert!([u.len(), on_cells.len(), dual.n_points()]
+            .iter()
+            .all(|n| n % chunk != 0 && *n > chunk));
+        let dir = tempfile::tempdir().unwrap();
+        write_in_chunks(dir.path(), &mesh, &dual, &fields, &[], chunk).unwrap();
+        let file = hdf5::File::open(dir.path().join(SOLUTION_H5)).unwrap();
+        let read = |path: &str, shape: &[usize]| {
+            let d = file.dataset(path).unwrap();
+            assert_eq!(d.shape(), shape, "{path}");
+            d
+        };
+        let f64s = |path: &str, shape: &[usize]| {
+            let d = read(path, shape);
+            assert!(d.dtype().unwrap().is::<f64>(), "{path}");
+            d.read_raw::<f64>().unwrap()
+        };
+        let i32s = |path: &str, shape: &[usize]| {
+            let d = read(path, shape);
+            assert!(d.dtype().unwrap().is::<i32>(), "{path}");
+            d.read_raw::<i32>().unwrap()
+        };
+        let (n, nt) = (mesh.n_vertices(), mesh.triangles.len());
+        let (np, ns) = (dual.n_points(), dual.n_cells());
+        let flat = |v: &[[usize; 3]]| v.iter().flatten().map(|&i| i as i32).collect::<Vec<_>>();
+        assert_eq!(f64s("mesh/geometry", &[n, 2]), mesh.points.concat());
+        assert_eq!(i32s("mesh/topology", &[nt, 3]), flat(&mesh.triangles));
+        let points: Vec<[f64; 2]> = (0..np).map(|p| dual.point(p)).collect();
+        let cells: Vec<[usize; 3]> = (0..ns).map(|s| dual.cell(s)).collect();
+        assert_eq!(f64s("dual/geometry", &[np, 2]), points.concat());
+        assert_eq!(i32s("dual/topology", &[ns, 3]), flat(&cells));
+        assert_eq!(f64s("mesh/u", &[n]), u);
+        assert_eq!(f64s("mesh/k", &[nt]), on_cells);
+        let expanded: Vec<f64> = (0..ns).map(|s| u[dual.owner(s)]).collect();
+        assert_eq!(f64s("dual/u_dual", &[ns]), expanded);
+        assert_eq!(f64s("dual/s", &[ns]), on_dual);
+    }
 }

@@ -8,10 +8,10 @@ use crate::case::{Case, CaseError};
 use crate::contact::{self, LinearSolver, Solution, SolveError, Start};
 use crate::estimator::Estimate;
 use crate::flux::Fluxes;
-use crate::mesh::{DualMesh, Mesh};
+use crate::mesh::{DualMesh, Edges, Mesh};
 use crate::norms::Errors;
 use crate::problem::DiscreteProblem;
-use crate::result::{self, Attribute, Describe, Field, Place};
+use crate::result::{self, Attribute, Describe, Field};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -39,8 +39,8 @@ pub struct Run<'c> {
     pub solution: Solution,
     /// λ_h (4.5) with its checks.
     pub action: Action,
-    /// S_h, on which λ_h and t_ih live.
-    pub dual: DualMesh,
+    /// The edge numbering of T_h, which with T_h is S_h ([`Run::dual`]).
+    pub edges: Edges,
     /// Errors against the exact solution, when the case has one.
     pub errors: Option<Errors>,
     /// t_1h, t_2h, when asked for.
@@ -98,7 +98,8 @@ pub fn on_mesh<'c>(
     clock.lap();
     let action = Action::compute(&problem, &solution);
     action.checks.verify()?;
-    let dual = DualMesh::new(&problem.mesh);
+    let edges = Edges::new(&problem.mesh);
+    let dual = DualMesh::new(&problem.mesh, &edges);
     let errors = (case.exact.as_ref())
         .map(|exact| Errors::compute(&problem, &dual, &solution, &action, exact, options.hminus1));
     if errors.as_ref().is_some_and(|e| !e.all_finite()) {
@@ -126,7 +127,7 @@ pub fn on_mesh<'c>(
         problem,
         solution,
         action,
-        dual,
+        edges,
         errors,
         flux,
         estimate,
@@ -141,7 +142,7 @@ impl Run<'_> {
         result::write(
             staging.path(),
             &self.problem.mesh,
-            &self.dual,
+            &self.dual(),
             &self.fields(),
             &self.attributes(),
         )
@@ -222,6 +223,11 @@ impl Run<'_> {
 }
 
 impl Run<'_> {
+    /// S_h, on which λ_h and t_ih live.
+    pub fn dual(&self) -> DualMesh<'_> {
+        DualMesh::new(&self.problem.mesh, &self.edges)
+    }
+
     /// η / |||u − u_h|||, when both are known.
     pub fn effectivity(&self) -> Option<f64> {
         let error = self.errors.as_ref()?.energy?;
@@ -231,20 +237,19 @@ impl Run<'_> {
 
 impl Describe for Run<'_> {
     fn fields(&self) -> Vec<Field<'_>> {
-        let owner = self.dual.owner.iter().map(|&a| a as f64).collect();
         let mut fields = self.solution.fields();
         fields.extend(self.action.fields());
-        fields.push(Field::owned(
-            "lambda",
-            Place::DualCells,
-            self.action.on_dual_cells(&self.dual),
-        ));
-        fields.push(Field::owned("vertex", Place::DualCells, owner));
+        // λ_h = Σ_a λ_a χ_{D_a} (0 on the cells of boundary vertices), and the a of each D_a.
+        let vertices = (0..self.problem.mesh.n_vertices())
+            .map(|a| a as f64)
+            .collect::<Vec<_>>();
+        fields.push(Field::on_dual_cells("lambda", &self.action.lambda[..]));
+        fields.push(Field::on_dual_cells("vertex", vertices));
         if let Some(exact) = &self.case.exact {
             fields.extend(exact.fields(&self.problem.mesh));
         }
         if let Some(flux) = &self.flux {
-            fields.extend(flux.fields(&self.dual));
+            fields.extend(flux.fields(&self.dual()));
         }
         fields.extend(self.estimate.iter().flat_map(Describe::fields));
         fields

@@ -112,7 +112,7 @@ pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: [
     // fluxes (a cell belongs to the patches of its triangle's three vertices).
     let [mut tau, other] = in_two_halves(mesh.n_vertices(), |vertices| {
         let mut tau = [0, 1].map(|_| Flux {
-            edge_flux: vec![[0.0; 3]; dual.triangles.len()],
+            edge_flux: vec![[0.0; 3]; dual.n_cells()],
         });
         let mut work = Patch::default();
         for a in vertices {
@@ -196,7 +196,7 @@ impl Patch {
                 } else {
                     (tri[j], tri[(j + 2) % 3])
                 };
-                // The corners of cell c: [v, m_vw, g] or [v, g, m_wv] (DualMesh::new).
+                // The corners of cell c: [v, m_vw, g] or [v, g, m_wv] (DualMesh).
                 let vertex = (usize::from(v != a) * NONE, f64::from(u8::from(v == a)));
                 let mid = if v == a {
                     (midpoint_unknown(w), 0.5)
@@ -212,7 +212,7 @@ impl Patch {
                     [vertex, centroid, mid]
                 };
                 let index = 6 * t + c;
-                let corners = dual.triangles[index].map(|p| dual.points[p]);
+                let corners = dual.corners(index);
                 self.cells.push(Cell {
                     index,
                     triangle: t,

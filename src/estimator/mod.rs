@@ -179,8 +179,8 @@ fn quadrature_defects(problem: &DiscreteProblem, loads: &[CellLoads]) -> [Vec<f6
 /// threads.
 fn cell_loads(problem: &DiscreteProblem, dual: &DualMesh, alpha: f64) -> Vec<CellLoads> {
     let data = &problem.data;
-    let corners = |s: usize| dual.triangles[s].map(|p| dual.points[p]);
-    let parts = in_two_halves(dual.triangles.len(), |range| {
+    let corners = |s: usize| dual.corners(s);
+    let parts = in_two_halves(dual.n_cells(), |range| {
         let mut out = Vec::with_capacity(range.len());
         data.quadrature
             .visit(corners, range, [&data.f1, &data.f2], |s, points, [f1, f2]| {
@@ -260,7 +260,7 @@ fn triangle_terms(
                     .map(|i| [0, 1].map(|k| mu[i] * (0..3).map(|j| g[j][k] * u[i][tri[j]]).sum::<f64>()));
                 let mut terms = TriangleTerms::default();
                 for (s, cell_loads) in (6 * t..).zip(&loads[6 * t..6 * t + 6]) {
-                    let p = dual.triangles[s].map(|v| dual.points[v]);
+                    let p = dual.corners(s);
                     let area = 0.5 * crate::mesh::orient(p[0], p[1], p[2]);
                     let diameter = (0..3)
                         .map(|e| crate::mesh::dist(p[e], p[(e + 1) % 3]))
@@ -293,7 +293,7 @@ fn triangle_terms(
                         [0, 1].map(|k| alpha * a[k] - (1.0 - alpha) * b[k])
                     });
                     terms.lambda2 += (zeta + diameter / PI * cell_loads.oscillation[2].sqrt()).powi(2);
-                    let lambda_h = action.lambda[dual.owner[s]];
+                    let lambda_h = action.lambda[dual.owner(s)];
                     terms.contact += lambda_h * area * cell_mean(mesh, s, &solution.obstacle.gap);
                 }
                 terms

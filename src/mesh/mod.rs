@@ -15,7 +15,7 @@ pub mod transfer;
 
 pub use builtin::Diagonal;
 pub use domain::{Curves, Domain};
-pub use dual::DualMesh;
+pub use dual::{DualMesh, Edges};
 pub use transfer::Prolongation;
 
 use buckets::Buckets;
@@ -320,14 +320,14 @@ fn distinct_vertices(points: &[[f64; 2]]) -> Result<(), MeshError> {
     Ok(())
 }
 
-/// The boundary vertices and edges of a triangle set, and its number of components.
-type Edges = (Vec<bool>, Vec<(usize, usize)>, usize);
-
-/// Matches the edges: each is shared by one (boundary) or two (interior) triangles, traversed in
-/// opposite directions. Half-edges are grouped by their smaller vertex (a counting sort), then
-/// matched by the larger one. Returns the boundary vertices and edges, and the number of
-/// components of triangles joined by edges.
-fn match_edges(n: usize, triangles: &[[usize; 3]]) -> Result<Edges, MeshError> {
+/// The half-edges of `triangles` grouped by their smaller vertex, in O(n) (a counting sort): group
+/// a is `items[start[a]..start[a + 1]]`, with `item(t, b)` for each edge (a, b), a < b, of each
+/// triangle t, in the order of the triangles.
+fn by_smaller_vertex<T: Copy + Default>(
+    n: usize,
+    triangles: &[[usize; 3]],
+    item: impl Fn(usize, usize) -> T,
+) -> (Vec<usize>, Vec<T>) {
     let mut start = vec![0usize; n + 1];
     for tri in triangles {
         for k in 0..3 {
@@ -338,14 +338,26 @@ fn match_edges(n: usize, triangles: &[[usize; 3]]) -> Result<Edges, MeshError> {
         start[a + 1] += start[a];
     }
     let mut fill = start.clone();
-    let mut half = vec![(0usize, 0usize); 3 * triangles.len()];
+    let mut items = vec![T::default(); 3 * triangles.len()];
     for (t, tri) in triangles.iter().enumerate() {
         for k in 0..3 {
             let (a, b) = (tri[k], tri[(k + 1) % 3]);
-            half[fill[a.min(b)]] = (a.max(b), t);
+            items[fill[a.min(b)]] = item(t, a.max(b));
             fill[a.min(b)] += 1;
         }
     }
+    (start, items)
+}
+
+/// The boundary vertices and edges of a triangle set, and its number of components.
+type EdgeMatch = (Vec<bool>, Vec<(usize, usize)>, usize);
+
+/// Matches the edges: each is shared by one (boundary) or two (interior) triangles, traversed in
+/// opposite directions. Half-edges are grouped by their smaller vertex (a counting sort), then
+/// matched by the larger one. Returns the boundary vertices and edges, and the number of
+/// components of triangles joined by edges.
+fn match_edges(n: usize, triangles: &[[usize; 3]]) -> Result<EdgeMatch, MeshError> {
+    let (start, mut half) = by_smaller_vertex(n, triangles, |t, b| (b, t));
     let mut on_boundary = vec![false; n];
     let mut boundary_edges = Vec::new();
     let mut parent: Vec<usize> = (0..triangles.len()).collect();
