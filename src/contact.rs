@@ -289,17 +289,18 @@ pub fn solve(
     let v_job = || {
         let (system, hierarchy, _) = shared.get_or_init(analyse);
         // v: (μ1+μ2) K v = F1 + F2 inside, v = μ1 g_h/(μ1+μ2) on ∂ω.
-        let bc: Vec<f64> = problem.g_h.iter().map(|g| mu1 * g / (mu1 + mu2)).collect();
+        let bc = |a: usize| mu1 * problem.g_h[a] / (mu1 + mu2);
         let load = |a: usize| problem.load1[a] + problem.load2[a];
-        let rhs = system.lifted_rhs(&problem.stiffness, load, mu1 + mu2, &bc);
+        let rhs = system.lifted_rhs(&problem.stiffness, load, mu1 + mu2, bc);
         let mut stats = SolverStats::default();
         let multigrid = hierarchy.as_ref().map(|h| (h, CG_TOLERANCE));
         let mut solver = Inner::new(system, multigrid, None);
         let x = {
             let _turn = take_turn(turn);
             solver.prepare(&vec![false; system.n()], &mut stats)?;
-            solver.solve(&rhs, &mut stats)?
+            solver.solve(rhs, &mut stats)?
         };
+        let bc: Vec<f64> = (0..problem.g_h.len()).map(bc).collect();
         Ok::<_, SolveError>((system.scatter(&x, &bc), stats))
     };
     let w_job = || {
@@ -337,8 +338,11 @@ pub fn solve(
         Ok::<_, SolveError>(w)
     };
     // With one core the two run one after the other: time-sliced, they share its cache (at 1024²
-    // cells on one core, 7.3–8.7 s side by side against 6.2 s in turn).
-    let (v, obstacle) = if std::thread::available_parallelism().is_ok_and(|n| n.get() > 1) {
+    // cells on one core, 7.3–8.7 s side by side against 6.2 s in turn). With multigrid on a mesh
+    // above OVERLAP_LIMIT vertices too: memory, not time, is then the limit.
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let large = multigrid && problem.mesh.n_vertices() > OVERLAP_LIMIT;
+    let (v, obstacle) = if cores > 1 && !large {
         std::thread::scope(|scope| {
             let v = scope.spawn(v_job);
             let w = w_job();
@@ -412,16 +416,21 @@ fn nested_guess(
     options: SolverOptions,
 ) -> Result<NestedGuess, SolveError> {
     let multigrid = options.linear == LinearSolver::Multigrid;
-    let mut levels: Vec<DiscreteProblem> = Vec::new();
+    // The loads of each level restricted from the one above; each level's problem is assembled
+    // when it is solved and dropped once solved.
+    let mut levels: Vec<(Mesh, [Vec<f64>; 2])> = Vec::new();
     for (mesh, p) in coarser.into_iter().zip(prolongations) {
-        let finer = levels.last().unwrap_or(problem);
-        let coarse = finer.coarsened(mesh, p).map_err(SolveError::CoarseData)?;
-        levels.push(coarse);
+        let [f1, f2] = levels
+            .last()
+            .map_or([&problem.load1, &problem.load2], |(_, [f1, f2])| [f1, f2]);
+        let loads = [p.restrict(f1), p.restrict(f2)];
+        levels.push((mesh, loads));
     }
     let (mut guess, mut iterations, mut cg) = (None, Vec::new(), Vec::new());
-    // Each level is dropped once solved.
-    while let Some(level) = levels.pop() {
+    while let Some((mesh, loads)) = levels.pop() {
         let k = levels.len();
+        let level = DiscreteProblem::with_restricted_loads(mesh, &problem.data, loads)
+            .map_err(SolveError::CoarseData)?;
         let below = multigrid.then(|| &prolongations[k + 1..]);
         let (system, hierarchy) = analysed(&level, below);
         let multigrid = hierarchy.as_ref().map(|h| (h, NESTED_CG_TOLERANCE));
@@ -564,7 +573,7 @@ impl<'p> WProblem<'p> {
 
     /// The right-hand side of `system` with the values `bc` off its unknowns.
     fn rhs(&self, system: &InteriorSystem, bc: &[f64]) -> Vec<f64> {
-        system.lifted_rhs(&self.problem.stiffness, |a| self.load(a), self.mu_star, bc)
+        system.lifted_rhs(&self.problem.stiffness, |a| self.load(a), self.mu_star, |b| bc[b])
     }
 
     fn step(
@@ -575,7 +584,7 @@ impl<'p> WProblem<'p> {
         bc: &[f64],
         stats: &mut SolverStats,
     ) -> Result<Step, SolveError> {
-        let w_int = solver.solve(rhs, stats)?;
+        let w_int = solver.solve(rhs.to_vec(), stats)?;
         let w = system.scatter(&w_int, bc);
         let k = &self.problem.stiffness;
         let residual: Vec<f64> = (system.vertices.iter())
@@ -740,8 +749,8 @@ impl<'s> Inner<'s> {
         }
     }
 
-    /// K_FF x = b, x = 0 on the held unknowns.
-    fn solve(&mut self, b: &[f64], stats: &mut SolverStats) -> Result<Vec<f64>, SolveError> {
+    /// K_FF x = b, x = 0 on the held unknowns (b taken, so that it is not kept beside CG's vectors).
+    fn solve(&mut self, b: Vec<f64>, stats: &mut SolverStats) -> Result<Vec<f64>, SolveError> {
         match self {
             Inner::Direct(factor) => Ok(solve_with(factor, b, stats)),
             Inner::Multigrid {
@@ -753,7 +762,9 @@ impl<'s> Inner<'s> {
             } => {
                 let t = Instant::now();
                 let cycle = cycle.as_mut().expect("prepared before solving");
-                let iterations = (cycle.solve(system.extended(b), x, *tolerance, CG_MAX_ITERATIONS))
+                let extended = system.extended(&b);
+                drop(b);
+                let iterations = (cycle.solve(extended, x, *tolerance, CG_MAX_ITERATIONS))
                     .map_err(SolveError::NotConverged)?;
                 stats.cg_iterations.push(iterations);
                 stats.solve_seconds += t.elapsed().as_secs_f64();
@@ -777,6 +788,11 @@ const CG_TOLERANCE: f64 = 1e-13;
 /// The coarser levels of nested iteration give a guess only: their CG stops at this tolerance
 /// (their discretisation error is larger still).
 const NESTED_CG_TOLERANCE: f64 = 1e-8;
+/// Above this many vertices the multigrid v solve runs before the coarser levels of nested
+/// iteration rather than beside them: the coarser levels' problems and the v solve's vectors are
+/// then never in memory at once (about 70 bytes per vertex less at the peak, about a fifth more
+/// time; README).
+const OVERLAP_LIMIT: usize = 1 << 22;
 /// CG iterations before giving up (a V-cycle preconditioner needs about 10).
 const CG_MAX_ITERATIONS: usize = 200;
 
@@ -803,9 +819,9 @@ fn factorize(factor: &mut Factorization, held: &[bool], stats: &mut SolverStats)
 }
 
 /// Solves with the factorization's held unknowns fixed at 0.
-fn solve_with(factor: &mut Factorization, b: &[f64], stats: &mut SolverStats) -> Vec<f64> {
+fn solve_with(factor: &mut Factorization, b: Vec<f64>, stats: &mut SolverStats) -> Vec<f64> {
     let t = Instant::now();
-    let mut x = b.to_vec();
+    let mut x = b;
     factor.solve(&mut x);
     stats.solve_seconds += t.elapsed().as_secs_f64();
     x

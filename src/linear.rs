@@ -118,12 +118,18 @@ impl InteriorSystem {
 
     /// The right-hand side of the Dirichlet problem scale·K u = load inside, u = bc off the
     /// unknowns: load_a/scale − Σ_{b fixed} K_ab bc_b at each unknown a (the lift of bc).
-    pub fn lifted_rhs(&self, k: &Stiffness, load: impl Fn(usize) -> f64, scale: f64, bc: &[f64]) -> Vec<f64> {
+    pub fn lifted_rhs(
+        &self,
+        k: &Stiffness,
+        load: impl Fn(usize) -> f64,
+        scale: f64,
+        bc: impl Fn(usize) -> f64,
+    ) -> Vec<f64> {
         (self.vertices.iter())
             .map(|&a| {
                 let lift: f64 = (k.row(a))
                     .filter(|(b, _)| self.unknown[*b] == usize::MAX)
-                    .map(|(b, v)| v * bc[b])
+                    .map(|(b, v)| v * bc(b))
                     .sum();
                 load(a) / scale - lift
             })
@@ -268,7 +274,7 @@ pub fn dirichlet_solve(k: &Stiffness, fixed: &[bool], load: &[f64], scale: f64, 
     factor
         .factorize(&vec![false; system.n()])
         .expect("the stiffness matrix of a valid mesh is positive definite");
-    let mut x = system.lifted_rhs(k, |a| load[a], scale, bc);
+    let mut x = system.lifted_rhs(k, |a| load[a], scale, |b| bc[b]);
     factor.solve(&mut x);
     system.scatter(&x, bc)
 }

@@ -7,7 +7,7 @@
 
 use crate::assembly::{self, Quadrature, Stiffness};
 use crate::expr::Expr;
-use crate::mesh::{Mesh, Prolongation};
+use crate::mesh::Mesh;
 use std::fmt;
 
 /// The data of problem (1.1): tensions, loads and the boundary height of membrane 1.
@@ -131,13 +131,13 @@ impl DiscreteProblem {
         Ok(Self::with_loads(mesh, data, g_h, loads))
     }
 
-    /// The problem on a coarser mesh with the loads restricted from this one by Pᵀ: exactly its
-    /// own loads (with this mesh's quadrature) when the meshes are nested, and no quadrature to
-    /// evaluate. For the coarse levels of nested iteration, whose solutions are only guesses.
-    pub fn coarsened(&self, mesh: Mesh, p: &Prolongation) -> Result<Self, DataError> {
-        let g_h = boundary_values(&mesh, &self.data)?;
-        let loads = [p.restrict(&self.load1), p.restrict(&self.load2)];
-        Ok(Self::with_loads(mesh, &self.data, g_h, loads))
+    /// The problem on a coarser mesh with loads restricted from a finer one by Pᵀ (see
+    /// [`crate::mesh::Prolongation::restrict`]): exactly its own loads (with the finer mesh's quadrature) when
+    /// the meshes are nested, and no quadrature to evaluate. For the coarse levels of nested
+    /// iteration, whose solutions are only guesses.
+    pub fn with_restricted_loads(mesh: Mesh, data: &Data, loads: [Vec<f64>; 2]) -> Result<Self, DataError> {
+        let g_h = boundary_values(&mesh, data)?;
+        Ok(Self::with_loads(mesh, data, g_h, loads))
     }
 
     fn with_loads(mesh: Mesh, data: &Data, g_h: Vec<f64>, [load1, load2]: [Vec<f64>; 2]) -> Self {
