@@ -82,7 +82,7 @@ impl Csr {
         cols.binary_search(&(j as u32)).map_or(0.0, |p| vals[p])
     }
 
-    /// The diagonal entry a_ii of a square matrix made [`Csr::with_diagonal`].
+    /// The diagonal entry a_ii of a square operator (K, a coarse operator of multigrid).
     #[inline]
     pub fn diagonal(&self, i: usize) -> f64 {
         let d = self.diag[i] as usize;
