@@ -505,11 +505,13 @@ impl Case {
         }
     }
 
-    /// The memory guard's peak per vertex for this case's linear solver.
+    /// The memory guard's peak per vertex for the linear solver that will run: multigrid's when
+    /// asked for and the mesh has coarser levels (a file mesh has none unless refined).
     fn bytes_per_vertex(&self) -> f64 {
+        let unrefined_file = matches!(self.mesh, MeshSpec::File { .. }) && self.refine == 0;
         match self.solver.linear {
-            LinearSolver::Multigrid => mesh::MULTIGRID_BYTES_PER_VERTEX,
-            LinearSolver::Direct => mesh::DIRECT_BYTES_PER_VERTEX,
+            LinearSolver::Multigrid if !unrefined_file => mesh::MULTIGRID_BYTES_PER_VERTEX,
+            _ => mesh::DIRECT_BYTES_PER_VERTEX,
         }
     }
 
@@ -899,5 +901,29 @@ mod tests {
         assert!(err(&solver("3")).contains("linear"));
         let long = err(&base.replace("f1 = \"1\"", &format!("f1 = \"{}+\"", "x+".repeat(10_000))));
         assert!(long.len() < 300 && long.contains("20001 characters"), "{long}");
+    }
+
+    #[test]
+    fn the_memory_guard_prices_the_solver_that_will_run() {
+        let case = |mesh: &str, linear: &str| {
+            let text = format!(
+                "mu1 = 1.0\nmu2 = 1.0\nf1 = 0\nf2 = 0\ng = 0\n[mesh]\n{mesh}\n[solver]\nlinear = \"{linear}\"\n"
+            );
+            Case::parse(&text, "t", PathBuf::new())
+                .unwrap()
+                .bytes_per_vertex()
+        };
+        let (rectangle, file) = (
+            "kind = \"rectangle\"\nn = [4, 4]",
+            "kind = \"file\"\npath = \"m.msh\"",
+        );
+        assert_eq!(case(rectangle, "multigrid"), mesh::MULTIGRID_BYTES_PER_VERTEX);
+        assert_eq!(case(rectangle, "direct"), mesh::DIRECT_BYTES_PER_VERTEX);
+        // A file mesh has coarser levels only when refined; without them Cholesky solves it.
+        assert_eq!(
+            case(&format!("{file}\nrefine = 1"), "multigrid"),
+            mesh::MULTIGRID_BYTES_PER_VERTEX
+        );
+        assert_eq!(case(file, "multigrid"), mesh::DIRECT_BYTES_PER_VERTEX);
     }
 }

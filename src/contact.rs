@@ -16,7 +16,7 @@
 use crate::linear::{Factorization, InteriorSystem};
 use crate::mesh::{Mesh, Prolongation};
 use crate::multigrid::{Hierarchy, Multigrid, NotConverged};
-use crate::problem::{DataError, DiscreteProblem};
+use crate::problem::{boundary_values, DataError, DiscreteProblem};
 use crate::result::{Attr, Attribute, Describe, Field, Place};
 use std::fmt;
 use std::sync::{Mutex, MutexGuard, OnceLock};
@@ -141,7 +141,7 @@ pub struct SolverStats {
     /// Number of vertices entering or leaving the active set in each iteration.
     pub changes: Vec<usize>,
     /// Seconds in the ordering of K_II and the symbolic analyses of the K_FF patterns; with
-    /// multigrid, in the transfers between the levels and K_II.
+    /// multigrid, in the interpolations P between the levels.
     pub symbolic_seconds: f64,
     /// Symbolic analyses of K_FF patterns (a pattern serves while the held set moves little).
     pub analyses: usize,
@@ -242,7 +242,8 @@ impl Guess {
 /// the other (they share the symbolic analysis), then u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w.
 /// The guess of `start` is computed on the w thread, so that the coarser levels of nested
 /// iteration (on `coarser`, from fine to coarse; used by [`Start::Nested`] only) overlap the
-/// symbolic analysis and the v solve.
+/// symbolic analysis and the v solve. With one core, or with multigrid on a mesh above
+/// [`OVERLAP_LIMIT`] vertices, v is solved first and w after it.
 ///
 /// ```
 /// use membrane_contact::{case::Case, contact, problem::DiscreteProblem};
@@ -279,8 +280,9 @@ pub fn solve(
     let prolongations = multigrid.then(|| chain(&problem.mesh, &coarser));
     let transfer_seconds = clock.elapsed().as_secs_f64();
     let shared = OnceLock::new();
-    // The two solves on the final mesh take turns (see take_turn).
-    let turn = &Mutex::new(());
+    // Cholesky factorizations of the two solves on the final mesh take turns (see take_turn).
+    let turn = Mutex::new(());
+    let turn = (!multigrid).then_some(&turn);
     let analyse = || {
         let t = Instant::now();
         let (system, hierarchy) = analysed(problem, prolongations.as_deref());
@@ -296,7 +298,7 @@ pub fn solve(
         let multigrid = hierarchy.as_ref().map(|h| (h, CG_TOLERANCE));
         let mut solver = Inner::new(system, multigrid, None);
         let x = {
-            let _turn = take_turn(turn);
+            let _turn = turn.map(take_turn);
             solver.prepare(&vec![false; system.n()], &mut stats)?;
             solver.solve(rhs, &mut stats)?
         };
@@ -326,12 +328,7 @@ pub fn solve(
         let coarse_seconds = t.elapsed().as_secs_f64();
         let (system, hierarchy, _) = shared.get_or_init(analyse);
         let multigrid = hierarchy.as_ref().map(|h| (h, CG_TOLERANCE));
-        // With multigrid the whole w solve waits for the v solve (their vectors are never in
-        // memory at once); Cholesky factorizations take turns step by step.
-        let whole = hierarchy.is_some().then(|| take_turn(turn));
-        let steps = whole.is_none().then_some(turn);
-        let mut w = obstacle(problem, system, multigrid, guess, options, steps)?;
-        drop(whole);
+        let mut w = obstacle(problem, system, multigrid, guess, options, turn)?;
         w.stats.coarse_iterations = coarse_iterations;
         w.stats.coarse_cg_iterations = coarse_cg;
         w.stats.coarse_seconds = coarse_seconds;
@@ -416,22 +413,24 @@ fn nested_guess(
     options: SolverOptions,
 ) -> Result<NestedGuess, SolveError> {
     let multigrid = options.linear == LinearSolver::Multigrid;
-    // The loads of each level restricted from the one above; each level's problem is assembled
-    // when it is solved and dropped once solved.
-    let mut levels: Vec<(Mesh, [Vec<f64>; 2])> = Vec::new();
+    // The boundary values of each level (checked here, finest first) and its loads restricted
+    // from the one above; each level's problem is assembled when it is solved and dropped once
+    // solved.
+    let mut levels: Vec<(Mesh, Vec<f64>, [Vec<f64>; 2])> = Vec::new();
     for (mesh, p) in coarser.into_iter().zip(prolongations) {
+        let g_h = boundary_values(&mesh, &problem.data).map_err(SolveError::CoarseData)?;
         let [f1, f2] = levels
             .last()
-            .map_or([&problem.load1, &problem.load2], |(_, [f1, f2])| [f1, f2]);
+            .map_or([&problem.load1, &problem.load2], |(_, _, [f1, f2])| [f1, f2]);
         let loads = [p.restrict(f1), p.restrict(f2)];
-        levels.push((mesh, loads));
+        levels.push((mesh, g_h, loads));
     }
     let (mut guess, mut iterations, mut cg) = (None, Vec::new(), Vec::new());
-    while let Some((mesh, loads)) = levels.pop() {
+    while let Some((mesh, g_h, loads)) = levels.pop() {
         let k = levels.len();
-        let level = DiscreteProblem::with_restricted_loads(mesh, &problem.data, loads)
-            .map_err(SolveError::CoarseData)?;
-        let below = multigrid.then(|| &prolongations[k + 1..]);
+        let level = DiscreteProblem::with_loads(mesh, &problem.data, g_h, loads);
+        // The coarsest level has no levels below: Cholesky.
+        let below = (multigrid && k + 1 < prolongations.len()).then(|| &prolongations[k + 1..]);
         let (system, hierarchy) = analysed(&level, below);
         let multigrid = hierarchy.as_ref().map(|h| (h, NESTED_CG_TOLERANCE));
         let o = obstacle(&level, &system, multigrid, guess.take(), options, None)?;
@@ -788,19 +787,17 @@ const CG_TOLERANCE: f64 = 1e-13;
 /// The coarser levels of nested iteration give a guess only: their CG stops at this tolerance
 /// (their discretisation error is larger still).
 const NESTED_CG_TOLERANCE: f64 = 1e-8;
-/// Above this many vertices the multigrid v solve runs before the coarser levels of nested
-/// iteration rather than beside them: the coarser levels' problems and the v solve's vectors are
-/// then never in memory at once (about 70 bytes per vertex less at the peak, about a fifth more
-/// time; README).
+/// Above this many vertices the multigrid v solve runs before the w solve (the coarser levels of
+/// nested iteration included) rather than beside it: the vectors of the two and the coarser
+/// levels' problems are then never in memory at once (at 2048² cells 349 instead of 421 bytes
+/// per vertex at the peak, for a fifth more time; README).
 const OVERLAP_LIMIT: usize = 1 << 22;
 /// CG iterations before giving up (a V-cycle preconditioner needs about 10).
 const CG_MAX_ITERATIONS: usize = 200;
 
-/// The v and w solves on the final mesh take turns: two large sparse factorizations at once
-/// contend for memory bandwidth and were measured slower together than one after the other
-/// (at 1024² cells 3.3 s and 2.7 s side by side, 1.5 s and 1.2 s in turn); with multigrid, whose
-/// sweeps are bound by memory bandwidth too, taking turns also keeps the vectors of the two solves
-/// from being in memory at once (the v solve holds the turn throughout). The coarse levels of
+/// The v and w factorizations on the final mesh take turns: two large sparse factorizations at
+/// once contend for memory bandwidth and were measured slower together than one after the other
+/// (at 1024² cells 3.3 s and 2.7 s side by side, 1.5 s and 1.2 s in turn). The coarse levels of
 /// nested iteration run beside the v factorization.
 fn take_turn(turn: &Mutex<()>) -> MutexGuard<'_, ()> {
     turn.lock().unwrap_or_else(|e| e.into_inner())
@@ -933,8 +930,15 @@ mod tests {
             .filter(|&&(a, b)| inside(a) && inside(b))
             .count();
         assert_eq!(s.unknowns, interior);
-        // The factor holds at least the lower triangle of K_II.
-        assert!(s.factor_nnz >= interior + interior_edges, "{s:?}");
+        // The factor holds at least the lower triangle of K_II: its diagonal and one entry per
+        // interior edge whose vertices K couples.
+        let coupled = (p.mesh.edges().iter())
+            .filter(|&&(a, b)| inside(a) && inside(b) && p.stiffness.matrix().get(a, b) != 0.0)
+            .count();
+        assert!(
+            coupled <= interior_edges && s.factor_nnz >= interior + coupled,
+            "{s:?}"
+        );
         let contact = o.contact.iter().filter(|&&c| c).count();
         assert!(contact > 10 && s.iterations > 2, "{s:?}");
         assert_eq!(

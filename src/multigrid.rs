@@ -9,7 +9,7 @@
 //! (Hackbusch, *Multi-Grid Methods and Applications*, 1985, ch. 10; Bramble–Pasciak–Xu, *Math.
 //! Comp.* 55, 1990, for V-cycles on nested P1 spaces without full regularity, e.g. the L-shape).
 //! As the preconditioner of CG (the V-cycle is symmetric positive definite) the iterations to a
-//! fixed relative residual are bounded independently of h, and CG's optimality makes them
+//! fixed reduction of the error are bounded independently of h, and CG's optimality makes them
 //! fewer than the stationary iteration's.
 //!
 //! ## The V-cycle
@@ -160,7 +160,10 @@ impl<'h> Hierarchy<'h> {
     /// weigh CG's residual), with `p[l]` interpolating from level l + 1 onto level l (level 0:
     /// this mesh).
     pub fn new(k: &'h Stiffness, mass: &'h [f64], p: &'h [Prolongation]) -> Self {
-        assert_eq!(mass.len(), k.n());
+        assert!(
+            mass.len() == k.n() && mass.iter().all(|&m| m > 0.0),
+            "a mass m_a > 0 at every vertex"
+        );
         if let Some(p0) = p.first() {
             assert_eq!(
                 p0.matrix().rows(),
@@ -235,8 +238,8 @@ fn kept(p: &Csr, alive: &[bool]) -> Vec<bool> {
 /// round-off (on nested meshes the weights are 0, 1/2 and 1).
 const KEEP_WEIGHT: f64 = 0.6;
 
-/// The vectors of one level: the unknowns skipped (held or dropped), the iterate, the
-/// right-hand side and the residual.
+/// The vectors of one level: the vertices skipped (on the boundary, held, or coarse ones not
+/// kept), the iterate, the right-hand side and the residual.
 /// (Level 0's iterate and right-hand side are CG's: it has no vectors of its own for them.)
 struct Work {
     skip: Vec<bool>,
@@ -336,19 +339,20 @@ pub struct Multigrid<'h> {
 }
 
 impl Multigrid<'_> {
-    /// The number of unknowns of level 0 (held ones included).
+    /// The number of vertices of level 0 (skipped ones included).
     pub fn n(&self) -> usize {
         self.fine.rows()
     }
 
-    /// Whether unknown i of level 0 is held.
+    /// Whether vertex i of level 0 is skipped (on the boundary or held).
     #[inline]
     fn held(&self, i: usize) -> bool {
         self.levels[0].skip[i]
     }
 
     /// y = K_FF x on the free unknowns, 0 on the held ones.
-    pub fn apply(&self, x: &[f64], y: &mut [f64]) {
+    #[cfg(test)]
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
         let skip = &self.levels[0].skip;
         for (i, y) in y.iter_mut().enumerate() {
             *y = if skip[i] { 0.0 } else { self.fine.row_dot(i, x) };
@@ -357,7 +361,8 @@ impl Multigrid<'_> {
 
     /// z = B r: one V-cycle from zero for the right-hand side r (read on the free unknowns);
     /// z is 0 on the held ones. Returns r·z.
-    pub fn precondition(&mut self, r: &[f64], z: &mut [f64]) -> f64 {
+    #[cfg(test)]
+    fn precondition(&mut self, r: &[f64], z: &mut [f64]) -> f64 {
         self.cycle::<false>(0, r, z, &mut [])
     }
 
@@ -433,6 +438,11 @@ impl Multigrid<'_> {
             }
         }
         let target = tolerance * self.density(&b);
+        if target == 0.0 {
+            // b = 0 on the free unknowns: x = 0.
+            x.fill(0.0);
+            return Ok(0);
+        }
         // r = b − K_FF x, in b's place.
         let mut r = b;
         for (i, r) in r.iter_mut().enumerate() {
@@ -476,11 +486,18 @@ impl Multigrid<'_> {
 }
 
 impl Multigrid<'_> {
-    /// max_a |r_a|/m_a over the free unknowns: r as a load density.
+    /// max_a |r_a|/m_a over the free unknowns: r as a load density (NaN if some r_a is, so that
+    /// CG does not stop on it).
     fn density(&self, r: &[f64]) -> f64 {
         (r.iter().zip(self.mass).zip(&self.levels[0].skip))
             .filter(|(_, &skip)| !skip)
-            .fold(0.0_f64, |m, ((r, w), _)| m.max(r.abs() / w))
+            .fold(0.0_f64, |m, ((r, w), _)| {
+                if r.is_nan() || m.is_nan() {
+                    f64::NAN
+                } else {
+                    m.max(r.abs() / w)
+                }
+            })
     }
 }
 
@@ -526,25 +543,6 @@ fn postsmooth<const AX: bool>(
     backward::<AX>(a, skip, b, x, ax)
 }
 
-/// Part of a row: its columns and values.
-type RowPart<'a> = (&'a [u32], &'a [f64]);
-
-/// Row i split at its diagonal entry: the columns and values before it, a_ii, and the columns
-/// and values after it (rows not skipped have their diagonal entry).
-#[inline(always)]
-fn split(a: &Csr, i: usize) -> (RowPart<'_>, f64, RowPart<'_>) {
-    let (start, d, end) = (
-        a.row_ptr[i] as usize,
-        a.diag[i] as usize,
-        a.row_ptr[i + 1] as usize,
-    );
-    (
-        (&a.col[start..d], &a.val[start..d]),
-        a.val[d],
-        (&a.col[d + 1..end], &a.val[d + 1..end]),
-    )
-}
-
 /// A forward Gauss–Seidel sweep from x = 0, with the residual r = b − A x after it, reading
 /// each row up to its diagonal only: the entries left of it give x_i, and then, read as the
 /// entries above the diagonal in column i (A is symmetric), the parts −a_ji x_i of the earlier
@@ -557,11 +555,11 @@ fn forward_from_zero(a: &Csr, skip: &[bool], b: &[f64], x: &mut [f64], r: &mut [
             x[i] = 0.0;
             continue;
         }
-        let ((cols, vals), _, _) = split(a, i);
-        let s = a.gather(cols, vals, x);
+        let (lower, _, _) = a.split(i);
+        let s = a.gather(lower.clone(), x);
         let xi = (b[i] - s) * a.inv_diag[i];
         x[i] = xi;
-        for (&j, &v) in cols.iter().zip(vals) {
+        for (&j, &v) in a.col[lower.clone()].iter().zip(&a.val[lower]) {
             if !skip[j as usize] {
                 r[j as usize] -= v * xi;
             }
@@ -591,16 +589,16 @@ fn backward<const AX: bool>(a: &Csr, skip: &[bool], b: &[f64], x: &mut [f64], ax
             }
             continue;
         }
-        let ((lower, lower_values), diagonal, (upper, values)) = split(a, i);
-        // The entries right of the diagonal last, nearest (the row just updated) last.
+        let (lower, d, upper) = a.split(i);
+        let diagonal = a.val[d];
         // The nearest entry right of the diagonal (the row just updated) last: a shorter chain.
-        let s = a.gather(lower, lower_values, x) + diagonal * x[i] + a.gather_rev(upper, values, x);
+        let s = a.gather(lower, x) + diagonal * x[i] + a.gather_rev(upper.clone(), x);
         let delta = (b[i] - s) * a.inv_diag[i];
         x[i] += delta;
         bx += b[i] * x[i];
         if AX {
             ax[i] = s + diagonal * delta;
-            for (&j, &v) in upper.iter().zip(values) {
+            for (&j, &v) in a.col[upper.clone()].iter().zip(&a.val[upper]) {
                 if !skip[j as usize] {
                     ax[j as usize] += v * delta;
                 }
@@ -800,6 +798,23 @@ mod tests {
         assert_eq!(mg.solve(b, &mut x, 1e-12, 10), Ok(1));
         assert!((x[midpoint] - 1.0 / k.diagonal(midpoint)).abs() < 1e-15);
         assert!(kept(p, &alive).iter().all(|&k| !k));
+    }
+
+    /// CG returns x = 0 at once for b = 0 (whatever the start), and does not stop on a NaN.
+    #[test]
+    fn cg_on_a_zero_or_nan_right_hand_side() {
+        let (meshes, prolongations) = square(8, Diagonal::Right);
+        let k = Stiffness::assemble(&meshes[0]);
+        let mass = crate::assembly::lumped_mass(&meshes[0]);
+        let h = Hierarchy::new(&k, &mass, &prolongations);
+        let mut mg = h.preconditioner(meshes[0].on_boundary.clone()).unwrap();
+        let mut x = noise(k.n(), 1);
+        assert_eq!(mg.solve(vec![0.0; k.n()], &mut x, 1e-13, 10), Ok(0));
+        assert!(x.iter().all(|&x| x == 0.0));
+        let mut b = vec![1.0; k.n()];
+        let inside = meshes[0].on_boundary.iter().position(|&e| !e).unwrap();
+        b[inside] = f64::NAN;
+        assert!(mg.solve(b, &mut x, 1e-13, 10).is_err());
     }
 
     #[test]

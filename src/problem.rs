@@ -131,16 +131,11 @@ impl DiscreteProblem {
         Ok(Self::with_loads(mesh, data, g_h, loads))
     }
 
-    /// The problem on a coarser mesh with loads restricted from a finer one by Pᵀ (see
-    /// [`crate::mesh::Prolongation::restrict`]): exactly its own loads (with the finer mesh's quadrature) when
-    /// the meshes are nested, and no quadrature to evaluate. For the coarse levels of nested
-    /// iteration, whose solutions are only guesses.
-    pub fn with_restricted_loads(mesh: Mesh, data: &Data, loads: [Vec<f64>; 2]) -> Result<Self, DataError> {
-        let g_h = boundary_values(&mesh, data)?;
-        Ok(Self::with_loads(mesh, data, g_h, loads))
-    }
-
-    fn with_loads(mesh: Mesh, data: &Data, g_h: Vec<f64>, [load1, load2]: [Vec<f64>; 2]) -> Self {
+    /// The problem on `mesh` with its boundary values `g_h` ([`boundary_values`]) and the loads
+    /// given. For the coarse levels of nested iteration, the loads restricted from a finer level
+    /// by Pᵀ ([`crate::mesh::Prolongation::restrict`]): exactly their own loads (with the finer
+    /// mesh's quadrature) when the meshes are nested, and no quadrature to evaluate.
+    pub fn with_loads(mesh: Mesh, data: &Data, g_h: Vec<f64>, [load1, load2]: [Vec<f64>; 2]) -> Self {
         let stiffness = Stiffness::assemble(&mesh);
         let mass = assembly::lumped_mass(&mesh);
         DiscreteProblem {
