@@ -243,7 +243,7 @@ impl Guess {
 /// The guess of `start` is computed on the w thread, so that the coarser levels of nested
 /// iteration (on `coarser`, from fine to coarse; used by [`Start::Nested`] only) overlap the
 /// symbolic analysis and the v solve. With one core, or with multigrid on a mesh above
-/// [`OVERLAP_LIMIT`] vertices, v is solved first and w after it.
+/// 2²² vertices, v is solved first and w after it.
 ///
 /// ```
 /// use membrane_contact::{case::Case, contact, problem::DiscreteProblem};
