@@ -190,6 +190,18 @@ impl SolverStats {
         self.factorizations += other.factorizations;
     }
 
+    /// What the linear solver did, for a summary: "Cholesky, 3 factorizations" or "multigrid on 8
+    /// levels, CG iterations v 13, steps [10, 6]".
+    pub fn linear_work(&self) -> String {
+        match self.linear {
+            LinearSolver::Direct => format!("Cholesky, {} factorizations", self.factorizations),
+            LinearSolver::Multigrid => format!(
+                "multigrid on {} levels, CG iterations v {}, steps {:?}",
+                self.multigrid_levels, self.v_cg_iterations, self.cg_iterations
+            ),
+        }
+    }
+
     /// Seconds in numeric factorizations and triangular solves.
     fn factor_and_solve_seconds(&self) -> f64 {
         self.numeric_seconds + self.solve_seconds
@@ -887,6 +899,27 @@ mod tests {
         let data = Data::new([1.0, 2.0], e(f1), e("0"), e(g), Quadrature { degree: 2 }).unwrap();
         let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], n, n, Diagonal::Right).unwrap();
         DiscreteProblem::new(mesh, &data).unwrap()
+    }
+
+    #[test]
+    fn the_summary_says_which_linear_solver_ran() {
+        let direct = SolverStats {
+            linear: LinearSolver::Direct,
+            factorizations: 3,
+            ..Default::default()
+        };
+        assert_eq!(direct.linear_work(), "Cholesky, 3 factorizations");
+        let multigrid = SolverStats {
+            linear: LinearSolver::Multigrid,
+            multigrid_levels: 8,
+            v_cg_iterations: 13,
+            cg_iterations: vec![10, 6],
+            ..Default::default()
+        };
+        assert_eq!(
+            multigrid.linear_work(),
+            "multigrid on 8 levels, CG iterations v 13, steps [10, 6]"
+        );
     }
 
     #[test]

@@ -159,9 +159,13 @@ impl Run<'_> {
         let (a, c) = (&self.action, &self.action.checks);
         let t = &self.timings;
         let lmax = a.lambda.iter().copied().fold(0.0, f64::max);
+        let phases = match s.linear {
+            LinearSolver::Direct => ["symbolic", "numeric", "solves"],
+            LinearSolver::Multigrid => ["interpolations", "coarse operators", "CG"],
+        };
         let mut out = format!(
             "mesh        {} vertices, {} triangles, h = {:.4e}, {} unknowns per membrane\n\
-             solver      {} active-set iterations + {} local ones (coarse levels: {:?}), {} factorizations, contact at {} vertices\n\
+             solver      {} active-set iterations + {} local ones (coarser levels: {:?}); {}; contact at {} vertices\n\
              action      ∫λ_h = {:.6e}, contact area = {:.6e}, max λ = {:.6e}\n\
              checks      passed, each relative to the terms that cancel (tolerance {:.0e}): Prop. 12 {:.1e}, \
              λ ≥ 0 {:.1e}, (4.8) {:.1e}, u1 − u2 ≥ 0 {:.1e}; round-off of λ_h {:.1e} of the loads (limit {:.0e})\n",
@@ -172,7 +176,11 @@ impl Run<'_> {
             s.iterations,
             s.local_iterations,
             s.coarse_iterations,
-            s.factorizations,
+            if s.linear == LinearSolver::Direct && self.case.solver.linear == LinearSolver::Multigrid {
+                format!("{} (multigrid asked for, but this mesh has no coarser levels)", s.linear_work())
+            } else {
+                s.linear_work()
+            },
             s.active_sizes.last().copied().unwrap_or(0),
             a.total,
             a.contact_area,
@@ -213,10 +221,21 @@ impl Run<'_> {
             );
         }
         out += &format!(
-            "seconds     mesh {:.3}, assembly {:.3}, contact solve {:.3} (coarse levels {:.3}, symbolic {:.3}, \
-             numeric {:.3} + solves {:.3} summed over v and w), postprocess {:.3}, estimate {:.3}, write {:.3}\n",
-            t.mesh, t.assembly, s.wall_seconds, s.coarse_seconds, s.symbolic_seconds, s.numeric_seconds,
-            s.solve_seconds, t.postprocess, t.estimate, t.write
+            "seconds     mesh {:.3}, assembly {:.3}, contact solve {:.3} (coarser levels {:.3}, {} {:.3}, \
+             {} {:.3} + {} {:.3} summed over v and w), postprocess {:.3}{}, write {:.3}\n",
+            t.mesh,
+            t.assembly,
+            s.wall_seconds,
+            s.coarse_seconds,
+            phases[0],
+            s.symbolic_seconds,
+            phases[1],
+            s.numeric_seconds,
+            phases[2],
+            s.solve_seconds,
+            t.postprocess,
+            (self.estimate.as_ref()).map_or(String::new(), |_| format!(", estimate {:.3}", t.estimate)),
+            t.write
         );
         out
     }
