@@ -34,7 +34,10 @@ Fails (exit 1) when
     1e-7 for the boundary terms and what contains them), or eta < |||u - u_h||| on an exact case;
   - on meshes made by `adapt` (newest-vertex bisection of the L-shape toward its corner, and of
     the disk with new boundary vertices on the circle), a middle and the last step: fields differ
-    from the reference by more than --tol, or the estimator from its recomputation.
+    from the reference by more than --tol, or the estimator from its recomputation;
+  - the default linear solver (multigrid) and Cholesky (`--linear direct`), on the last level of
+    every case: u1, u2, the gap or lambda differ by more than 1e-10 of their largest value (for
+    lambda, a residual, at least max |f1| + |f2| at the vertices), or the contact sets differ.
 Writes OUT/report.md with plots.
 
 Usage (from the repository root):
@@ -215,6 +218,49 @@ ESTIMATOR_HEAD = ["### A posteriori estimator: Rust against `reference/estimator
                   "|---" * (len(estimator.GROUPS) + 2) + "|"]
 
 
+DIRECT_TOL = 1e-10  # multigrid (the default) against Cholesky: max |difference| / max |value|
+DIRECT_FIELDS = ("u1", "u2", "gap", "lambda")
+
+
+def direct_agreement(path, label, level, binary, workdir, failures, reuse=False):
+    """A level solved again with `--linear direct` (Cholesky): the default's fields (of the level's
+    result) agree to DIRECT_TOL relative, the contact sets exactly. The report's row."""
+    option, value, _, tag = level
+    default_dir, direct_dir = (os.path.join(workdir, "%s-%s" % (k, tag)) for k in ("rust", "direct"))
+    if not (reuse and os.path.isdir(direct_dir)):
+        proc = subprocess.run([binary, "solve", path, option, str(value), "--linear", "direct", "-o", direct_dir],
+                              capture_output=True, text=True)
+        if proc.returncode != 0:
+            failures.append("%s: Rust solver failed with --linear direct: %s" % (label, proc.stderr.strip()))
+            return None
+    a, b = common.read_result(default_dir), common.read_result(direct_dir)
+    solver = str(a["attrs"]["linear_solver"])
+    # λ is a residual: where it vanishes its round-off is measured against the loads' size.
+    load = np.max(np.abs(common.at_points(a["case"]["f1"], a["points"]))
+                  + np.abs(common.at_points(a["case"]["f2"], a["points"])))
+    rel = {}
+    for k in DIRECT_FIELDS:
+        floor = load if k == "lambda" else 1e-300
+        rel[k] = float(np.max(np.abs(a[k] - b[k])) / max(np.max(np.abs(b[k])), floor))
+    mismatch = int(np.sum(a["contact"] != b["contact"]))
+    for k, r in rel.items():
+        if not r <= DIRECT_TOL:
+            failures.append("%s: %s of the default solver differs from Cholesky's by %.1e relative (> %.0e)"
+                            % (label, k, r, DIRECT_TOL))
+    if mismatch:
+        failures.append("%s: the contact sets of the default solver and Cholesky differ at %d vertices"
+                        % (label, mismatch))
+    return "| %s | %s | %s | %d |" % (label, solver, " | ".join("%.1e" % rel[k] for k in DIRECT_FIELDS),
+                                      mismatch)
+
+
+DIRECT_HEAD = ["### The default linear solver against Cholesky (`--linear direct`), last level of each case", "",
+               "Max |difference| relative to max |value| (for λ at least max |f1| + |f2| at the vertices); tolerance %.0e, "
+               "contact sets equal." % DIRECT_TOL, "",
+               "| result | default solver | " + " | ".join(DIRECT_FIELDS) + " | contact mismatches |",
+               "|---" * (len(DIRECT_FIELDS) + 3) + "|"]
+
+
 def run_case(path, binary, out, tol, failures, reuse=False):
     case = common.load_case(path)
     name = os.path.splitext(os.path.basename(path))[0]
@@ -228,11 +274,13 @@ def run_case(path, binary, out, tol, failures, reuse=False):
         if level is None:
             return None
         levels.append(level)
+    last = levels_of(case)[-1]
+    direct = direct_agreement(path, "%s %s" % (name, last[2]), last, binary, workdir, failures, reuse)
     mesh = case["mesh"]
     convex = mesh["kind"] == "rectangle" or (mesh["kind"] == "disk" and "inner_radius" not in mesh)
     rates = rate_failures(name, levels, convex, failures) if "exact" in case else {}
     return {"name": name, "title": case.get("title", ""), "path": path, "levels": levels, "rates": rates,
-            "convex": convex, "exact": "exact" in case, "estimate": estimate}
+            "convex": convex, "exact": "exact" in case, "estimate": estimate, "direct": direct}
 
 
 def jittered_mesh_files(workdir):
@@ -360,13 +408,15 @@ def main():
     if not exact_cases.main(paths):
         failures.append("an exact-solution case fails its SymPy check")
     lines = report.header(args.tol, EOC_AGREEMENT, THEORY_MARGIN)
-    estimates = []
+    estimates, directs = [], []
     for path in paths:
         result = run_case(path, binary, args.out, args.tol, failures, args.reuse)
         if result is None:
             continue
         if result["estimate"]:
             estimates.append(result["estimate"])
+        if result["direct"]:
+            directs.append(result["direct"])
         tables = report.tables(result)
         print("\n" + "\n".join(tables))
         lines += tables + ["![%s](%s)" % (img, img) for img in report.plots(result, args.out)] + [""]
@@ -374,6 +424,7 @@ def main():
     mesh_lines, mesh_estimates = mesh_files(binary, args.out, args.tol, failures)
     adapted_lines, adapted_estimates = adapted_meshes(binary, args.out, args.tol, failures)
     mesh_lines += adapted_lines + ESTIMATOR_HEAD + estimates + mesh_estimates + adapted_estimates + [""]
+    mesh_lines += DIRECT_HEAD + directs + [""]
     print("\n" + "\n".join(mesh_lines))
     report.write(args.out, lines + mesh_lines, failures, time.perf_counter() - start)
     if failures:

@@ -1,8 +1,9 @@
 //! The `membrane-contact` command line.
 
+use clap::builder::PossibleValuesParser;
 use clap::{Parser, Subcommand};
 use membrane_contact::case::{Case, CaseError, Levels};
-use membrane_contact::contact::Start;
+use membrane_contact::contact::{LinearSolver, Start};
 use membrane_contact::run;
 use membrane_contact::study::{self, StudyOptions};
 use std::path::PathBuf;
@@ -38,6 +39,10 @@ enum Command {
         /// Start the active-set method from no contact instead of nested iteration.
         #[arg(long)]
         cold: bool,
+        /// The linear solver: multigrid (the default) or direct (sparse Cholesky); overrides the
+        /// case's `[solver] linear`.
+        #[arg(long, value_parser = PossibleValuesParser::new(LinearSolver::NAMES))]
+        linear: Option<String>,
         /// With an exact solution, also compute ‖λ − λh‖_H⁻¹ (a solve on the dual submesh).
         #[arg(long)]
         hminus1: bool,
@@ -68,6 +73,10 @@ enum Command {
         /// Also solve every level from a cold start, to compare active-set iterations.
         #[arg(long)]
         cold: bool,
+        /// The linear solver: multigrid (the default) or direct (sparse Cholesky); overrides the
+        /// case's `[solver] linear`.
+        #[arg(long, value_parser = PossibleValuesParser::new(LinearSolver::NAMES))]
+        linear: Option<String>,
         /// Grading exponents of an L-shaped mesh to compare, e.g. 1,2 (uniform and graded).
         #[arg(long, value_delimiter = ',')]
         grading: Option<Vec<f64>>,
@@ -119,22 +128,30 @@ fn main() -> ExitCode {
             n,
             refine,
             cold,
+            linear,
             hminus1,
             flux,
             estimate,
             ..
-        } => solve(case, output, (n, refine), cold, [hminus1, flux, estimate]),
+        } => solve(
+            case,
+            output,
+            (n, refine),
+            (cold, linear),
+            [hminus1, flux, estimate],
+        ),
         Command::Study {
             case,
             levels,
             refine,
             cold,
+            linear,
             grading,
             hminus1_max,
             output,
         } => {
             let levels = levels.map(Levels::Cells).or(refine.map(Levels::Refine));
-            study(case, levels, cold, grading, hminus1_max, output)
+            study(case, levels, (cold, linear), grading, hminus1_max, output)
         }
         Command::Adapt {
             case,
@@ -157,8 +174,10 @@ fn main() -> ExitCode {
 
 type Failure = Box<dyn std::error::Error>;
 
-fn read_case(path: &Option<PathBuf>) -> Result<(Case, String), Failure> {
-    Ok(match path {
+/// The case of `path` (the default case without one) and its name, with the linear solver
+/// `linear` when given (a name of [`LinearSolver::NAMES`], checked by the argument parser).
+fn read_case(path: &Option<PathBuf>, linear: Option<String>) -> Result<(Case, String), Failure> {
+    let (mut case, name) = match path {
         Some(p) => {
             let name = p
                 .file_stem()
@@ -166,7 +185,11 @@ fn read_case(path: &Option<PathBuf>) -> Result<(Case, String), Failure> {
             (Case::read(p)?, name)
         }
         None => (Case::default_case(), "default".into()),
-    })
+    };
+    if let Some(solver) = linear.as_deref().and_then(LinearSolver::from_name) {
+        case.solver.linear = solver;
+    }
+    Ok((case, name))
 }
 
 /// The given output directory, or `default/name` (creating `default`).
@@ -185,10 +208,10 @@ fn solve(
     case_path: Option<PathBuf>,
     output: Option<PathBuf>,
     (n, refine): (Option<usize>, Option<usize>),
-    cold: bool,
+    (cold, linear): (bool, Option<String>),
     [hminus1, flux, estimate]: [bool; 3],
 ) -> Result<(), Failure> {
-    let (mut case, name) = read_case(&case_path)?;
+    let (mut case, name) = read_case(&case_path, linear)?;
     if let Some(n) = n {
         case.set_cells(n)
             .map_err(|e| CaseError(format!("--n {n}: {e}")))?;
@@ -229,12 +252,12 @@ fn solve(
 fn study(
     case_path: Option<PathBuf>,
     levels: Option<Levels>,
-    cold: bool,
+    (cold, linear): (bool, Option<String>),
     grading: Option<Vec<f64>>,
     hminus1_max: usize,
     output: Option<PathBuf>,
 ) -> Result<(), Failure> {
-    let (case, name) = read_case(&case_path)?;
+    let (case, name) = read_case(&case_path, linear)?;
     let levels = (levels.or_else(|| case.validation.clone())).unwrap_or_else(|| match case.cells() {
         Some(_) => Levels::Cells(vec![8, 16, 32, 64]),
         None => Levels::Refine(vec![0, 1, 2, 3]),
@@ -260,7 +283,7 @@ fn adapt(
     (theta, target, max_vertices, steps): (Option<f64>, Option<f64>, Option<usize>, Option<usize>),
     output: Option<PathBuf>,
 ) -> Result<(), Failure> {
-    let (mut case, name) = read_case(&case_path)?;
+    let (mut case, name) = read_case(&case_path, None)?;
     if let Some(n) = n {
         case.set_cells(n)
             .map_err(|e| CaseError(format!("--n {n}: {e}")))?;
