@@ -29,8 +29,9 @@ fn relative(a: &[f64], b: &[f64], floor: f64) -> f64 {
     diff / scale.max(f64::MIN_POSITIVE)
 }
 
-/// Solves `case` both ways; asserts that u1, u2, the gap and λ (against the loads where it vanishes) agree to 1e-10 relative, and
-/// the contact sets exactly. Returns the multigrid run's statistics.
+/// Solves `case` both ways; asserts that u1, u2, the gap and λ (against the loads where it
+/// vanishes) agree to 1e-10 relative, and the contact sets exactly. Returns the multigrid run's
+/// statistics.
 fn agree(case: &Case) -> SolverStats {
     let (direct, multigrid) = (
         with(case, LinearSolver::Direct),
