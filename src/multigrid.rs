@@ -614,14 +614,28 @@ mod tests {
     use crate::linear::InteriorSystem;
     use crate::mesh::{Diagonal, Mesh};
 
-    /// The unit square with n, n/2, … down to 4 cells per side, finest first, and the
-    /// interpolations between them.
-    fn square(n: usize, diagonal: Diagonal) -> (Vec<Mesh>, Vec<Prolongation>) {
+    /// Meshes of n, n/2, … down to 4 cells per side, finest first, the interpolations between
+    /// them, and K and the masses of the finest.
+    struct Levels {
+        meshes: Vec<Mesh>,
+        prolongations: Vec<Prolongation>,
+        k: Stiffness,
+        mass: Vec<f64>,
+    }
+
+    impl Levels {
+        fn hierarchy(&self) -> Hierarchy<'_> {
+            Hierarchy::new(&self.k, &self.mass, &self.prolongations)
+        }
+    }
+
+    /// [`Levels`] of the unit square.
+    fn square(n: usize, diagonal: Diagonal) -> Levels {
         rectangle([1.0, 1.0], n, diagonal)
     }
 
-    /// The same on the rectangle (0, 0)–`corner`.
-    fn rectangle(corner: [f64; 2], n: usize, diagonal: Diagonal) -> (Vec<Mesh>, Vec<Prolongation>) {
+    /// [`Levels`] of the rectangle (0, 0)–`corner`.
+    fn rectangle(corner: [f64; 2], n: usize, diagonal: Diagonal) -> Levels {
         let meshes: Vec<Mesh> = std::iter::successors(Some(n), |&m| (m > 4).then_some(m / 2))
             .map(|m| Mesh::rectangle([0.0, 0.0], corner, m, m, diagonal).unwrap())
             .collect();
@@ -629,7 +643,16 @@ mod tests {
             .windows(2)
             .map(|w| Prolongation::new(&w[0], &w[1]))
             .collect();
-        (meshes, prolongations)
+        let (k, mass) = (
+            Stiffness::assemble(&meshes[0]),
+            crate::assembly::lumped_mass(&meshes[0]),
+        );
+        Levels {
+            meshes,
+            prolongations,
+            k,
+            mass,
+        }
     }
 
     /// A deterministic pseudo-random vector in [−1, 1].
@@ -655,10 +678,8 @@ mod tests {
             .into_iter()
             .flat_map(|c| kinds.map(|d| (c, d)))
         {
-            let (meshes, prolongations) = rectangle(corner, 16, diagonal);
-            let k = Stiffness::assemble(&meshes[0]);
-            let mass = crate::assembly::lumped_mass(&meshes[0]);
-            let h = Hierarchy::new(&k, &mass, &prolongations);
+            let levels = rectangle(corner, 16, diagonal);
+            let (meshes, h) = (&levels.meshes, levels.hierarchy());
             let mg = h.preconditioner(meshes[0].on_boundary.clone()).unwrap();
             assert_eq!(mg.coarse.len(), 2);
             for (level, a) in mg.coarse.iter().enumerate() {
@@ -728,10 +749,8 @@ mod tests {
         for diagonal in [Diagonal::Right, Diagonal::Crossed] {
             let mut rates: Vec<[f64; 3]> = Vec::new();
             for n in [32, 64, 128] {
-                let (meshes, prolongations) = square(n, diagonal);
-                let k = Stiffness::assemble(&meshes[0]);
-                let mass = crate::assembly::lumped_mass(&meshes[0]);
-                let h = Hierarchy::new(&k, &mass, &prolongations);
+                let levels = square(n, diagonal);
+                let (meshes, k, h) = (&levels.meshes, &levels.k, levels.hierarchy());
                 let mut mg = h.preconditioner(meshes[0].on_boundary.clone()).unwrap();
                 assert_eq!(mg.sweeps, 1);
                 let v11 = contraction(&mut mg, 12);
@@ -770,11 +789,9 @@ mod tests {
 
     #[test]
     fn the_v_cycle_is_symmetric() {
-        let (meshes, prolongations) = square(32, Diagonal::Left);
-        let k = Stiffness::assemble(&meshes[0]);
+        let levels = square(32, Diagonal::Left);
+        let (meshes, k, h) = (&levels.meshes, &levels.k, levels.hierarchy());
         let system = InteriorSystem::numbering(&meshes[0].on_boundary);
-        let mass = crate::assembly::lumped_mass(&meshes[0]);
-        let h = Hierarchy::new(&k, &mass, &prolongations);
         let skip = system.skipped(&held_disk(&meshes[0], &system));
         let mut mg = h.preconditioner(skip.clone()).unwrap();
         let n = k.n();
@@ -798,16 +815,14 @@ mod tests {
     /// the coarse matrix singular; the rule keeps neither, and CG solves the 1 × 1 system.
     #[test]
     fn a_lone_free_midpoint_keeps_no_coarse_unknown() {
-        let (meshes, prolongations) = square(8, Diagonal::Right);
-        let k = Stiffness::assemble(&meshes[0]);
-        let mass = crate::assembly::lumped_mass(&meshes[0]);
-        let h = Hierarchy::new(&k, &mass, &prolongations);
+        let levels = square(8, Diagonal::Right);
+        let (meshes, k, h) = (&levels.meshes, &levels.k, levels.hierarchy());
         let midpoint = (meshes[0].points.iter())
             .position(|&p| p == [0.375, 0.5])
             .unwrap();
         let skip: Vec<bool> = (0..k.n()).map(|i| i != midpoint).collect();
         let alive: Vec<bool> = skip.iter().map(|&h| !h).collect();
-        let p = prolongations[0].matrix();
+        let p = levels.prolongations[0].matrix();
         assert_eq!(p.row(midpoint).1, &[0.5, 0.5], "the midpoint of a coarse edge");
         let mut mg = h.preconditioner(skip).unwrap();
         let b = vec![1.0; k.n()];
@@ -820,10 +835,8 @@ mod tests {
     /// CG returns x = 0 at once for b = 0 (whatever the start), and does not stop on a NaN.
     #[test]
     fn cg_on_a_zero_or_nan_right_hand_side() {
-        let (meshes, prolongations) = square(8, Diagonal::Right);
-        let k = Stiffness::assemble(&meshes[0]);
-        let mass = crate::assembly::lumped_mass(&meshes[0]);
-        let h = Hierarchy::new(&k, &mass, &prolongations);
+        let levels = square(8, Diagonal::Right);
+        let (meshes, k, h) = (&levels.meshes, &levels.k, levels.hierarchy());
         let mut mg = h.preconditioner(meshes[0].on_boundary.clone()).unwrap();
         let mut x = noise(k.n(), 1);
         assert_eq!(mg.solve(vec![0.0; k.n()], &mut x, 1e-13, 10), Ok(0));
@@ -838,11 +851,9 @@ mod tests {
     fn truncated_cg_reaches_the_cholesky_solution_in_few_iterations() {
         let mut iterations = Vec::new();
         for n in [32, 64, 128, 256] {
-            let (meshes, prolongations) = square(n, Diagonal::Right);
-            let k = Stiffness::assemble(&meshes[0]);
-            let system = InteriorSystem::new(&k, &meshes[0].on_boundary);
-            let mass = crate::assembly::lumped_mass(&meshes[0]);
-            let h = Hierarchy::new(&k, &mass, &prolongations);
+            let levels = square(n, Diagonal::Right);
+            let (meshes, k, h) = (&levels.meshes, &levels.k, levels.hierarchy());
+            let system = InteriorSystem::new(k, &meshes[0].on_boundary);
             let held = held_disk(&meshes[0], &system);
             let b: Vec<f64> = noise(system.n(), 3).iter().map(|v| 1.0 + v).collect();
             let mut factor = system.factorization();
