@@ -19,6 +19,7 @@ use crate::multigrid::{Hierarchy, Multigrid, NotConverged};
 use crate::problem::{boundary_values, DataError, DiscreteProblem};
 use crate::result::{Attr, Attribute, Describe, Field, Place};
 use std::fmt;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, MutexGuard, OnceLock};
 use std::time::Instant;
 
@@ -292,9 +293,16 @@ pub fn solve(
     let prolongations = multigrid.then(|| chain(&problem.mesh, &coarser));
     let transfer_seconds = clock.elapsed().as_secs_f64();
     let shared = OnceLock::new();
+    // Two cores: v beside w (w's V-cycles take both once v is done) or, above OVERLAP_LIMIT,
+    // beside the coarser levels only (then v takes both, and w's final mesh comes after it). One
+    // core: one after the other (time-sliced, they share its cache: 7.3–8.7 s against 6.2 s).
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let large = multigrid && problem.mesh.n_vertices() > OVERLAP_LIMIT;
+    // Whether the second core is free for the V-cycles of v and of w (see multigrid::BLOCK_ROWS).
+    let (v_free, w_free) = (AtomicBool::new(false), AtomicBool::new(false));
     // Cholesky factorizations of the two solves on the final mesh take turns (see take_turn).
-    let turn = Mutex::new(());
-    let turn = (!multigrid).then_some(&turn);
+    let turn = &Mutex::new(());
+    let turn = (!multigrid).then_some(turn);
     let analyse = || {
         let t = Instant::now();
         let (system, hierarchy) = analysed(problem, prolongations.as_deref());
@@ -307,58 +315,51 @@ pub fn solve(
         let load = |a: usize| problem.load1[a] + problem.load2[a];
         let rhs = system.lifted_rhs(&problem.stiffness, load, mu1 + mu2, bc);
         let mut stats = SolverStats::default();
-        let multigrid = hierarchy.as_ref().map(|h| (h, CG_TOLERANCE));
+        let multigrid = hierarchy.as_ref().map(|h| (h, CG_TOLERANCE, Some(&v_free)));
         let mut solver = Inner::new(system, multigrid, None);
         let x = {
             let _turn = turn.map(take_turn);
             solver.prepare(&vec![false; system.n()], &mut stats)?;
             solver.solve(rhs, &mut stats)?
         };
+        w_free.store(cores > 1, Ordering::Relaxed);
         let bc: Vec<f64> = (0..problem.g_h.len()).map(bc).collect();
         Ok::<_, SolveError>((system.scatter(&x, &bc), stats))
     };
-    let w_job = || {
-        let t = Instant::now();
-        let (guess, coarse_iterations, coarse_cg) = match start {
-            Start::Cold => (None, Vec::new(), Vec::new()),
-            Start::Nested => {
-                let built;
-                let prolongations = match &prolongations {
-                    Some(p) => p,
-                    None => {
-                        built = chain(&problem.mesh, &coarser);
-                        &built
-                    }
-                };
-                nested_guess(problem, coarser, prolongations, options)?
-            }
-            Start::From { mesh, obstacle } => {
-                let p = Prolongation::new(&problem.mesh, mesh);
-                (Some(Guess::prolong(&p, obstacle)), Vec::new(), Vec::new())
-            }
-        };
-        let coarse_seconds = t.elapsed().as_secs_f64();
+    let guess_job = || {
+        initial_guess(
+            problem,
+            start,
+            coarser,
+            prolongations.as_deref(),
+            options,
+            &w_free,
+        )
+    };
+    let w_job = |nested: Result<_, SolveError>| {
+        let ((guess, coarse_iterations, coarse_cg), coarse_seconds) = nested?;
         let (system, hierarchy, _) = shared.get_or_init(analyse);
-        let multigrid = hierarchy.as_ref().map(|h| (h, CG_TOLERANCE));
+        let multigrid = hierarchy.as_ref().map(|h| (h, CG_TOLERANCE, Some(&w_free)));
         let mut w = obstacle(problem, system, multigrid, guess, options, turn)?;
         w.stats.coarse_iterations = coarse_iterations;
         w.stats.coarse_cg_iterations = coarse_cg;
         w.stats.coarse_seconds = coarse_seconds;
         Ok::<_, SolveError>(w)
     };
-    // With one core the two run one after the other: time-sliced, they share its cache (at 1024²
-    // cells on one core, 7.3–8.7 s side by side against 6.2 s in turn). With multigrid on a mesh
-    // above OVERLAP_LIMIT vertices too: memory, not time, is then the limit.
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let large = multigrid && problem.mesh.n_vertices() > OVERLAP_LIMIT;
-    let (v, obstacle) = if cores > 1 && !large {
-        std::thread::scope(|scope| {
+    let (v, obstacle) = match (cores > 1, large) {
+        (false, _) => (v_job(), w_job(guess_job())),
+        (true, false) => std::thread::scope(|scope| {
             let v = scope.spawn(v_job);
-            let w = w_job();
+            let w = w_job(guess_job());
             (v.join().expect("the v thread does not panic"), w)
-        })
-    } else {
-        (v_job(), w_job())
+        }),
+        (true, true) => std::thread::scope(|scope| {
+            let v = scope.spawn(v_job);
+            let guess = guess_job();
+            v_free.store(true, Ordering::Relaxed);
+            let v = v.join().expect("the v thread does not panic");
+            (v, w_job(guess))
+        }),
     };
     let (analysis_seconds, levels) = shared
         .get()
@@ -379,6 +380,39 @@ pub fn solve(
     let u1 = v.iter().zip(w).map(|(v, w)| v + c1 * w).collect();
     let u2 = v.iter().zip(w).map(|(v, w)| v - c2 * w).collect();
     Ok(Solution { u1, u2, obstacle })
+}
+
+/// The guess of `start` on `problem`'s mesh (for [`Start::Nested`], by nested iteration on the
+/// `coarser` meshes, with their interpolations when multigrid made them already), with the
+/// coarser levels' active-set and CG iterations and the seconds it took.
+fn initial_guess(
+    problem: &DiscreteProblem,
+    start: Start,
+    coarser: Vec<Mesh>,
+    prolongations: Option<&[Prolongation]>,
+    options: SolverOptions,
+    second_core: &AtomicBool,
+) -> Result<(NestedGuess, f64), SolveError> {
+    let t = Instant::now();
+    let (guess, iterations, cg) = match start {
+        Start::Cold => (None, Vec::new(), Vec::new()),
+        Start::Nested => {
+            let built;
+            let prolongations = match prolongations {
+                Some(p) => p,
+                None => {
+                    built = chain(&problem.mesh, &coarser);
+                    &built
+                }
+            };
+            nested_guess(problem, coarser, prolongations, options, second_core)?
+        }
+        Start::From { mesh, obstacle } => {
+            let p = Prolongation::new(&problem.mesh, mesh);
+            (Some(Guess::prolong(&p, obstacle)), Vec::new(), Vec::new())
+        }
+    };
+    Ok(((guess, iterations, cg), t.elapsed().as_secs_f64()))
 }
 
 /// The interior unknowns of `problem` with, for the direct solver (no `prolongations`), the
@@ -423,6 +457,7 @@ fn nested_guess(
     coarser: Vec<Mesh>,
     prolongations: &[Prolongation],
     options: SolverOptions,
+    second_core: &AtomicBool,
 ) -> Result<NestedGuess, SolveError> {
     let multigrid = options.linear == LinearSolver::Multigrid;
     // The boundary values of each level (checked here, finest first) and its loads restricted
@@ -444,7 +479,9 @@ fn nested_guess(
         // The coarsest level has no levels below: Cholesky.
         let below = (multigrid && k + 1 < prolongations.len()).then(|| &prolongations[k + 1..]);
         let (system, hierarchy) = analysed(&level, below);
-        let multigrid = hierarchy.as_ref().map(|h| (h, NESTED_CG_TOLERANCE));
+        let multigrid = hierarchy
+            .as_ref()
+            .map(|h| (h, NESTED_CG_TOLERANCE, Some(second_core)));
         let o = obstacle(&level, &system, multigrid, guess.take(), options, None)?;
         iterations.push(o.stats.iterations);
         cg.push(o.stats.cg_iterations.clone());
@@ -459,7 +496,7 @@ fn nested_guess(
 fn obstacle(
     problem: &DiscreteProblem,
     system: &InteriorSystem,
-    multigrid: Option<(&Hierarchy, f64)>,
+    multigrid: Option<Multilevel>,
     warm: Option<Guess>,
     options: SolverOptions,
     turn: Option<&Mutex<()>>,
@@ -707,25 +744,27 @@ enum Inner<'s> {
         cycle: Option<Multigrid<'s>>,
         x: Vec<f64>,
         tolerance: f64,
+        second_core: Option<&'s AtomicBool>,
     },
 }
+
+/// Multigrid's hierarchy, CG's tolerance, and whether the second core is free (see
+/// [`Multigrid::second_core`]).
+type Multilevel<'s> = (&'s Hierarchy<'s>, f64, Option<&'s AtomicBool>);
 
 impl<'s> Inner<'s> {
     /// Cholesky on `system`, or CG with V-cycles on the hierarchy of `multigrid` to its
     /// tolerance, starting from `start` (or 0).
-    fn new(
-        system: &'s InteriorSystem,
-        multigrid: Option<(&'s Hierarchy<'s>, f64)>,
-        start: Option<Vec<f64>>,
-    ) -> Self {
+    fn new(system: &'s InteriorSystem, multigrid: Option<Multilevel<'s>>, start: Option<Vec<f64>>) -> Self {
         match multigrid {
             None => Inner::Direct(system.factorization()),
-            Some((hierarchy, tolerance)) => Inner::Multigrid {
+            Some((hierarchy, tolerance, second_core)) => Inner::Multigrid {
                 system,
                 hierarchy,
                 cycle: None,
                 x: system.extended(&start.unwrap_or_else(|| vec![0.0; system.n()])),
                 tolerance,
+                second_core,
             },
         }
     }
@@ -747,12 +786,15 @@ impl<'s> Inner<'s> {
                 system,
                 hierarchy,
                 cycle,
+                second_core,
                 ..
             } => {
                 let t = Instant::now();
                 *cycle = None;
                 let skip = system.skipped(held);
-                *cycle = Some((hierarchy.preconditioner(skip)).map_err(|_| SolveError::NotPositiveDefinite)?);
+                let mut mg = (hierarchy.preconditioner(skip)).map_err(|_| SolveError::NotPositiveDefinite)?;
+                mg.second_core = *second_core;
+                *cycle = Some(mg);
                 stats.factorizations += 1;
                 stats.numeric_seconds += t.elapsed().as_secs_f64();
                 Ok(())
@@ -799,10 +841,9 @@ const CG_TOLERANCE: f64 = 1e-13;
 /// The coarser levels of nested iteration give a guess only: their CG stops at this tolerance
 /// (their discretisation error is larger still).
 const NESTED_CG_TOLERANCE: f64 = 1e-8;
-/// Above this many vertices the multigrid v solve runs before the w solve (the coarser levels of
-/// nested iteration included) rather than beside it: the vectors of the two and the coarser
-/// levels' problems are then never in memory at once (at 2048² cells 349 instead of 421 bytes
-/// per vertex at the peak, for a fifth more time; README).
+/// Above this many vertices the multigrid v solve runs beside the coarser levels of nested
+/// iteration only, and w's final mesh after it: the vectors of the two solves on the final mesh
+/// are then never in memory at once (measured in the README).
 const OVERLAP_LIMIT: usize = 1 << 22;
 /// CG iterations before giving up (a V-cycle preconditioner needs about 10).
 const CG_MAX_ITERATIONS: usize = 200;

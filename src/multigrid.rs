@@ -30,6 +30,10 @@
 //! but cost more than they save under CG (measured, README). Each sweep is one pass over the matrix: the forward sweep starts from zero and reads
 //! each row up to its diagonal only, scattering the residual for the restriction as it goes; the
 //! backward sweep also yields K z, so that CG needs no product of its own (K p = K z + β K p_old).
+//! On the levels of at least [`BLOCK_ROWS`] vertices the sweeps work in two blocks of rows
+//! (hybrid Gauss–Seidel), and the transfers and CG's vector updates split the same way, so that
+//! two cores can share the work when the other solve leaves the second one free; the sweeps are
+//! bound by memory traffic, and each core brings its own.
 //!
 //! ## Truncation (the obstacle problem's K_FF)
 //! The held unknowns are Dirichlet values on level 0: smoothing skips them, residuals there are
@@ -51,6 +55,7 @@ use crate::assembly::Stiffness;
 use crate::linear::{Cholesky, NotPositiveDefinite};
 use crate::mesh::Prolongation;
 use crate::sparse::{Csr, NEGLIGIBLE};
+use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Gauss–Seidel sweeps before and after the coarse correction (forward, backward, … before; the
 /// reverse after, so that the cycle is symmetric).
@@ -149,10 +154,12 @@ fn galerkin_rows(
 /// The multigrid hierarchy below one mesh: its stiffness matrix K and the interpolations below it,
 /// all in the vertex numbering of their meshes. [`Hierarchy::preconditioner`] makes the V-cycle
 /// for a set of skipped (boundary and held) vertices.
+#[derive(Clone)]
 pub struct Hierarchy<'h> {
     fine: &'h Csr,
     mass: &'h [f64],
     p: &'h [Prolongation],
+    block_rows: usize,
 }
 
 impl<'h> Hierarchy<'h> {
@@ -175,6 +182,15 @@ impl<'h> Hierarchy<'h> {
             fine: k.matrix(),
             mass,
             p,
+            block_rows: BLOCK_ROWS,
+        }
+    }
+
+    /// Smooths the levels of at least `rows` vertices in two blocks (see [`BLOCK_ROWS`]).
+    pub fn with_block_rows(self, rows: usize) -> Self {
+        Hierarchy {
+            block_rows: rows,
+            ..self
         }
     }
 
@@ -188,14 +204,15 @@ impl<'h> Hierarchy<'h> {
     /// of the coarsest one.
     pub fn preconditioner(&self, skip: Vec<bool>) -> Result<Multigrid<'_>, NotPositiveDefinite> {
         assert_eq!(skip.len(), self.fine.rows());
-        let mut levels = vec![Work::new(skip, false)];
+        let blocks = |a: &Csr| Blocks::new(a, self.block_rows);
+        let mut levels = vec![Work::new(skip, blocks(self.fine), false)];
         let mut coarse: Vec<Csr> = Vec::with_capacity(self.p.len());
         for p in self.p {
             let (p, finer) = (p.matrix(), coarse.last().unwrap_or(self.fine));
             let alive: Vec<bool> = levels.last().expect("a level").skip.iter().map(|&s| !s).collect();
             let kept = kept(p, &alive);
             let a = galerkin(finer, p, &p.transpose(), &alive, &kept);
-            levels.push(Work::new(kept.iter().map(|&k| !k).collect(), true));
+            levels.push(Work::new(kept.iter().map(|&k| !k).collect(), blocks(&a), true));
             coarse.push(a);
         }
         let last = coarse.last().unwrap_or(self.fine);
@@ -208,6 +225,7 @@ impl<'h> Hierarchy<'h> {
             levels,
             coarsest,
             sweeps: SWEEPS,
+            second_core: None,
         })
     }
 }
@@ -239,24 +257,101 @@ fn kept(p: &Csr, alive: &[bool]) -> Vec<bool> {
 const KEEP_WEIGHT: f64 = 0.6;
 
 /// The vectors of one level: the vertices skipped (on the boundary, held, or coarse ones not
-/// kept), the iterate, the right-hand side and the residual.
+/// kept), the blocks of its smoother, the iterate, the right-hand side and the residual, and the
+/// second block's part of the restricted residual.
 /// (Level 0's iterate and right-hand side are CG's: it has no vectors of its own for them.)
 struct Work {
     skip: Vec<bool>,
+    blocks: Blocks,
     x: Vec<f64>,
     b: Vec<f64>,
     r: Vec<f64>,
+    restricted: Vec<f64>,
 }
 
 impl Work {
-    fn new(skip: Vec<bool>, coarse: bool) -> Self {
+    fn new(skip: Vec<bool>, blocks: Blocks, coarse: bool) -> Self {
         let (n, m) = (skip.len(), if coarse { skip.len() } else { 0 });
         Work {
             skip,
+            blocks,
             x: vec![0.0; m],
             b: vec![0.0; m],
             r: vec![0.0; n],
+            restricted: Vec::new(),
         }
+    }
+}
+
+/// Levels of at least this many vertices are smoothed in two blocks of rows, 0..n/2 and n/2..n:
+/// Gauss–Seidel within each block, the other block's unknowns read at their values from before
+/// the sweep (hybrid Gauss–Seidel, block Jacobi between the blocks), so that the two blocks can be
+/// swept on two cores. The forward sweep before the coarse correction and the backward sweep
+/// after it stay each other's adjoint, so the cycle stays symmetric. Meshes are numbered along a
+/// Z-order curve (or by rows, built-in ones), so the two blocks are the two halves of ω and few
+/// rows couple across. The blocks depend on the level's size only, not on the cores: the numbers
+/// are the same swept on one thread or two.
+pub const BLOCK_ROWS: usize = 1 << 17;
+
+/// The rows of a level in the blocks of its smoother (one block below the hierarchy's
+/// `block_rows`): where the second begins, the rows coupled to the other block, and their values
+/// of x when a backward sweep starts (what each block reads of the other).
+struct Blocks {
+    mid: usize,
+    interface: Vec<u32>,
+    ghost: Vec<f64>,
+}
+
+impl Blocks {
+    fn new(a: &Csr, block_rows: usize) -> Self {
+        let n = a.rows();
+        let mid = if n >= block_rows.max(2) { n / 2 } else { n };
+        let interface: Vec<u32> = (0..n)
+            .filter(|&i| {
+                let (cols, _) = a.row(i);
+                match i < mid {
+                    true => cols.last().is_some_and(|&j| j as usize >= mid),
+                    false => cols.first().is_some_and(|&j| (j as usize) < mid),
+                }
+            })
+            .map(|i| i as u32)
+            .collect();
+        Blocks {
+            mid,
+            ghost: vec![0.0; interface.len()],
+            interface,
+        }
+    }
+
+    /// Σ_j a_ij x_j over the unknowns j of the other block than row i's.
+    fn across(&self, a: &Csr, i: usize, x: &[f64]) -> f64 {
+        let (cols, vals) = a.row(i);
+        (cols.iter().zip(vals))
+            .filter(|(&j, _)| (j as usize >= self.mid) != (i >= self.mid))
+            .map(|(&j, &v)| v * x[j as usize])
+            .sum()
+    }
+
+    /// x_j of the other block as the backward sweep started (j an interface row).
+    fn ghost(&self, j: u32) -> f64 {
+        self.ghost[self.interface.binary_search(&j).expect("a row coupled across")]
+    }
+}
+
+/// `first` and `second`, on two threads when `parallel`.
+fn both<A: Send, B: Send>(
+    parallel: bool,
+    first: impl FnOnce() -> A + Send,
+    second: impl FnOnce() -> B + Send,
+) -> (A, B) {
+    if parallel {
+        std::thread::scope(|s| {
+            let first = s.spawn(first);
+            let second = second();
+            (first.join().expect("a smoothing thread does not panic"), second)
+        })
+    } else {
+        (first(), second())
     }
 }
 
@@ -336,6 +431,9 @@ pub struct Multigrid<'h> {
     coarsest: Coarsest,
     /// Gauss–Seidel sweeps before and after the coarse correction.
     pub sweeps: usize,
+    /// When set, read at every CG iteration: whether the second core is free, to sweep the two
+    /// blocks of the large levels side by side (see [`BLOCK_ROWS`]).
+    pub second_core: Option<&'h AtomicBool>,
 }
 
 impl Multigrid<'_> {
@@ -363,12 +461,20 @@ impl Multigrid<'_> {
     /// z is 0 on the held ones. Returns r·z.
     #[cfg(test)]
     fn precondition(&mut self, r: &[f64], z: &mut [f64]) -> f64 {
-        self.cycle::<false>(0, r, z, &mut [])
+        self.cycle::<false>(0, r, z, &mut [], false)
     }
 
     /// The V-cycle on level l from x = 0 for the right-hand side b: x = B_l b, and with `AX`
-    /// also ax = A_l x, from the last smoothing sweep. Returns b·x.
-    fn cycle<const AX: bool>(&mut self, l: usize, b: &[f64], x: &mut [f64], ax: &mut [f64]) -> f64 {
+    /// also ax = A_l x, from the last smoothing sweep; the blocks of the large levels on two
+    /// threads when `parallel`. Returns b·x.
+    fn cycle<const AX: bool>(
+        &mut self,
+        l: usize,
+        b: &[f64],
+        x: &mut [f64],
+        ax: &mut [f64],
+        parallel: bool,
+    ) -> f64 {
         if l == self.levels.len() - 1 {
             self.coarsest.solve(b, x);
             if AX {
@@ -379,36 +485,20 @@ impl Multigrid<'_> {
             }
             return dot(b, x);
         }
-        {
-            let a = if l == 0 { self.fine } else { &self.coarse[l - 1] };
-            let w = &mut self.levels[l];
-            presmooth(a, &w.skip, b, x, &mut w.r, self.sweeps);
-        }
+        let a = if l == 0 { self.fine } else { &self.coarse[l - 1] };
+        presmooth(a, &mut self.levels[l], b, x, self.sweeps, parallel);
+        let p = self.p[l].matrix();
         let (mut bc, mut xc) = {
             let (fine, coarse) = self.levels.split_at_mut(l + 1);
-            let (fine, coarse) = (&fine[l], &mut coarse[0]);
-            // b_c = Pᵀ r, by the rows of P (r is 0 where skipped).
-            coarse.b.fill(0.0);
-            let p = self.p[l].matrix();
-            for (i, (&r, &skip)) in fine.r.iter().zip(&fine.skip).enumerate() {
-                if !skip {
-                    let (cols, weights) = p.row(i);
-                    for (&j, &w) in cols.iter().zip(weights) {
-                        coarse.b[j as usize] += w * r;
-                    }
-                }
-            }
+            let coarse = &mut coarse[0];
+            restrict(p, &mut fine[l], &mut coarse.b, parallel);
             (std::mem::take(&mut coarse.b), std::mem::take(&mut coarse.x))
         };
-        self.cycle::<false>(l + 1, &bc, &mut xc, &mut []);
+        self.cycle::<false>(l + 1, &bc, &mut xc, &mut [], parallel);
         let a = if l == 0 { self.fine } else { &self.coarse[l - 1] };
-        let skip = &self.levels[l].skip;
-        for (i, x) in x.iter_mut().enumerate() {
-            if !skip[i] {
-                *x += self.p[l].matrix().row_dot(i, &xc);
-            }
-        }
-        let bx = postsmooth::<AX>(a, skip, b, x, ax, self.sweeps);
+        let work = &mut self.levels[l];
+        prolong(p, &work.skip, work.blocks.mid, &xc, x, parallel);
+        let bx = postsmooth::<AX>(a, work, b, x, ax, self.sweeps, parallel);
         let coarse = &mut self.levels[l + 1];
         std::mem::swap(&mut coarse.b, &mut bc);
         std::mem::swap(&mut coarse.x, &mut xc);
@@ -431,7 +521,6 @@ impl Multigrid<'_> {
         tolerance: f64,
         max_iterations: usize,
     ) -> Result<usize, NotConverged> {
-        let n = self.n();
         for (i, x) in x.iter_mut().enumerate() {
             if self.held(i) {
                 *x = 0.0;
@@ -443,40 +532,70 @@ impl Multigrid<'_> {
             x.fill(0.0);
             return Ok(0);
         }
+        let (n, mid) = (self.n(), self.levels[0].blocks.mid);
+        let second_core = self.second_core;
+        let parallel = || second_core.is_some_and(|free| free.load(Ordering::Relaxed));
         // r = b − K_FF x, in b's place.
         let mut r = b;
-        for (i, r) in r.iter_mut().enumerate() {
-            *r = if self.held(i) {
-                0.0
-            } else {
-                *r - self.fine.row_dot(i, x)
+        {
+            let (fine, skip, x) = (self.fine, &self.levels[0].skip, &*x);
+            let residual = |base: usize, r: &mut [f64]| {
+                for (li, r) in r.iter_mut().enumerate() {
+                    let i = base + li;
+                    *r = if skip[i] { 0.0 } else { *r - fine.row_dot(i, x) };
+                }
             };
+            let (r0, r1) = r.split_at_mut(mid);
+            both(parallel(), || residual(0, r0), || residual(mid, r1));
         }
         if self.density(&r) <= target {
             return Ok(0);
         }
         let (mut z, mut kz) = (vec![0.0; n], vec![0.0; n]);
-        let mut rz = self.cycle::<true>(0, &r, &mut z, &mut kz);
+        let mut rz = self.cycle::<true>(0, &r, &mut z, &mut kz, parallel());
         let (mut p, mut q) = (z.clone(), kz.clone());
         let mut pq = dot(&p, &q);
         for iteration in 1..=max_iterations {
             let alpha = rz / pq;
-            for i in 0..n {
-                x[i] += alpha * p[i];
-                r[i] -= alpha * q[i];
-            }
-            if self.density(&r) <= target {
+            let parallel = parallel();
+            // x += α p, r −= α q, and r's density.
+            let density = {
+                let (mass, skip) = (self.mass, &self.levels[0].skip);
+                let update = |base: usize, x: &mut [f64], r: &mut [f64]| {
+                    let mut density = 0.0_f64;
+                    for (li, (x, r)) in x.iter_mut().zip(r).enumerate() {
+                        let i = base + li;
+                        *x += alpha * p[i];
+                        *r -= alpha * q[i];
+                        if !skip[i] {
+                            density = max_density(density, *r / mass[i]);
+                        }
+                    }
+                    density
+                };
+                let ((x0, x1), (r0, r1)) = (x.split_at_mut(mid), r.split_at_mut(mid));
+                let (d0, d1) = both(parallel, || update(0, x0, r0), || update(mid, x1, r1));
+                max_density(d0, d1)
+            };
+            if density <= target {
                 return Ok(iteration);
             }
-            let rz_next = self.cycle::<true>(0, &r, &mut z, &mut kz);
+            let rz_next = self.cycle::<true>(0, &r, &mut z, &mut kz, parallel);
             let beta = rz_next / rz;
             rz = rz_next;
-            pq = 0.0;
-            for i in 0..n {
-                p[i] = z[i] + beta * p[i];
-                q[i] = kz[i] + beta * q[i];
-                pq += p[i] * q[i];
-            }
+            // p = z + β p, q = K z + β q, and p·q.
+            let update = |base: usize, p: &mut [f64], q: &mut [f64]| {
+                let mut pq = 0.0;
+                for (li, (p, q)) in p.iter_mut().zip(q).enumerate() {
+                    *p = z[base + li] + beta * *p;
+                    *q = kz[base + li] + beta * *q;
+                    pq += *p * *q;
+                }
+                pq
+            };
+            let ((p0, p1), (q0, q1)) = (p.split_at_mut(mid), q.split_at_mut(mid));
+            let (pq0, pq1) = both(parallel, || update(0, p0, q0), || update(mid, p1, q1));
+            pq = pq0 + pq1;
         }
         Err(NotConverged {
             iterations: max_iterations,
@@ -491,13 +610,16 @@ impl Multigrid<'_> {
     fn density(&self, r: &[f64]) -> f64 {
         (r.iter().zip(self.mass).zip(&self.levels[0].skip))
             .filter(|(_, &skip)| !skip)
-            .fold(0.0_f64, |m, ((r, w), _)| {
-                if r.is_nan() || m.is_nan() {
-                    f64::NAN
-                } else {
-                    m.max(r.abs() / w)
-                }
-            })
+            .fold(0.0, |m, ((r, w), _)| max_density(m, r / w))
+    }
+}
+
+/// max(m, |d|), NaN once either is NaN (so that CG does not stop on it).
+fn max_density(m: f64, d: f64) -> f64 {
+    if d.is_nan() || m.is_nan() {
+        f64::NAN
+    } else {
+        m.max(d.abs())
     }
 }
 
@@ -505,15 +627,32 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
-/// Pre-smoothing from x = 0 (forward, backward, … sweeps), and the residual r = b − A x after it.
-fn presmooth(a: &Csr, skip: &[bool], b: &[f64], x: &mut [f64], r: &mut [f64], sweeps: usize) {
-    forward_from_zero(a, skip, b, x, r);
+/// Pre-smoothing from x = 0 (forward, backward, … sweeps; the first in the level's blocks), and
+/// the residual r = b − A x after it, in the level's `r`.
+fn presmooth(a: &Csr, work: &mut Work, b: &[f64], x: &mut [f64], sweeps: usize, parallel: bool) {
+    let Work { skip, blocks, r, .. } = work;
+    let (skip, mid) = (&skip[..], blocks.mid);
+    {
+        let ((x0, x1), (r0, r1)) = (x.split_at_mut(mid), r.split_at_mut(mid));
+        both(
+            parallel,
+            || forward_from_zero(a, skip, b, 0, x0, r0),
+            || forward_from_zero(a, skip, b, mid, x1, r1),
+        );
+    }
+    // The couplings between the blocks, left out of the sweep.
+    for &i in &blocks.interface {
+        let i = i as usize;
+        if !skip[i] {
+            r[i] -= blocks.across(a, i, x);
+        }
+    }
     if sweeps > 1 {
         for s in 1..sweeps {
             if s % 2 == 0 {
                 forward(a, skip, b, x);
             } else {
-                backward::<false>(a, skip, b, x, &mut []);
+                backward::<false>(a, skip, b, 0, x, &mut [], blocks);
             }
         }
         for i in 0..a.rows() {
@@ -523,45 +662,123 @@ fn presmooth(a: &Csr, skip: &[bool], b: &[f64], x: &mut [f64], r: &mut [f64], sw
 }
 
 /// Post-smoothing, the adjoint of [`presmooth`] (its sweeps reversed, forward ↔ backward), so
-/// that the cycle is symmetric: its last sweep is backward. With `AX`, ax = A x from it.
-/// Returns b·x on the unknowns not skipped.
+/// that the cycle is symmetric: its last sweep is backward, in the level's blocks. With `AX`,
+/// ax = A x from it. Returns b·x on the unknowns not skipped.
 fn postsmooth<const AX: bool>(
     a: &Csr,
-    skip: &[bool],
+    work: &mut Work,
     b: &[f64],
     x: &mut [f64],
     ax: &mut [f64],
     sweeps: usize,
+    parallel: bool,
 ) -> f64 {
+    let Work { skip, blocks, .. } = work;
+    let (skip, mid) = (&skip[..], blocks.mid);
     for s in (1..sweeps).rev() {
         if s % 2 == 0 {
-            backward::<false>(a, skip, b, x, &mut []);
+            backward::<false>(a, skip, b, 0, x, &mut [], blocks);
         } else {
             forward(a, skip, b, x);
         }
     }
-    backward::<AX>(a, skip, b, x, ax)
+    for (g, &i) in blocks.ghost.iter_mut().zip(&blocks.interface) {
+        *g = x[i as usize];
+    }
+    let bx = {
+        let (x0, x1) = x.split_at_mut(mid);
+        let (ax0, ax1) = if AX {
+            ax.split_at_mut(mid)
+        } else {
+            (&mut [][..], &mut [][..])
+        };
+        let blocks = &*blocks;
+        let (bx0, bx1) = both(
+            parallel,
+            || backward::<AX>(a, skip, b, 0, x0, ax0, blocks),
+            || backward::<AX>(a, skip, b, mid, x1, ax1, blocks),
+        );
+        bx0 + bx1
+    };
+    if AX {
+        // The rows coupled across: their products with the final x.
+        for &i in &blocks.interface {
+            let i = i as usize;
+            if !skip[i] {
+                ax[i] = a.row_dot(i, x);
+            }
+        }
+    }
+    bx
 }
 
-/// A forward Gauss–Seidel sweep from x = 0, with the residual r = b − A x after it, reading
-/// each row up to its diagonal only: the entries left of it give x_i, and then, read as the
-/// entries above the diagonal in column i (A is symmetric), the parts −a_ji x_i of the earlier
-/// rows' residuals (row i's own residual is 0 after its update). One pass over half the matrix
-/// instead of two over all of it.
-fn forward_from_zero(a: &Csr, skip: &[bool], b: &[f64], x: &mut [f64], r: &mut [f64]) {
-    for i in 0..a.rows() {
-        r[i] = 0.0;
+/// b_c = Pᵀ r (r is 0 where skipped), by the rows of P: the first block's rows into `out`, the
+/// second's into the level's `restricted`, then added (the same sums on one thread or two).
+fn restrict(p: &Csr, fine: &mut Work, out: &mut [f64], parallel: bool) {
+    let Work {
+        skip,
+        blocks,
+        r,
+        restricted,
+        ..
+    } = fine;
+    let (skip, r, mid) = (&skip[..], &r[..], blocks.mid);
+    let part = |rows: std::ops::Range<usize>, out: &mut [f64]| {
+        out.fill(0.0);
+        for i in rows.filter(|&i| !skip[i]) {
+            let (cols, weights) = p.row(i);
+            for (&j, &w) in cols.iter().zip(weights) {
+                out[j as usize] += w * r[i];
+            }
+        }
+    };
+    if mid == r.len() {
+        part(0..mid, out);
+        return;
+    }
+    restricted.resize(out.len(), 0.0);
+    both(parallel, || part(0..mid, out), || part(mid..r.len(), restricted));
+    for (o, s) in out.iter_mut().zip(&*restricted) {
+        *o += s;
+    }
+}
+
+/// x += P x_c on the unknowns not skipped, the blocks (from `mid`) on two threads when `parallel`.
+fn prolong(p: &Csr, skip: &[bool], mid: usize, xc: &[f64], x: &mut [f64], parallel: bool) {
+    let part = |base: usize, x: &mut [f64]| {
+        for (li, x) in x.iter_mut().enumerate() {
+            if !skip[base + li] {
+                *x += p.row_dot(base + li, xc);
+            }
+        }
+    };
+    let (x0, x1) = x.split_at_mut(mid);
+    both(parallel, || part(0, x0), || part(mid, x1));
+}
+
+/// A forward Gauss–Seidel sweep from x = 0 on the rows of one block (from `base`; x and r hold
+/// the block's entries, row i at i − base), with the block's part of the residual r = b − A x
+/// after it, reading each row up to its diagonal only: the entries left of it give x_i, and then,
+/// read as the entries above the diagonal in column i (A is symmetric), the parts −a_ji x_i of the
+/// earlier rows' residuals (row i's own residual is 0 after its update). One pass over half the
+/// matrix instead of two over all of it. The other block's unknowns count as 0 here (they are 0
+/// when its sweep starts); their couplings are added to r afterwards ([`presmooth`]).
+fn forward_from_zero(a: &Csr, skip: &[bool], b: &[f64], base: usize, x: &mut [f64], r: &mut [f64]) {
+    for li in 0..x.len() {
+        let i = base + li;
+        r[li] = 0.0;
         if skip[i] {
-            x[i] = 0.0;
+            x[li] = 0.0;
             continue;
         }
         let (lower, _, _) = a.split(i);
-        let s = a.gather(lower.clone(), x);
-        let xi = (b[i] - s) * a.inv_diag[i];
-        x[i] = xi;
-        for (&j, &v) in a.col[lower.clone()].iter().zip(&a.val[lower]) {
-            if !skip[j as usize] {
-                r[j as usize] -= v * xi;
+        let own = a.part_at_or_above(lower, base);
+        let xi = (b[i] - a.gather_from(own.clone(), x, base)) * a.inv_diag[i];
+        x[li] = xi;
+        for p in own {
+            let j = a.col[p] as usize;
+            if !skip[j] {
+                r[j - base] -= a.val[p] * xi;
             }
         }
     }
@@ -576,31 +793,53 @@ fn forward(a: &Csr, skip: &[bool], b: &[f64], x: &mut [f64]) {
     }
 }
 
-/// One backward Gauss–Seidel sweep on the unknowns not skipped; returns b·x after it. With
-/// `AX`, also ax = A x (0 where skipped): row i's product is complete once x_i is updated but for
-/// the unknowns j < i still to come, whose updates δ_j then add a_ij δ_j (read from row j right
-/// of its diagonal, A being symmetric). No pass of its own.
-fn backward<const AX: bool>(a: &Csr, skip: &[bool], b: &[f64], x: &mut [f64], ax: &mut [f64]) -> f64 {
+/// One backward Gauss–Seidel sweep on the rows of one block (from `base`; x and ax hold the
+/// block's entries), the other block's unknowns read from `blocks`' ghost values; returns b·x
+/// over the block after it. With `AX`, also ax = A x (0 where skipped) on the rows not coupled to
+/// the other block ([`postsmooth`] completes those): row i's product is complete once x_i is
+/// updated but for the unknowns j < i still to come, whose updates δ_j then add a_ij δ_j (read
+/// from row j right of its diagonal, A being symmetric). No pass of its own.
+fn backward<const AX: bool>(
+    a: &Csr,
+    skip: &[bool],
+    b: &[f64],
+    base: usize,
+    x: &mut [f64],
+    ax: &mut [f64],
+    blocks: &Blocks,
+) -> f64 {
+    let end = base + x.len();
     let mut bx = 0.0;
-    for i in (0..a.rows()).rev() {
+    for li in (0..x.len()).rev() {
+        let i = base + li;
         if skip[i] {
             if AX {
-                ax[i] = 0.0;
+                ax[li] = 0.0;
             }
             continue;
         }
         let (lower, d, upper) = a.split(i);
+        let (own_lower, own_upper) = (
+            a.part_at_or_above(lower.clone(), base),
+            a.part_below(upper.clone(), end),
+        );
         let diagonal = a.val[d];
         // The nearest entry right of the diagonal (the row just updated) last: a shorter chain.
-        let s = a.gather(lower, x) + diagonal * x[i] + a.gather_rev(upper.clone(), x);
+        let mut s = a.gather_from(own_lower.clone(), x, base)
+            + diagonal * x[li]
+            + a.gather_from_rev(own_upper.clone(), x, base);
+        for p in (lower.start..own_lower.start).chain(own_upper.end..upper.end) {
+            s += a.val[p] * blocks.ghost(a.col[p]);
+        }
         let delta = (b[i] - s) * a.inv_diag[i];
-        x[i] += delta;
-        bx += b[i] * x[i];
+        x[li] += delta;
+        bx += b[i] * x[li];
         if AX {
-            ax[i] = s + diagonal * delta;
-            for (&j, &v) in a.col[upper.clone()].iter().zip(&a.val[upper]) {
-                if !skip[j as usize] {
-                    ax[j as usize] += v * delta;
+            ax[li] = s + diagonal * delta;
+            for p in own_upper {
+                let j = a.col[p] as usize;
+                if !skip[j] {
+                    ax[j - base] += a.val[p] * delta;
                 }
             }
         }
@@ -787,27 +1026,61 @@ mod tests {
             .collect()
     }
 
+    /// The V-cycle is symmetric positive definite, with one block per level and with two (the
+    /// hybrid smoother of the large levels).
     #[test]
     fn the_v_cycle_is_symmetric() {
         let levels = square(32, Diagonal::Left);
-        let (meshes, k, h) = (&levels.meshes, &levels.k, levels.hierarchy());
+        let (meshes, k) = (&levels.meshes, &levels.k);
         let system = InteriorSystem::numbering(&meshes[0].on_boundary);
         let skip = system.skipped(&held_disk(&meshes[0], &system));
-        let mut mg = h.preconditioner(skip.clone()).unwrap();
-        let n = k.n();
-        let (mut u, mut v) = (noise(n, 1), noise(n, 2));
-        for i in 0..n {
-            if skip[i] {
-                u[i] = 0.0;
-                v[i] = 0.0;
+        for block_rows in [usize::MAX, 64] {
+            let h = levels.hierarchy().with_block_rows(block_rows);
+            let mut mg = h.preconditioner(skip.clone()).unwrap();
+            let n = k.n();
+            let (mut u, mut v) = (noise(n, 1), noise(n, 2));
+            for i in 0..n {
+                if skip[i] {
+                    u[i] = 0.0;
+                    v[i] = 0.0;
+                }
             }
+            let (mut bu, mut bv) = (vec![0.0; n], vec![0.0; n]);
+            mg.precondition(&u, &mut bu);
+            mg.precondition(&v, &mut bv);
+            let (a, b) = (dot(&v, &bu), dot(&u, &bv));
+            assert!((a - b).abs() < 1e-12 * a.abs().max(b.abs()), "{a} vs {b}");
+            assert!(dot(&u, &bu) > 0.0 && dot(&v, &bv) > 0.0);
         }
-        let (mut bu, mut bv) = (vec![0.0; n], vec![0.0; n]);
-        mg.precondition(&u, &mut bu);
-        mg.precondition(&v, &mut bv);
-        let (a, b) = (dot(&v, &bu), dot(&u, &bv));
-        assert!((a - b).abs() < 1e-12 * a.abs().max(b.abs()), "{a} vs {b}");
-        assert!(dot(&u, &bu) > 0.0 && dot(&v, &bv) > 0.0);
+    }
+
+    /// Two blocks per level (from 64 rows) split the levels of the square in halves coupled along
+    /// one line of the mesh; swept on one thread or on two, CG computes the same numbers.
+    #[test]
+    fn two_blocks_on_one_thread_or_two_give_the_same_numbers() {
+        let levels = square(64, Diagonal::Right);
+        let (meshes, k) = (&levels.meshes, &levels.k);
+        let system = InteriorSystem::numbering(&meshes[0].on_boundary);
+        let skip = system.skipped(&held_disk(&meshes[0], &system));
+        let h = levels.hierarchy().with_block_rows(64);
+        let free = AtomicBool::new(true);
+        let mut results = Vec::new();
+        for second_core in [None, Some(&free)] {
+            let mut mg = h.preconditioner(skip.clone()).unwrap();
+            let blocks = &mg.levels[0].blocks;
+            assert_eq!(blocks.mid, k.n() / 2);
+            // Rows numbered by rows of the mesh: the rows of the two mesh lines next to the cut.
+            assert!(
+                (65..=2 * 65).contains(&blocks.interface.len()),
+                "{}",
+                blocks.interface.len()
+            );
+            mg.second_core = second_core;
+            let mut x = vec![0.0; k.n()];
+            let iterations = mg.solve(noise(k.n(), 3), &mut x, 1e-12, 100).unwrap();
+            results.push((iterations, x));
+        }
+        assert_eq!(results[0], results[1]);
     }
 
     /// One free fine vertex amid held ones, the midpoint of a coarse edge: both coarse hat
@@ -864,17 +1137,20 @@ mod tests {
                 factor.factorize(&held).unwrap();
                 let mut direct = b.clone();
                 factor.solve(&mut direct);
-                let mut mg = h.preconditioner(system.skipped(&held)).unwrap();
-                let mut x = vec![0.0; k.n()];
-                iterations.push(mg.solve(system.extended(&b), &mut x, 1e-12, 100).unwrap());
-                let x = system.gather(&x);
-                let scale = direct.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
-                let error = x
-                    .iter()
-                    .zip(&direct)
-                    .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
-                assert!(error <= 1e-10 * scale, "n = {n}: {error} / {scale}");
-                assert!(x.iter().zip(&held).all(|(x, &h)| !h || *x == 0.0));
+                // One block per level, and two from 256 rows on.
+                for h in [h.clone(), h.clone().with_block_rows(256)] {
+                    let mut mg = h.preconditioner(system.skipped(&held)).unwrap();
+                    let mut x = vec![0.0; k.n()];
+                    iterations.push(mg.solve(system.extended(&b), &mut x, 1e-12, 100).unwrap());
+                    let x = system.gather(&x);
+                    let scale = direct.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+                    let error = x
+                        .iter()
+                        .zip(&direct)
+                        .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+                    assert!(error <= 1e-10 * scale, "n = {n}: {error} / {scale}");
+                    assert!(x.iter().zip(&held).all(|(x, &h)| !h || *x == 0.0));
+                }
             }
         }
         assert!(iterations.iter().all(|&i| i <= 15), "{iterations:?}");

@@ -148,18 +148,66 @@ impl Csr {
         s
     }
 
-    /// [`Csr::gather`] in reverse order (the nearest column right of the diagonal last).
+    /// The positions of `part` (part of a row) whose columns are at least `base`: its end, as
+    /// the columns are sorted.
     #[inline(always)]
-    pub(crate) fn gather_rev(&self, part: Range<usize>, x: &[f64]) -> f64 {
-        let (cols, vals) = (&self.col[part.clone()], &self.val[part]);
-        assert!(x.len() >= self.cols, "a vector of the matrix's columns");
+    pub(crate) fn part_at_or_above(&self, part: Range<usize>, base: usize) -> Range<usize> {
+        match part.clone().next() {
+            Some(p) if (self.col[p] as usize) < base => {
+                part.start + self.col[part.clone()].partition_point(|&j| (j as usize) < base)..part.end
+            }
+            _ => part,
+        }
+    }
+
+    /// The positions of `part` whose columns are below `end`: its start.
+    #[inline(always)]
+    pub(crate) fn part_below(&self, part: Range<usize>, end: usize) -> Range<usize> {
+        match part.clone().next_back() {
+            Some(p) if self.col[p] as usize >= end => {
+                part.start..part.start + self.col[part.clone()].partition_point(|&j| (j as usize) < end)
+            }
+            _ => part,
+        }
+    }
+
+    /// Σ_k a_k x_{col_k − base} over the positions `part`, whose columns lie in
+    /// base..base + x.len() (x holds one block of a vector): [`Csr::gather`] on a block.
+    #[inline(always)]
+    pub(crate) fn gather_from(&self, part: Range<usize>, x: &[f64], base: usize) -> f64 {
+        let (cols, vals) = self.block_part(part, x, base);
         let mut s = 0.0;
-        for (&j, &v) in cols.iter().zip(vals).rev() {
-            debug_assert!((j as usize) < self.cols);
-            // SAFETY: as in `gather`.
-            s += v * unsafe { *x.get_unchecked(j as usize) };
+        for (&j, &v) in cols.iter().zip(vals) {
+            // SAFETY: base ≤ j < base + x.len() for every column of the part (`block_part`).
+            s += v * unsafe { *x.get_unchecked(j as usize - base) };
         }
         s
+    }
+
+    /// [`Csr::gather_from`] in reverse order (the nearest column right of the diagonal last).
+    #[inline(always)]
+    pub(crate) fn gather_from_rev(&self, part: Range<usize>, x: &[f64], base: usize) -> f64 {
+        let (cols, vals) = self.block_part(part, x, base);
+        let mut s = 0.0;
+        for (&j, &v) in cols.iter().zip(vals).rev() {
+            // SAFETY: as in `gather_from`.
+            s += v * unsafe { *x.get_unchecked(j as usize - base) };
+        }
+        s
+    }
+
+    /// The columns and values at `part`, asserted to lie in base..base + x.len() (the columns
+    /// of a row are sorted: its first and last tell).
+    #[inline(always)]
+    fn block_part(&self, part: Range<usize>, x: &[f64], base: usize) -> (&[u32], &[f64]) {
+        let (cols, vals) = (&self.col[part.clone()], &self.val[part]);
+        if let (Some(&first), Some(&last)) = (cols.first(), cols.last()) {
+            assert!(
+                first as usize >= base && (last as usize) < base + x.len(),
+                "columns within the block"
+            );
+        }
+        (cols, vals)
     }
 
     /// Asserts that every column number is below `cols`, which [`Csr::gather`] relies on, and

@@ -87,6 +87,16 @@ fn every_case_file_agrees_with_the_direct_solver() {
     }
 }
 
+#[test]
+fn large_levels_smoothed_in_two_blocks_agree_with_the_direct_solver() {
+    // 384² cells: the final mesh is smoothed in two blocks (on two cores once v is done), and the fields and contact set are still the direct solver's.
+    let mut case = Case::default_case();
+    case.set_cells(384).unwrap();
+    let n = (384 + 1) * (384 + 1);
+    assert!(n >= membrane_contact::multigrid::BLOCK_ROWS);
+    agree(&case);
+}
+
 /// The largest CG iteration count of any solve of a run: v, each active-set step, each step of
 /// the coarser levels of nested iteration.
 fn most_cg(stats: &SolverStats) -> usize {
