@@ -1026,14 +1026,19 @@ mod tests {
             .collect()
     }
 
+    /// The finest level's boundary and [`held_disk`], skipped.
+    fn skip_boundary_and_disk(levels: &Levels) -> Vec<bool> {
+        let mesh = &levels.meshes[0];
+        let system = InteriorSystem::numbering(&mesh.on_boundary);
+        system.skipped(&held_disk(mesh, &system))
+    }
+
     /// The V-cycle is symmetric positive definite, with one block per level and with two (the
     /// hybrid smoother of the large levels).
     #[test]
     fn the_v_cycle_is_symmetric() {
         let levels = square(32, Diagonal::Left);
-        let (meshes, k) = (&levels.meshes, &levels.k);
-        let system = InteriorSystem::numbering(&meshes[0].on_boundary);
-        let skip = system.skipped(&held_disk(&meshes[0], &system));
+        let (k, skip) = (&levels.k, skip_boundary_and_disk(&levels));
         for block_rows in [usize::MAX, 64] {
             let h = levels.hierarchy().with_block_rows(block_rows);
             let mut mg = h.preconditioner(skip.clone()).unwrap();
@@ -1059,9 +1064,7 @@ mod tests {
     #[test]
     fn two_blocks_on_one_thread_or_two_give_the_same_numbers() {
         let levels = square(64, Diagonal::Right);
-        let (meshes, k) = (&levels.meshes, &levels.k);
-        let system = InteriorSystem::numbering(&meshes[0].on_boundary);
-        let skip = system.skipped(&held_disk(&meshes[0], &system));
+        let (k, skip) = (&levels.k, skip_boundary_and_disk(&levels));
         let h = levels.hierarchy().with_block_rows(64);
         let free = AtomicBool::new(true);
         let mut results = Vec::new();
