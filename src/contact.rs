@@ -306,6 +306,8 @@ pub fn solve(
     let analyse = || {
         let t = Instant::now();
         let (system, hierarchy) = analysed(problem, prolongations.as_deref());
+        // v's coarse operators are kept: w's steps recompute theirs only near the held set.
+        let hierarchy = hierarchy.map(|h| h.with_base(problem.mesh.on_boundary.clone()));
         (system, hierarchy, t.elapsed().as_secs_f64())
     };
     let v_job = || {
@@ -525,9 +527,15 @@ fn obstacle(
         active = w_problem.local_correction(system, &data, &seeds, active, &mut stats);
     }
     // CG starts from the guess's gap, then from the previous step's w.
+    let warm_start = warm.is_some();
     let start = warm.map(|g| system.vertices.iter().map(|&a| g.gap[a]).collect());
     let mut solver = Inner::new(system, multigrid, start);
-    let mut correcting = true;
+    if warm_start {
+        // The first step from a guess only proposes the next active set: it is solved to the
+        // coarser levels' tolerance, and the set is confirmed by steps to the full one.
+        solver.loosen(NESTED_CG_TOLERANCE);
+    }
+    let (mut correcting, mut same_set) = (true, false);
     loop {
         if stats.iterations == options.max_iterations {
             return Err(SolveError::IterationCap {
@@ -536,16 +544,26 @@ fn obstacle(
             });
         }
         stats.iterations += 1;
-        solver.analyse(&active, &mut stats);
+        if !same_set {
+            solver.analyse(&active, &mut stats);
+        }
         let step = {
             let _turn = turn.map(take_turn);
-            solver.prepare(&active, &mut stats)?;
+            if !same_set {
+                solver.prepare(&active, &mut stats)?;
+            }
             w_problem.step(system, &mut solver, &rhs, &problem.g_h, &mut stats)?
         };
+        let loose = solver.tighten();
         let changed: Vec<usize> = (0..n).filter(|&i| step.next[i] != active[i]).collect();
         stats.changes.push(changed.len());
         stats.active_sizes.push(step.next.iter().filter(|&&x| x).count());
-        if changed.is_empty() {
+        same_set = changed.is_empty();
+        if same_set && loose {
+            // Confirmed to the loose tolerance only: once more to the full one.
+            continue;
+        }
+        if same_set {
             stats.analyses = solver.analyses();
             let nv = problem.mesh.n_vertices();
             let (mut lambda, mut contact) = (vec![0.0; nv], vec![false; nv]);
@@ -744,6 +762,8 @@ enum Inner<'s> {
         cycle: Option<Multigrid<'s>>,
         x: Vec<f64>,
         tolerance: f64,
+        /// A looser tolerance for the solves until [`Inner::tighten`].
+        loose: Option<f64>,
         second_core: Option<&'s AtomicBool>,
     },
 }
@@ -764,8 +784,29 @@ impl<'s> Inner<'s> {
                 cycle: None,
                 x: system.extended(&start.unwrap_or_else(|| vec![0.0; system.n()])),
                 tolerance,
+                loose: None,
                 second_core,
             },
+        }
+    }
+
+    /// Multigrid: solves to `tolerance` (when looser than its own) until [`Inner::tighten`].
+    fn loosen(&mut self, tolerance: f64) {
+        if let Inner::Multigrid {
+            tolerance: own,
+            loose,
+            ..
+        } = self
+        {
+            *loose = (tolerance > *own).then_some(tolerance);
+        }
+    }
+
+    /// Back to the full tolerance; whether the solves were looser.
+    fn tighten(&mut self) -> bool {
+        match self {
+            Inner::Multigrid { loose, .. } => loose.take().is_some(),
+            Inner::Direct(_) => false,
         }
     }
 
@@ -811,13 +852,15 @@ impl<'s> Inner<'s> {
                 cycle,
                 x,
                 tolerance,
+                loose,
                 ..
             } => {
                 let t = Instant::now();
                 let cycle = cycle.as_mut().expect("prepared before solving");
                 let extended = system.extended(&b);
                 drop(b);
-                let iterations = (cycle.solve(extended, x, *tolerance, CG_MAX_ITERATIONS))
+                let tolerance = loose.unwrap_or(*tolerance);
+                let iterations = (cycle.solve(extended, x, tolerance, CG_MAX_ITERATIONS))
                     .map_err(SolveError::NotConverged)?;
                 stats.cg_iterations.push(iterations);
                 stats.solve_seconds += t.elapsed().as_secs_f64();

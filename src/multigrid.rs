@@ -55,7 +55,9 @@ use crate::assembly::Stiffness;
 use crate::linear::{Cholesky, NotPositiveDefinite};
 use crate::mesh::Prolongation;
 use crate::sparse::{Csr, NEGLIGIBLE};
+use std::borrow::Cow;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::OnceLock;
 
 /// Gauss–Seidel sweeps before and after the coarse correction (forward, backward, … before; the
 /// reverse after, so that the cycle is symmetric).
@@ -65,9 +67,11 @@ const SWEEPS: usize = 1;
 /// false and E the columns J where `kept[J]` is false (`pt` = Pᵀ): row by row over the
 /// coarse unknowns with a dense accumulator (Gustavson's method), the two halves of the rows on
 /// two threads. Rows not kept are empty.
-fn galerkin(a: &Csr, p: &Csr, pt: &Csr, alive: &[bool], kept: &[bool]) -> Csr {
+/// With `base` = (B, dirty), the rows not `dirty` are copied from B instead (rows that the
+/// truncation leaves as they are in B: see [`Hierarchy::preconditioner`]).
+fn galerkin(a: &Csr, p: &Csr, pt: &Csr, alive: &[bool], kept: &[bool], base: Option<(&Csr, &[bool])>) -> Csr {
     let nc = pt.rows();
-    let halves = crate::assembly::in_two_halves(nc, |rows| galerkin_rows(a, p, pt, alive, kept, rows));
+    let halves = crate::assembly::in_two_halves(nc, |rows| galerkin_rows(a, p, pt, alive, kept, base, rows));
     let mut out = Csr {
         row_ptr: Vec::with_capacity(nc + 1),
         cols: nc,
@@ -91,6 +95,7 @@ fn galerkin_rows(
     pt: &Csr,
     alive: &[bool],
     kept: &[bool],
+    base: Option<(&Csr, &[bool])>,
     rows: std::ops::Range<usize>,
 ) -> (Vec<u32>, Vec<u32>, Vec<f64>) {
     let nc = pt.rows();
@@ -99,7 +104,11 @@ fn galerkin_rows(
     let mut acc = vec![0.0; nc];
     for big_i in rows {
         let start = col.len();
-        if kept[big_i] {
+        if let Some((b, _)) = base.filter(|(_, dirty)| !dirty[big_i]) {
+            let (cols, vals) = b.row(big_i);
+            col.extend_from_slice(cols);
+            val.extend_from_slice(vals);
+        } else if kept[big_i] {
             let (fine, weights) = pt.row(big_i);
             for (&i, &w) in fine.iter().zip(weights) {
                 let i = i as usize;
@@ -160,7 +169,13 @@ pub struct Hierarchy<'h> {
     mass: &'h [f64],
     p: &'h [Prolongation],
     block_rows: usize,
+    /// The boundary, and the coarse operators with it alone skipped (v's), made once when first
+    /// needed, each with the coarse unknowns it skips.
+    base: Option<(Vec<bool>, OnceLock<BaseLevels>)>,
 }
+
+/// The coarse operators of a set of skipped unknowns, each with the coarse unknowns it skips.
+type BaseLevels = Vec<(Csr, Vec<bool>)>;
 
 impl<'h> Hierarchy<'h> {
     /// The hierarchy of the mesh of stiffness matrix `k` and masses m_a = ∫φ_a `mass` (which
@@ -183,6 +198,18 @@ impl<'h> Hierarchy<'h> {
             mass,
             p,
             block_rows: BLOCK_ROWS,
+            base: None,
+        }
+    }
+
+    /// Keeps the coarse operators with only the `boundary` skipped (v's): those of a held set
+    /// (w's) are then computed again only near it, in the rows whose terms the held set changes,
+    /// and v's borrow them. A hierarchy used for one or two sets of skipped unknowns does without
+    /// (the kept operators would cost memory for no time).
+    pub fn with_base(self, boundary: Vec<bool>) -> Self {
+        Hierarchy {
+            base: Some((boundary, OnceLock::new())),
+            ..self
         }
     }
 
@@ -205,17 +232,42 @@ impl<'h> Hierarchy<'h> {
     pub fn preconditioner(&self, skip: Vec<bool>) -> Result<Multigrid<'_>, NotPositiveDefinite> {
         assert_eq!(skip.len(), self.fine.rows());
         let blocks = |a: &Csr| Blocks::new(a, self.block_rows);
+        let base = self.base.as_ref().map(|(boundary, base)| {
+            let levels = base.get_or_init(|| self.full(boundary.clone()));
+            // Where the truncation may differ from the base's, level by level.
+            let held: Vec<bool> = skip.iter().zip(boundary).map(|(s, b)| s != b).collect();
+            (levels, held)
+        });
+        let (mut dirty, base) = match base {
+            Some((levels, held)) => (Some(held), Some(levels)),
+            None => (None, None),
+        };
         let mut levels = vec![Work::new(skip, blocks(self.fine), false)];
-        let mut coarse: Vec<Csr> = Vec::with_capacity(self.p.len());
-        for p in self.p {
-            let (p, finer) = (p.matrix(), coarse.last().unwrap_or(self.fine));
+        let mut coarse: Vec<Cow<'_, Csr>> = Vec::with_capacity(self.p.len());
+        for (l, p) in self.p.iter().enumerate() {
+            let (p, finer) = (p.matrix(), coarse.last().map_or(self.fine, |c| &**c));
             let alive: Vec<bool> = levels.last().expect("a level").skip.iter().map(|&s| !s).collect();
             let kept = kept(p, &alive);
-            let a = galerkin(finer, p, &p.transpose(), &alive, &kept);
+            let a = match (base, dirty.take()) {
+                (Some(base), Some(finer_dirty)) => {
+                    let (b, b_skip) = &base[l];
+                    let finer_base = if l == 0 { self.fine } else { &base[l - 1].0 };
+                    let pt = p.transpose();
+                    let rows = dirty_rows(finer_base, p, &pt, &finer_dirty, &kept, b_skip);
+                    let clean = !rows.iter().any(|&d| d);
+                    let a = match clean {
+                        true => Cow::Borrowed(b),
+                        false => Cow::Owned(galerkin(finer, p, &pt, &alive, &kept, Some((b, &rows)))),
+                    };
+                    dirty = Some(rows);
+                    a
+                }
+                _ => Cow::Owned(galerkin(finer, p, &p.transpose(), &alive, &kept, None)),
+            };
             levels.push(Work::new(kept.iter().map(|&k| !k).collect(), blocks(&a), true));
             coarse.push(a);
         }
-        let last = coarse.last().unwrap_or(self.fine);
+        let last = coarse.last().map_or(self.fine, |c| &**c);
         let coarsest = Coarsest::new(last, &levels.last().expect("a level").skip)?;
         Ok(Multigrid {
             fine: self.fine,
@@ -228,6 +280,58 @@ impl<'h> Hierarchy<'h> {
             second_core: None,
         })
     }
+
+    /// The coarse operators for `skip` built in full, each with the coarse unknowns it skips.
+    fn full(&self, mut skip: Vec<bool>) -> BaseLevels {
+        let mut out: BaseLevels = Vec::with_capacity(self.p.len());
+        for p in self.p {
+            let (p, finer) = (p.matrix(), out.last().map_or(self.fine, |(c, _)| c));
+            let alive: Vec<bool> = skip.iter().map(|&s| !s).collect();
+            let kept = kept(p, &alive);
+            let a = galerkin(finer, p, &p.transpose(), &alive, &kept, None);
+            skip = kept.iter().map(|&k| !k).collect();
+            out.push((a, skip.clone()));
+        }
+        out
+    }
+}
+
+/// The coarse rows of the truncated Galerkin operator P̃ᵀ Ã P̃ that may differ from the base's
+/// P̃_bᵀ B P̃_b, given the finer rows that may (`finer_dirty`: rows of Ã that differ from B's, or
+/// whose unknown is live in one and not the other), the coarse unknowns `kept` now and those the
+/// base skips. A term P̃_iI Ã_ik P̃_kJ of row I can differ only if I or J is kept in one and not the
+/// other, or i or k is a dirty finer row: so the dirty coarse rows are those whose kept status
+/// changed and those of the coarse unknowns whose interpolation reaches a dirty finer row, a
+/// finer row coupled (in B's pattern, which is Ã's on the rows that do not differ) to a dirty
+/// row, or to a finer unknown that a changed coarse unknown J interpolates to. Away from the held
+/// set this is nothing: the truncated operators are the base's but near it, and are recomputed
+/// only there.
+fn dirty_rows(
+    b: &Csr,
+    p: &Csr,
+    pt: &Csr,
+    finer_dirty: &[bool],
+    kept: &[bool],
+    base_skip: &[bool],
+) -> Vec<bool> {
+    // Finer unknowns whose row or status may differ, or that a changed coarse unknown reaches.
+    let mut reach = finer_dirty.to_vec();
+    let changed: Vec<bool> = kept.iter().zip(base_skip).map(|(&k, &s)| k == s).collect();
+    for (j, _) in changed.iter().enumerate().filter(|(_, &c)| c) {
+        for &k in pt.row(j).0 {
+            reach[k as usize] = true;
+        }
+    }
+    let mut dirty = changed;
+    for i in 0..b.rows() {
+        let (cols, _) = b.row(i);
+        if reach[i] || cols.iter().any(|&k| reach[k as usize]) {
+            for &big_j in p.row(i).0 {
+                dirty[big_j as usize] = true;
+            }
+        }
+    }
+    dirty
 }
 
 /// The coarse unknowns kept below the live (`alive`) unknowns of a level: those that give one of
@@ -257,8 +361,7 @@ fn kept(p: &Csr, alive: &[bool]) -> Vec<bool> {
 const KEEP_WEIGHT: f64 = 0.6;
 
 /// The vectors of one level: the vertices skipped (on the boundary, held, or coarse ones not
-/// kept), the blocks of its smoother, the iterate, the right-hand side and the residual, and the
-/// second block's part of the restricted residual.
+/// kept), the blocks of its smoother, the iterate, the right-hand side and the residual.
 /// (Level 0's iterate and right-hand side are CG's: it has no vectors of its own for them.)
 struct Work {
     skip: Vec<bool>,
@@ -266,7 +369,6 @@ struct Work {
     x: Vec<f64>,
     b: Vec<f64>,
     r: Vec<f64>,
-    restricted: Vec<f64>,
 }
 
 impl Work {
@@ -278,7 +380,6 @@ impl Work {
             x: vec![0.0; m],
             b: vec![0.0; m],
             r: vec![0.0; n],
-            restricted: Vec::new(),
         }
     }
 }
@@ -425,8 +526,8 @@ pub struct Multigrid<'h> {
     fine: &'h Csr,
     mass: &'h [f64],
     p: &'h [Prolongation],
-    /// Levels 1 … L's operators.
-    coarse: Vec<Csr>,
+    /// Levels 1 … L's operators (those of the hierarchy's base where they are the same).
+    coarse: Vec<Cow<'h, Csr>>,
     levels: Vec<Work>,
     coarsest: Coarsest,
     /// Gauss–Seidel sweeps before and after the coarse correction.
@@ -485,17 +586,17 @@ impl Multigrid<'_> {
             }
             return dot(b, x);
         }
-        let a = if l == 0 { self.fine } else { &self.coarse[l - 1] };
+        let a = if l == 0 { self.fine } else { &*self.coarse[l - 1] };
         presmooth(a, &mut self.levels[l], b, x, self.sweeps, parallel);
         let p = self.p[l].matrix();
         let (mut bc, mut xc) = {
             let (fine, coarse) = self.levels.split_at_mut(l + 1);
             let coarse = &mut coarse[0];
-            restrict(p, &mut fine[l], &mut coarse.b, parallel);
+            restrict(p, &fine[l], &mut coarse.b, &mut coarse.r, parallel);
             (std::mem::take(&mut coarse.b), std::mem::take(&mut coarse.x))
         };
         self.cycle::<false>(l + 1, &bc, &mut xc, &mut [], parallel);
-        let a = if l == 0 { self.fine } else { &self.coarse[l - 1] };
+        let a = if l == 0 { self.fine } else { &*self.coarse[l - 1] };
         let work = &mut self.levels[l];
         prolong(p, &work.skip, work.blocks.mid, &xc, x, parallel);
         let bx = postsmooth::<AX>(a, work, b, x, ax, self.sweeps, parallel);
@@ -713,16 +814,10 @@ fn postsmooth<const AX: bool>(
 }
 
 /// b_c = Pᵀ r (r is 0 where skipped), by the rows of P: the first block's rows into `out`, the
-/// second's into the level's `restricted`, then added (the same sums on one thread or two).
-fn restrict(p: &Csr, fine: &mut Work, out: &mut [f64], parallel: bool) {
-    let Work {
-        skip,
-        blocks,
-        r,
-        restricted,
-        ..
-    } = fine;
-    let (skip, r, mid) = (&skip[..], &r[..], blocks.mid);
+/// second's into `second` (the coarse level's residual, free until its own smoothing), then added
+/// (the same sums on one thread or two).
+fn restrict(p: &Csr, fine: &Work, out: &mut [f64], second: &mut [f64], parallel: bool) {
+    let (skip, r, mid) = (&fine.skip[..], &fine.r[..], fine.blocks.mid);
     let part = |rows: std::ops::Range<usize>, out: &mut [f64]| {
         out.fill(0.0);
         for i in rows.filter(|&i| !skip[i]) {
@@ -736,9 +831,8 @@ fn restrict(p: &Csr, fine: &mut Work, out: &mut [f64], parallel: bool) {
         part(0..mid, out);
         return;
     }
-    restricted.resize(out.len(), 0.0);
-    both(parallel, || part(0..mid, out), || part(mid..r.len(), restricted));
-    for (o, s) in out.iter_mut().zip(&*restricted) {
+    both(parallel, || part(0..mid, out), || part(mid..r.len(), second));
+    for (o, s) in out.iter_mut().zip(&*second) {
         *o += s;
     }
 }
@@ -944,6 +1038,50 @@ mod tests {
                         assert!(d < 1e-13, "{diagonal:?} level {level} ({i}, {j}): {d}");
                     }
                 }
+            }
+        }
+    }
+
+    /// With a base (the operators with the boundary alone skipped), the truncated coarse operators
+    /// of a held set are the base's rows away from it and recomputed rows near it: the same
+    /// numbers as computed in full, on nested squares and on the disk's hierarchy (whose coarsest
+    /// levels are not nested); with the boundary alone skipped, they are the base's own.
+    #[test]
+    fn operators_recomputed_near_the_held_set_equal_the_full_ones() {
+        let disk = crate::case::Case::read(std::path::Path::new("data/cases/disk_contact.toml")).unwrap();
+        let (mesh, coarser) = disk.hierarchy(true).unwrap();
+        let meshes: Vec<Mesh> = std::iter::once(mesh).chain(coarser).collect();
+        let disk = Levels {
+            k: Stiffness::assemble(&meshes[0]),
+            mass: crate::assembly::lumped_mass(&meshes[0]),
+            prolongations: meshes
+                .windows(2)
+                .map(|w| Prolongation::new(&w[0], &w[1]))
+                .collect(),
+            meshes,
+        };
+        for levels in [square(32, Diagonal::Right), square(32, Diagonal::Crossed), disk] {
+            let mesh = &levels.meshes[0];
+            let boundary = mesh.on_boundary.clone();
+            let system = InteriorSystem::numbering(&boundary);
+            let scattered: Vec<bool> = noise(system.n(), 4).iter().map(|&v| v > 0.3).collect();
+            let (full, based) = (levels.hierarchy(), levels.hierarchy().with_base(boundary.clone()));
+            for held in [vec![false; system.n()], held_disk(mesh, &system), scattered] {
+                let skip = system.skipped(&held);
+                let (a, b) = (
+                    full.preconditioner(skip.clone()).unwrap(),
+                    based.preconditioner(skip.clone()).unwrap(),
+                );
+                assert!(a.coarse.len() >= 2);
+                let mut recomputed = 0;
+                for (a, b) in a.coarse.iter().zip(&b.coarse) {
+                    assert_eq!((&a.row_ptr, &a.col, &a.val), (&b.row_ptr, &b.col, &b.val));
+                    recomputed += matches!(b, Cow::Owned(_)) as usize;
+                }
+                let nothing_held = held.iter().all(|&h| !h);
+                assert_eq!(recomputed == 0, nothing_held, "{recomputed} levels recomputed");
+                let mut levels = (a.levels.iter()).zip(&b.levels);
+                assert!(levels.all(|(a, b)| a.skip == b.skip));
             }
         }
     }
