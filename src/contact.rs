@@ -300,9 +300,10 @@ pub fn solve(
     let large = multigrid && problem.mesh.n_vertices() > OVERLAP_LIMIT;
     // Whether the second core is free for the V-cycles of v and of w (see multigrid::BLOCK_ROWS).
     let (v_free, w_free) = (AtomicBool::new(false), AtomicBool::new(false));
-    // Cholesky factorizations of the two solves on the final mesh take turns (see take_turn).
+    // The two solves on the final mesh take turns (see take_turn): with Cholesky, and with
+    // multigrid above OVERLAP_LIMIT (w's steps there start once v is solved).
     let turn = &Mutex::new(());
-    let turn = (!multigrid).then_some(turn);
+    let turn = (!multigrid || large).then_some(turn);
     let analyse = || {
         let t = Instant::now();
         let (system, hierarchy) = analysed(problem, prolongations.as_deref());
@@ -359,8 +360,8 @@ pub fn solve(
             let v = scope.spawn(v_job);
             let guess = guess_job();
             v_free.store(true, Ordering::Relaxed);
-            let v = v.join().expect("the v thread does not panic");
-            (v, w_job(guess))
+            let w = w_job(guess);
+            (v.join().expect("the v thread does not panic"), w)
         }),
     };
     let (analysis_seconds, levels) = shared
@@ -509,7 +510,7 @@ fn obstacle(
         factor_nnz: system.factor_nnz(),
         ..Default::default()
     };
-    let w_problem = WProblem::new(problem);
+    let mut w_problem = WProblem::new(problem);
     let rhs = w_problem.rhs(system, &problem.g_h);
     let mut active: Vec<bool> = match &warm {
         Some(guess) => (system.vertices.iter())
@@ -605,6 +606,9 @@ const BAND_SHARE: f64 = 0.5;
 struct WProblem<'p> {
     problem: &'p DiscreteProblem,
     mu_star: f64,
+    /// Room for the numbering of a local correction's band, one entry per vertex, all
+    /// `usize::MAX` between corrections (so that each costs O(band), not O(vertices)).
+    scratch: Vec<usize>,
 }
 
 /// One primal–dual active-set step: w with w = 0 on the active set and the equation off it, the
@@ -621,6 +625,7 @@ impl<'p> WProblem<'p> {
         WProblem {
             problem,
             mu_star: problem.data.mu1 * problem.data.mu2 / (problem.data.mu1 + problem.data.mu2),
+            scratch: Vec::new(),
         }
     }
 
@@ -652,14 +657,26 @@ impl<'p> WProblem<'p> {
     ) -> Result<Step, SolveError> {
         let w_int = solver.solve(rhs.to_vec(), stats)?;
         let w = system.scatter(&w_int, bc);
+        let (residual, next) = self.residual_and_next(system, &w_int, |b| w[b]);
+        Ok(Step { w, residual, next })
+    }
+
+    /// The residual r_a = μ*(K w)_a − (f_w, φ_a) at the unknowns of `system` and the next active
+    /// set, for w = w_int there and `w(b)` at every vertex b.
+    fn residual_and_next(
+        &self,
+        system: &InteriorSystem,
+        w_int: &[f64],
+        w: impl Fn(usize) -> f64,
+    ) -> (Vec<f64>, Vec<bool>) {
         let k = &self.problem.stiffness;
         let residual: Vec<f64> = (system.vertices.iter())
-            .map(|&a| self.mu_star * k.row_dot(a, &w) - self.load(a))
+            .map(|&a| self.mu_star * k.row(a).map(|(b, v)| v * w(b)).sum::<f64>() - self.load(a))
             .collect();
         let next = (system.vertices.iter().enumerate())
             .map(|(i, &a)| self.predicts_contact(a, residual[i], w_int[i]))
             .collect();
-        Ok(Step { w, residual, next })
+        (residual, next)
     }
 
     /// A local correction of the proposed active set `next` (a Schwarz-type predictor): the
@@ -669,7 +686,7 @@ impl<'p> WProblem<'p> {
     /// where this settles it at the cost of small factorizations. The global iteration still stops
     /// only when a global solve reproduces its active set, so this changes the cost, not the result.
     fn local_correction(
-        &self,
+        &mut self,
         system: &InteriorSystem,
         w: &[f64],
         seeds: &[usize],
@@ -681,33 +698,45 @@ impl<'p> WProblem<'p> {
         if band.is_empty() || band.len() as f64 > BAND_SHARE * system.n() as f64 {
             return next;
         }
-        let mut fixed = vec![true; p.mesh.n_vertices()];
-        for &i in &band {
-            fixed[system.vertices[i]] = false;
-        }
-        let local = InteriorSystem::new(&p.stiffness, &fixed);
+        // The band's numbering in the scratch room of one entry per vertex: O(band) work.
+        let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.resize(p.mesh.n_vertices(), usize::MAX);
+        let vertices = band.iter().map(|&i| system.vertices[i]).collect();
+        let local = InteriorSystem::on_vertices(&p.stiffness, vertices, scratch);
         let rhs = self.rhs(&local, w);
         // Both vertex lists are increasing, so the local unknown j is the unknown band[j].
         let global_index = |j: usize| band[j];
         let mut active: Vec<bool> = (0..local.n()).map(|j| next[global_index(j)]).collect();
         let mut solver = Inner::Direct(local.factorization());
         let mut local_stats = SolverStats::default();
+        let mut settled = true;
         for _ in 0..LOCAL_ITERATIONS {
             stats.local_iterations += 1;
-            let prepared = solver.prepare(&active, &mut local_stats);
-            let Ok(step) = prepared.and_then(|()| self.step(&local, &mut solver, &rhs, w, &mut local_stats))
-            else {
-                return next;
+            let solved = (solver.prepare(&active, &mut local_stats))
+                .and_then(|()| solver.solve(rhs.clone(), &mut local_stats));
+            let Ok(w_int) = solved else {
+                settled = false;
+                break;
             };
-            let done = step.next == active;
-            active = step.next;
+            // w is w_int on the band and the current iterate elsewhere.
+            let value = |b: usize| match local.unknown[b] {
+                usize::MAX => w[b],
+                j => w_int[j],
+            };
+            let (_, step) = self.residual_and_next(&local, &w_int, value);
+            let done = step == active;
+            active = step;
             if done {
                 break;
             }
         }
-        for (j, &a) in active.iter().enumerate() {
-            next[global_index(j)] = a;
+        if settled {
+            for (j, &a) in active.iter().enumerate() {
+                next[global_index(j)] = a;
+            }
         }
+        drop(solver);
+        self.scratch = local.into_scratch();
         stats.local_seconds += local_stats.factor_and_solve_seconds();
         next
     }

@@ -50,6 +50,31 @@ impl InteriorSystem {
         system
     }
 
+    /// The unknowns `vertices` (increasing) of K, every other vertex fixed, with K_II and its
+    /// analysis; numbered in `unknown`, one entry per vertex, all `usize::MAX` on entry: room that
+    /// the caller keeps for the next such system ([`InteriorSystem::into_scratch`]), so that
+    /// making one costs O(unknowns), not O(vertices).
+    pub fn on_vertices(k: &Stiffness, vertices: Vec<usize>, mut unknown: Vec<usize>) -> Self {
+        for (i, &a) in vertices.iter().enumerate() {
+            unknown[a] = i;
+        }
+        let direct = Some(Direct::new(k, &vertices, &unknown));
+        InteriorSystem {
+            vertices,
+            unknown,
+            direct,
+        }
+    }
+
+    /// The room of the numbering, all `usize::MAX` again.
+    pub fn into_scratch(self) -> Vec<usize> {
+        let mut unknown = self.unknown;
+        for &a in &self.vertices {
+            unknown[a] = usize::MAX;
+        }
+        unknown
+    }
+
     /// The interior unknowns alone, without K_II and its analysis (for iterative solvers:
     /// [`Factorization`]s of it cannot be made).
     pub fn numbering(on_boundary: &[bool]) -> Self {
