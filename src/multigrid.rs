@@ -72,19 +72,23 @@ const SWEEPS: usize = 1;
 fn galerkin(a: &Csr, p: &Csr, pt: &Csr, alive: &[bool], kept: &[bool], base: Option<(&Csr, &[bool])>) -> Csr {
     let nc = pt.rows();
     let halves = crate::assembly::in_two_halves(nc, |rows| galerkin_rows(a, p, pt, alive, kept, base, rows));
-    let mut out = Csr {
-        row_ptr: Vec::with_capacity(nc + 1),
+    let [(first, mut col, mut val), (second, col2, val2)] = halves;
+    let mut row_ptr = Vec::with_capacity(nc + 1);
+    row_ptr.push(0);
+    row_ptr.extend(&first);
+    let start = col.len() as u32;
+    row_ptr.extend(second.iter().map(|&end| start + end));
+    col.extend(col2);
+    val.extend(val2);
+    Csr {
+        row_ptr,
+        col,
+        val,
         cols: nc,
         ..Default::default()
-    };
-    out.row_ptr.push(0);
-    for (lengths, col, val) in halves {
-        let start = out.col.len() as u32;
-        out.row_ptr.extend(lengths.iter().map(|&end| start + end));
-        out.col.extend(col);
-        out.val.extend(val);
     }
-    out.checked().with_diagonal()
+    .checked()
+    .with_diagonal()
 }
 
 /// Rows `rows` of [`galerkin`]: where each row ends (counted from the first), the columns and
@@ -99,7 +103,13 @@ fn galerkin_rows(
     rows: std::ops::Range<usize>,
 ) -> (Vec<u32>, Vec<u32>, Vec<f64>) {
     let nc = pt.rows();
-    let (mut ends, mut col, mut val) = (Vec::with_capacity(rows.len()), Vec::new(), Vec::new());
+    // Room for as many entries per row as the finer operator has, and one more.
+    let room = rows.len() * (a.nnz() / a.rows().max(1) + 1);
+    let (mut ends, mut col, mut val) = (
+        Vec::with_capacity(rows.len()),
+        Vec::with_capacity(room),
+        Vec::with_capacity(room),
+    );
     let mut marker = vec![usize::MAX; nc];
     let mut acc = vec![0.0; nc];
     for big_i in rows {
@@ -172,6 +182,10 @@ pub struct Hierarchy<'h> {
     /// The boundary, and the coarse operators with it alone skipped (v's), made once when first
     /// needed, each with the coarse unknowns it skips.
     base: Option<(Vec<bool>, OnceLock<BaseLevels>)>,
+    /// With a base: the transposed interpolations, made at the first held set (the base's own
+    /// products make theirs and drop them), and the blocks of the finest level's smoother.
+    transposes: OnceLock<Vec<Csr>>,
+    fine_blocks: OnceLock<Blocks>,
 }
 
 /// The coarse operators of a set of skipped unknowns, each with the coarse unknowns it skips.
@@ -199,6 +213,8 @@ impl<'h> Hierarchy<'h> {
             p,
             block_rows: BLOCK_ROWS,
             base: None,
+            transposes: OnceLock::new(),
+            fine_blocks: OnceLock::new(),
         }
     }
 
@@ -242,7 +258,11 @@ impl<'h> Hierarchy<'h> {
             Some((levels, held)) => (Some(held), Some(levels)),
             None => (None, None),
         };
-        let mut levels = vec![Work::new(skip, blocks(self.fine), false)];
+        let fine_blocks = match base {
+            Some(_) => self.fine_blocks.get_or_init(|| blocks(self.fine)).clone(),
+            None => blocks(self.fine),
+        };
+        let mut levels = vec![Work::new(skip, fine_blocks, false)];
         let mut coarse: Vec<Cow<'_, Csr>> = Vec::with_capacity(self.p.len());
         for (l, p) in self.p.iter().enumerate() {
             let (p, finer) = (p.matrix(), coarse.last().map_or(self.fine, |c| &**c));
@@ -251,16 +271,23 @@ impl<'h> Hierarchy<'h> {
             let a = match (base, dirty.take()) {
                 (Some(base), Some(finer_dirty)) => {
                     let (b, b_skip) = &base[l];
-                    let finer_base = if l == 0 { self.fine } else { &base[l - 1].0 };
-                    let pt = p.transpose();
-                    let rows = dirty_rows(finer_base, p, &pt, &finer_dirty, &kept, b_skip);
-                    let clean = !rows.iter().any(|&d| d);
-                    let a = match clean {
-                        true => Cow::Borrowed(b),
-                        false => Cow::Owned(galerkin(finer, p, &pt, &alive, &kept, Some((b, &rows)))),
-                    };
-                    dirty = Some(rows);
-                    a
+                    let same =
+                        !finer_dirty.iter().any(|&d| d) && kept.iter().zip(b_skip).all(|(&k, &s)| k != s);
+                    if same {
+                        // The base's skipped set (v's): its operators themselves.
+                        dirty = Some(vec![false; kept.len()]);
+                        Cow::Borrowed(b)
+                    } else {
+                        let finer_base = if l == 0 { self.fine } else { &base[l - 1].0 };
+                        let transposes = self
+                            .transposes
+                            .get_or_init(|| self.p.iter().map(|p| p.matrix().transpose()).collect());
+                        let pt = &transposes[l];
+                        let rows = dirty_rows(finer_base, p, pt, &finer_dirty, &kept, b_skip);
+                        let a = galerkin(finer, p, pt, &alive, &kept, Some((b, &rows)));
+                        dirty = Some(rows);
+                        Cow::Owned(a)
+                    }
                 }
                 _ => Cow::Owned(galerkin(finer, p, &p.transpose(), &alive, &kept, None)),
             };
@@ -397,6 +424,7 @@ pub const BLOCK_ROWS: usize = 1 << 17;
 /// The rows of a level in the blocks of its smoother (one block below the hierarchy's
 /// `block_rows`): where the second begins, the rows coupled to the other block, and their values
 /// of x when a backward sweep starts (what each block reads of the other).
+#[derive(Clone)]
 struct Blocks {
     mid: usize,
     interface: Vec<u32>,
