@@ -49,7 +49,10 @@
 //! this keeps P̃ of full rank, so that the coarse operators stay definite and the coarsest can be
 //! factorized. The alternative of truncating the transfers but keeping the coarse operators of K
 //! (no recomputation) is not variational, and its CG iterations grew with every refinement
-//! (README).
+//! (README). A hierarchy [`with_base`](Hierarchy::with_base) keeps the operators with the boundary
+//! alone skipped (v's): those of a held set differ from them only in the coarse rows whose terms
+//! reach a held fine unknown, and only those are computed again (the same numbers as a full
+//! product).
 
 use crate::assembly::Stiffness;
 use crate::linear::{Cholesky, NotPositiveDefinite};
