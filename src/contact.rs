@@ -255,8 +255,8 @@ impl Guess {
 /// the other (they share the symbolic analysis), then u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w.
 /// The guess of `start` is computed on the w thread, so that the coarser levels of nested
 /// iteration (on `coarser`, from fine to coarse; used by [`Start::Nested`] only) overlap the
-/// symbolic analysis and the v solve. With one core, or with multigrid on a mesh above
-/// 2²² vertices, v is solved first and w after it.
+/// symbolic analysis and the v solve. With one core v is solved first and w after it; with
+/// multigrid on a mesh above 2²² vertices, w's steps on the final mesh wait for v's solve.
 ///
 /// ```
 /// use membrane_contact::{case::Case, contact, problem::DiscreteProblem};
@@ -294,8 +294,9 @@ pub fn solve(
     let transfer_seconds = clock.elapsed().as_secs_f64();
     let shared = OnceLock::new();
     // Two cores: v beside w (w's V-cycles take both once v is done) or, above OVERLAP_LIMIT,
-    // beside the coarser levels only (then v takes both, and w's final mesh comes after it). One
-    // core: one after the other (time-sliced, they share its cache: 7.3–8.7 s against 6.2 s).
+    // beside the coarser levels and the final mesh's set-up only (then v takes both, and w's
+    // steps wait for its solve). One core: one after the other (time-sliced, they share its
+    // cache: 7.3–8.7 s against 6.2 s).
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let large = multigrid && problem.mesh.n_vertices() > OVERLAP_LIMIT;
     // Whether the second core is free for the V-cycles of v and of w (see multigrid::BLOCK_ROWS).
@@ -914,8 +915,9 @@ const CG_TOLERANCE: f64 = 1e-13;
 /// (their discretisation error is larger still).
 const NESTED_CG_TOLERANCE: f64 = 1e-8;
 /// Above this many vertices the multigrid v solve runs beside the coarser levels of nested
-/// iteration only, and w's final mesh after it: the vectors of the two solves on the final mesh
-/// are then never in memory at once (measured in the README).
+/// iteration and the final mesh's set-up only, and w's steps there after it: the CG vectors and
+/// coarse operators of the two solves on the final mesh are then never in memory at once
+/// (measured in the README).
 const OVERLAP_LIMIT: usize = 1 << 22;
 /// CG iterations before giving up (a V-cycle preconditioner needs about 10).
 const CG_MAX_ITERATIONS: usize = 200;

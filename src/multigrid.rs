@@ -1117,6 +1117,32 @@ mod tests {
         }
     }
 
+    /// Below a held disk of radius 0.3 on the square, the coarse rows computed again are the held
+    /// ones (empty rows) and a band around the disk's edge: far fewer than all.
+    #[test]
+    fn only_rows_near_the_held_set_are_computed_again() {
+        let levels = square(64, Diagonal::Right);
+        let boundary = levels.meshes[0].on_boundary.clone();
+        let h = levels.hierarchy().with_base(boundary.clone());
+        let skip = skip_boundary_and_disk(&levels);
+        h.preconditioner(skip.clone()).unwrap();
+        let (b1, skip1) = &h.base.as_ref().unwrap().1.get().unwrap()[0];
+        let p = levels.prolongations[0].matrix();
+        let alive: Vec<bool> = skip.iter().map(|&s| !s).collect();
+        let held: Vec<bool> = skip.iter().zip(&boundary).map(|(s, b)| s != b).collect();
+        let dirty = dirty_rows(
+            levels.k.matrix(),
+            p,
+            &p.transpose(),
+            &held,
+            &kept(p, &alive),
+            skip1,
+        );
+        let (count, rows) = (dirty.iter().filter(|&&d| d).count(), b1.rows());
+        // The disk covers 28 % of the square; its edge's band a few coarse rows more.
+        assert!(count < rows / 2, "{count} of {rows} rows computed again");
+    }
+
     /// The energy-norm contraction of the stationary iteration x ← x + B(b − K x), measured
     /// from a random error after `cycles` cycles (the asymptotic rate).
     fn contraction(mg: &mut Multigrid, cycles: usize) -> f64 {
