@@ -249,11 +249,25 @@ pub struct NotFinite {
 /// `part` of 0..n over its two halves, the first on a second thread: always two, so that sums do
 /// not depend on the machine.
 pub fn in_two_halves<T: Send>(n: usize, part: impl Fn(std::ops::Range<usize>) -> T + Sync) -> [T; 2] {
-    std::thread::scope(|s| {
-        let first = s.spawn(|| part(0..n / 2));
-        let second = part(n / 2..n);
-        [first.join().expect("a worker thread does not panic"), second]
-    })
+    let (first, second) = both(true, || part(0..n / 2), || part(n / 2..n));
+    [first, second]
+}
+
+/// `first` and `second`, on two threads when `parallel`.
+pub fn both<A: Send, B: Send>(
+    parallel: bool,
+    first: impl FnOnce() -> A + Send,
+    second: impl FnOnce() -> B + Send,
+) -> (A, B) {
+    if parallel {
+        std::thread::scope(|s| {
+            let first = s.spawn(first);
+            let second = second();
+            (first.join().expect("a worker thread does not panic"), second)
+        })
+    } else {
+        (first(), second())
+    }
 }
 
 /// The load vector F_a = (f, φ_a) over all vertices, by the quadrature rule, on two threads.

@@ -54,7 +54,7 @@
 //! reach a held fine unknown, and only those are computed again (the same numbers as a full
 //! product).
 
-use crate::assembly::Stiffness;
+use crate::assembly::{both, Stiffness};
 use crate::linear::{Cholesky, NotPositiveDefinite};
 use crate::mesh::Prolongation;
 use crate::sparse::{Csr, NEGLIGIBLE};
@@ -251,50 +251,21 @@ impl<'h> Hierarchy<'h> {
     pub fn preconditioner(&self, skip: Vec<bool>) -> Result<Multigrid<'_>, NotPositiveDefinite> {
         assert_eq!(skip.len(), self.fine.rows());
         let blocks = |a: &Csr| Blocks::new(a, self.block_rows);
-        let base = self.base.as_ref().map(|(boundary, base)| {
-            let levels = base.get_or_init(|| self.full(boundary.clone()));
-            // Where the truncation may differ from the base's, level by level.
-            let held: Vec<bool> = skip.iter().zip(boundary).map(|(s, b)| s != b).collect();
-            (levels, held)
-        });
-        let (mut dirty, base) = match base {
-            Some((levels, held)) => (Some(held), Some(levels)),
-            None => (None, None),
-        };
-        let fine_blocks = match base {
-            Some(_) => self.fine_blocks.get_or_init(|| blocks(self.fine)).clone(),
-            None => blocks(self.fine),
+        let (operators, fine_blocks) = match &self.base {
+            None => {
+                let full = self.full(skip.clone()).into_iter();
+                (full.map(|(a, s)| (Cow::Owned(a), s)).collect(), blocks(self.fine))
+            }
+            Some((boundary, base)) => {
+                let base = base.get_or_init(|| self.full(boundary.clone()));
+                let fine_blocks = self.fine_blocks.get_or_init(|| blocks(self.fine)).clone();
+                (self.near_base(&skip, boundary, base), fine_blocks)
+            }
         };
         let mut levels = vec![Work::new(skip, fine_blocks, false)];
-        let mut coarse: Vec<Cow<'_, Csr>> = Vec::with_capacity(self.p.len());
-        for (l, p) in self.p.iter().enumerate() {
-            let (p, finer) = (p.matrix(), coarse.last().map_or(self.fine, |c| &**c));
-            let alive: Vec<bool> = levels.last().expect("a level").skip.iter().map(|&s| !s).collect();
-            let kept = kept(p, &alive);
-            let a = match (base, dirty.take()) {
-                (Some(base), Some(finer_dirty)) => {
-                    let (b, b_skip) = &base[l];
-                    let same =
-                        !finer_dirty.iter().any(|&d| d) && kept.iter().zip(b_skip).all(|(&k, &s)| k != s);
-                    if same {
-                        // The base's skipped set (v's): its operators themselves.
-                        dirty = Some(vec![false; kept.len()]);
-                        Cow::Borrowed(b)
-                    } else {
-                        let finer_base = if l == 0 { self.fine } else { &base[l - 1].0 };
-                        let transposes = self
-                            .transposes
-                            .get_or_init(|| self.p.iter().map(|p| p.matrix().transpose()).collect());
-                        let pt = &transposes[l];
-                        let rows = dirty_rows(finer_base, p, pt, &finer_dirty, &kept, b_skip);
-                        let a = galerkin(finer, p, pt, &alive, &kept, Some((b, &rows)));
-                        dirty = Some(rows);
-                        Cow::Owned(a)
-                    }
-                }
-                _ => Cow::Owned(galerkin(finer, p, &p.transpose(), &alive, &kept, None)),
-            };
-            levels.push(Work::new(kept.iter().map(|&k| !k).collect(), blocks(&a), true));
+        let mut coarse: Vec<Cow<'_, Csr>> = Vec::with_capacity(operators.len());
+        for (a, skip) in operators {
+            levels.push(Work::new(skip, blocks(&a), true));
             coarse.push(a);
         }
         let last = coarse.last().map_or(self.fine, |c| &**c);
@@ -309,6 +280,44 @@ impl<'h> Hierarchy<'h> {
             sweeps: SWEEPS,
             second_core: None,
         })
+    }
+
+    /// The coarse operators for `skip` from the `base` ones (those of the `boundary` alone),
+    /// each with the coarse unknowns it skips: the base's own where nothing differs from it,
+    /// else its rows but where the held set changes them ([`dirty_rows`]), computed again.
+    fn near_base<'b>(
+        &'b self,
+        skip: &[bool],
+        boundary: &[bool],
+        base: &'b BaseLevels,
+    ) -> Vec<(Cow<'b, Csr>, Vec<bool>)> {
+        // The finer level's rows that may differ from the base's, and its live unknowns.
+        let mut dirty: Vec<bool> = skip.iter().zip(boundary).map(|(s, b)| s != b).collect();
+        let mut alive: Vec<bool> = skip.iter().map(|&s| !s).collect();
+        let mut out: Vec<(Cow<'b, Csr>, Vec<bool>)> = Vec::with_capacity(self.p.len());
+        for (l, (p, (b, b_skip))) in self.p.iter().zip(base).enumerate() {
+            let p = p.matrix();
+            let kept = kept(p, &alive);
+            let same = !dirty.iter().any(|&d| d) && kept.iter().zip(b_skip).all(|(&k, &s)| k != s);
+            let a = if same {
+                // The base's skipped set (v's): its operators themselves.
+                dirty = vec![false; kept.len()];
+                Cow::Borrowed(b)
+            } else {
+                let (finer, finer_base) = match l {
+                    0 => (self.fine, self.fine),
+                    _ => (&*out[l - 1].0, &base[l - 1].0),
+                };
+                let transposes =
+                    (self.transposes).get_or_init(|| self.p.iter().map(|p| p.matrix().transpose()).collect());
+                let pt = &transposes[l];
+                dirty = dirty_rows(finer_base, p, pt, &dirty, &kept, b_skip);
+                Cow::Owned(galerkin(finer, p, pt, &alive, &kept, Some((b, &dirty))))
+            };
+            out.push((a, kept.iter().map(|&k| !k).collect()));
+            alive = kept;
+        }
+        out
     }
 
     /// The coarse operators for `skip` built in full, each with the coarse unknowns it skips.
@@ -467,23 +476,6 @@ impl Blocks {
     /// x_j of the other block as the backward sweep started (j an interface row).
     fn ghost(&self, j: u32) -> f64 {
         self.ghost[self.interface.binary_search(&j).expect("a row coupled across")]
-    }
-}
-
-/// `first` and `second`, on two threads when `parallel`.
-fn both<A: Send, B: Send>(
-    parallel: bool,
-    first: impl FnOnce() -> A + Send,
-    second: impl FnOnce() -> B + Send,
-) -> (A, B) {
-    if parallel {
-        std::thread::scope(|s| {
-            let first = s.spawn(first);
-            let second = second();
-            (first.join().expect("a smoothing thread does not panic"), second)
-        })
-    } else {
-        (first(), second())
     }
 }
 
