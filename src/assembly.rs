@@ -2,7 +2,7 @@
 //! m_a = ∫φ_a (Remark 11: ⟨χ_a, φ_a⟩_h = meas(D_a) = ∫φ_a), and the loads (f, φ_a).
 
 use crate::expr::Expr;
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, Stars};
 use crate::quadrature_tables::TRIANGLE_RULES;
 use crate::sparse::{Csr, NEGLIGIBLE};
 
@@ -20,70 +20,47 @@ impl Stiffness {
     /// K = ∫∇φ_b·∇φ_a over all vertices a, b (no boundary condition applied).
     pub fn assemble(mesh: &Mesh) -> Self {
         let n = mesh.n_vertices();
-        // Pattern: each vertex with itself and its edge neighbours (twice each, deduplicated).
-        let mut row_ptr = vec![0usize; n + 1];
-        for t in &mesh.triangles {
-            for &a in t {
-                row_ptr[a + 1] += 2;
-            }
-        }
-        for a in 0..n {
-            row_ptr[a + 1] += row_ptr[a] + 1;
-        }
-        let mut col = vec![0u32; row_ptr[n]];
-        let mut fill = row_ptr.clone();
-        for (a, f) in fill.iter_mut().enumerate().take(n) {
-            col[*f] = a as u32;
-            *f += 1;
-        }
-        for t in &mesh.triangles {
-            for k in 0..3 {
-                let a = t[k];
-                col[fill[a]] = t[(k + 1) % 3] as u32;
-                col[fill[a] + 1] = t[(k + 2) % 3] as u32;
-                fill[a] += 2;
-            }
-        }
-        drop(fill);
-        // Sort and deduplicate each row, compacting in place.
-        let (mut out, mut start) = (0, 0);
-        for a in 0..n {
-            let end = row_ptr[a + 1];
-            col[start..end].sort_unstable();
-            let row_start = out;
-            for i in start..end {
-                if i == start || col[i] != col[i - 1] {
-                    col[out] = col[i];
-                    out += 1;
+        let stars = Stars::new(mesh);
+        // Row by row from the triangles around each vertex, the two halves of the rows on two
+        // threads; each entry summed in the order of the triangles.
+        let halves = in_two_halves(n, |rows| {
+            let len = rows.len();
+            let (mut ends, mut col, mut val) = (
+                Vec::with_capacity(len),
+                Vec::with_capacity(7 * len),
+                Vec::with_capacity(7 * len),
+            );
+            let mut entries: Vec<(u32, f64)> = Vec::new();
+            for a in rows {
+                entries.clear();
+                for (t, k) in stars.around(a) {
+                    let local = local_stiffness(mesh.corners(t));
+                    entries.extend((0..3).map(|j| (mesh.triangles[t][j] as u32, local[k][j])));
                 }
-            }
-            start = end;
-            row_ptr[a] = row_start;
-        }
-        row_ptr[n] = out;
-        col.truncate(out);
-        let mut val = vec![0.0; out];
-        let position = |a: usize, b: usize| {
-            let row = &col[row_ptr[a]..row_ptr[a + 1]];
-            row_ptr[a] + row.binary_search(&(b as u32)).expect("entry in the pattern")
-        };
-        for (t, tri) in mesh.triangles.iter().enumerate() {
-            let local = local_stiffness(mesh.corners(t));
-            for i in 0..3 {
-                for j in 0..3 {
-                    val[position(tri[i], tri[j])] += local[i][j];
+                // Stable: the contributions to each entry stay in the order of the triangles.
+                entries.sort_by_key(|e| e.0);
+                let start = col.len();
+                for group in entries.chunk_by(|x, y| x.0 == y.0) {
+                    col.push(group[0].0);
+                    val.push(group.iter().fold(0.0, |s, e| s + e.1));
                 }
+                let diagonal = val[start + col[start..].partition_point(|&b| (b as usize) < a)];
+                let mut kept = start;
+                for p in start..col.len() {
+                    if val[p].abs() > NEGLIGIBLE * diagonal {
+                        (col[kept], val[kept]) = (col[p], val[p]);
+                        kept += 1;
+                    }
+                }
+                col.truncate(kept);
+                val.truncate(kept);
+                ends.push(col.len() as u32);
             }
-        }
-        let rows = (0..n).map(|a| {
-            let r = row_ptr[a]..row_ptr[a + 1];
-            (col[r.clone()].iter())
-                .map(|&b| b as usize)
-                .zip(val[r].iter().copied())
+            (ends, col, val)
         });
-        let diagonal = |a: usize| val[position(a, a)];
-        let matrix = Csr::from_rows(rows, n, |a, v| v.abs() > NEGLIGIBLE * diagonal(a)).with_diagonal();
-        Stiffness { matrix }
+        Stiffness {
+            matrix: Csr::joined(halves, n).with_diagonal(),
+        }
     }
 
     /// The matrix, for the solvers.

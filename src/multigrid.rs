@@ -75,27 +75,10 @@ const SWEEPS: usize = 1;
 fn galerkin(a: &Csr, p: &Csr, pt: &Csr, alive: &[bool], kept: &[bool], base: Option<(&Csr, &[bool])>) -> Csr {
     let nc = pt.rows();
     let halves = crate::assembly::in_two_halves(nc, |rows| galerkin_rows(a, p, pt, alive, kept, base, rows));
-    let [(first, mut col, mut val), (second, col2, val2)] = halves;
-    let mut row_ptr = Vec::with_capacity(nc + 1);
-    row_ptr.push(0);
-    row_ptr.extend(&first);
-    let start = col.len() as u32;
-    row_ptr.extend(second.iter().map(|&end| start + end));
-    col.extend(col2);
-    val.extend(val2);
-    Csr {
-        row_ptr,
-        col,
-        val,
-        cols: nc,
-        ..Default::default()
-    }
-    .checked()
-    .with_diagonal()
+    Csr::joined(halves, nc).with_diagonal()
 }
 
-/// Rows `rows` of [`galerkin`]: where each row ends (counted from the first), the columns and
-/// the values.
+/// Rows `rows` of [`galerkin`].
 fn galerkin_rows(
     a: &Csr,
     p: &Csr,

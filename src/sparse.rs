@@ -26,34 +26,38 @@ pub struct Csr {
     pub(crate) inv_diag: Vec<f64>,
 }
 
+/// Consecutive rows of a matrix: where each row ends (counted from the part's first entry), the
+/// columns and the values.
+pub(crate) type RowsPart = (Vec<u32>, Vec<u32>, Vec<f64>);
+
 /// Why a matrix cannot be stored with 32-bit positions.
 fn fits(n: usize, what: &str) -> u32 {
     u32::try_from(n).unwrap_or_else(|_| panic!("{what} {n} exceed 2³² (the memory guard stops such meshes)"))
 }
 
 impl Csr {
-    /// The matrix of sorted rows `rows` (column, value) with `cols` columns, entries whose
-    /// `keep(i, value)` is false dropped.
-    pub fn from_rows<R>(rows: R, cols: usize, mut keep: impl FnMut(usize, f64) -> bool) -> Self
-    where
-        R: IntoIterator,
-        R::Item: IntoIterator<Item = (usize, f64)>,
-    {
-        let mut m = Csr {
-            row_ptr: vec![0],
+    /// The matrix of the rows of two parts (made e.g. on two threads), the first part's rows
+    /// first, with `cols` columns.
+    pub(crate) fn joined(
+        [(first, mut col, mut val), (second, col2, val2)]: [RowsPart; 2],
+        cols: usize,
+    ) -> Self {
+        let mut row_ptr = Vec::with_capacity(first.len() + second.len() + 1);
+        row_ptr.push(0);
+        row_ptr.extend(&first);
+        fits(col.len() + col2.len(), "entries");
+        let start = col.len() as u32;
+        row_ptr.extend(second.iter().map(|&end| start + end));
+        col.extend(col2);
+        val.extend(val2);
+        Csr {
+            row_ptr,
+            col,
+            val,
             cols,
             ..Default::default()
-        };
-        for (i, row) in rows.into_iter().enumerate() {
-            for (j, v) in row {
-                if keep(i, v) {
-                    m.col.push(fits(j, "column numbers"));
-                    m.val.push(v);
-                }
-            }
-            m.row_ptr.push(fits(m.col.len(), "entries"));
         }
-        m.checked()
+        .checked()
     }
 
     /// The number of rows.

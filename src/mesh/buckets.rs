@@ -73,6 +73,15 @@ impl Buckets {
         (j0..=j1).flat_map(move |j| (i0..=i1).map(move |i| j * nx + i))
     }
 
+    /// The items in the bucket of p and the eight around it.
+    pub(crate) fn around(&self, p: [f64; 2]) -> impl Iterator<Item = usize> + '_ {
+        let (a, b) = (
+            [p[0] - self.cell[0], p[1] - self.cell[1]],
+            [p[0] + self.cell[0], p[1] + self.cell[1]],
+        );
+        self.near_box(a, b)
+    }
+
     pub(crate) fn near_box(&self, a: [f64; 2], b: [f64; 2]) -> impl Iterator<Item = usize> + '_ {
         self.cells(a, b)
             .flat_map(move |c| self.items[self.start[c]..self.start[c + 1]].iter().copied())

@@ -177,6 +177,48 @@ pub fn orient(p: [f64; 2], q: [f64; 2], r: [f64; 2]) -> f64 {
     (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
 }
 
+/// The triangles around each vertex (its star), with the vertex's corner in each: for row-wise
+/// assembly and point location.
+pub struct Stars {
+    start: Vec<u32>,
+    /// 3 t + k for corner k of triangle t.
+    corner: Vec<u32>,
+}
+
+impl Stars {
+    /// The stars of the vertices of `mesh`.
+    pub fn new(mesh: &Mesh) -> Self {
+        let n = mesh.n_vertices();
+        let mut start = vec![0u32; n + 1];
+        for t in &mesh.triangles {
+            for &a in t {
+                start[a + 1] += 1;
+            }
+        }
+        for a in 0..n {
+            start[a + 1] += start[a];
+        }
+        let mut fill = start.clone();
+        let mut corner = vec![0u32; 3 * mesh.triangles.len()];
+        for (t, tri) in mesh.triangles.iter().enumerate() {
+            for (k, &a) in tri.iter().enumerate() {
+                corner[fill[a] as usize] = (3 * t + k) as u32;
+                fill[a] += 1;
+            }
+        }
+        Stars { start, corner }
+    }
+
+    /// The triangles t around vertex a, in increasing order, with a's corner k in each.
+    #[inline]
+    pub fn around(&self, a: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+        let range = self.start[a] as usize..self.start[a + 1] as usize;
+        self.corner[range]
+            .iter()
+            .map(|&c| (c as usize / 3, c as usize % 3))
+    }
+}
+
 impl Mesh {
     /// Checks a mesh read or built from points and triangles and orients its triangles
     /// counter-clockwise. Rejects everything that is not a conforming triangulation of a

@@ -1,8 +1,9 @@
 //! P1 transfer between two meshes of the same domain: interpolation from a coarse mesh onto a
 //! fine one, and its transpose, which restricts nodal loads.
 
-use super::{max2, min2, orient, Buckets, Mesh};
+use super::{max2, min2, orient, Buckets, Mesh, Stars};
 use crate::sparse::Csr;
+use std::sync::OnceLock;
 
 /// P1 interpolation from a coarse mesh onto the vertices of a fine one: each fine vertex is
 /// located in the coarse mesh (or, outside it, at the nearest triangle) with its barycentric
@@ -22,23 +23,30 @@ impl Prolongation {
     /// The interpolation from `coarse` onto the vertices of `fine`.
     pub fn new(fine: &Mesh, coarse: &Mesh) -> Self {
         let locator = Locator::new(coarse);
-        // Consecutive vertices are mostly near each other: the last triangle is tried first.
-        // The two halves of the fine vertices on two threads.
+        // The two halves of the fine vertices on two threads; consecutive vertices are mostly
+        // near each other, so the last one's triangle is tried first.
         let halves = crate::assembly::in_two_halves(fine.n_vertices(), |range| {
-            let mut hint = 0;
-            (fine.points[range].iter())
-                .map(|&p| {
-                    let (t, bary) = locator.locate(coarse, p, hint);
-                    hint = t;
-                    let mut row = [0, 1, 2].map(|k| (coarse.triangles[t][k], bary[k]));
-                    row.sort_unstable_by_key(|e| e.0);
-                    row
-                })
-                .collect::<Vec<_>>()
+            let (mut hint, len) = (0, range.len());
+            let (mut ends, mut col, mut val) = (
+                Vec::with_capacity(len),
+                Vec::with_capacity(3 * len),
+                Vec::with_capacity(3 * len),
+            );
+            for &p in &fine.points[range] {
+                let (t, bary) = locator.locate(p, hint);
+                hint = t;
+                let mut row = [0, 1, 2].map(|k| (coarse.triangles[t][k], bary[k]));
+                row.sort_unstable_by_key(|e| e.0);
+                for (j, w) in row.into_iter().filter(|e| e.1.abs() > WEIGHT_EPS) {
+                    col.push(j as u32);
+                    val.push(w);
+                }
+                ends.push(col.len() as u32);
+            }
+            (ends, col, val)
         });
-        let rows = halves.iter().flatten().map(|row| row.iter().copied());
         Prolongation {
-            matrix: Csr::from_rows(rows, coarse.n_vertices(), |_, w| w.abs() > WEIGHT_EPS),
+            matrix: Csr::joined(halves, coarse.n_vertices()),
         }
     }
 
@@ -73,24 +81,32 @@ impl Prolongation {
 }
 
 /// Point location in a mesh: the triangle containing a point and its barycentric coordinates.
-struct Locator {
-    grid: Buckets,
+/// Tried in turn: the triangle of the previous point (consecutive vertices are mostly near each
+/// other), the triangles around the nearest vertex (on nested meshes every finer vertex is a
+/// vertex or an edge midpoint of this mesh, so this finds it), and the triangles whose bounding
+/// boxes hold the point (their buckets built at the first point that needs them).
+struct Locator<'m> {
+    mesh: &'m Mesh,
+    vertices: Buckets,
+    stars: Stars,
+    boxes: OnceLock<Buckets>,
 }
 
-impl Locator {
-    fn new(mesh: &Mesh) -> Self {
-        let boxes = (0..mesh.triangles.len()).map(|t| {
-            let [p, q, r] = mesh.corners(t);
-            (min2(min2(p, q), r), max2(max2(p, q), r))
-        });
+impl<'m> Locator<'m> {
+    fn new(mesh: &'m Mesh) -> Self {
         Locator {
-            grid: Buckets::from_boxes(boxes, mesh.triangles.len()),
+            mesh,
+            vertices: Buckets::new(mesh.points.iter().copied(), mesh.n_vertices()),
+            stars: Stars::new(mesh),
+            boxes: OnceLock::new(),
         }
     }
 
-    /// The triangle of `mesh` that holds p (the triangle `hint` if it does), with p's
-    /// barycentric coordinates there.
-    fn locate(&self, mesh: &Mesh, p: [f64; 2], hint: usize) -> (usize, [f64; 3]) {
+    /// The triangle that holds p (the triangle `hint` if it does), with p's barycentric
+    /// coordinates there; outside every triangle (a point of a finer curved boundary), the
+    /// nearest miss clamped.
+    fn locate(&self, p: [f64; 2], hint: usize) -> (usize, [f64; 3]) {
+        let mesh = self.mesh;
         let mut best = (0, [1.0, 0.0, 0.0], f64::NEG_INFINITY);
         // Whether t holds p (then it is the answer), keeping the nearest miss in `best`.
         let mut holds = |t: usize| {
@@ -101,18 +117,32 @@ impl Locator {
             }
             worst >= -1e-12
         };
-        let found = (hint < mesh.triangles.len() && holds(hint)) || {
-            let mut candidates = self.grid.near_box(p, p).peekable();
-            if candidates.peek().is_some() {
-                candidates.any(&mut holds)
-            } else {
-                (0..mesh.triangles.len()).any(&mut holds)
-            }
+        let distance = |a: &usize| {
+            let q = mesh.points[*a];
+            (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
         };
+        let found = (hint < mesh.triangles.len() && holds(hint))
+            || (self.vertices.around(p))
+                .min_by(|a, b| distance(a).total_cmp(&distance(b)))
+                .is_some_and(|a| self.stars.around(a).any(|(t, _)| holds(t)))
+            || {
+                let boxes = self.boxes.get_or_init(|| {
+                    let boxes = (0..mesh.triangles.len()).map(|t| {
+                        let [p, q, r] = mesh.corners(t);
+                        (min2(min2(p, q), r), max2(max2(p, q), r))
+                    });
+                    Buckets::from_boxes(boxes, mesh.triangles.len())
+                });
+                let mut candidates = boxes.near_box(p, p).peekable();
+                if candidates.peek().is_some() {
+                    candidates.any(&mut holds)
+                } else {
+                    (0..mesh.triangles.len()).any(&mut holds)
+                }
+            };
         if found {
             return (best.0, best.1);
         }
-        // Outside every triangle (a point of a finer boundary): clamp to the closest one.
         let b = best.1.map(|v| v.max(0.0));
         let s: f64 = b.iter().sum();
         (best.0, b.map(|v| v / s))
