@@ -597,6 +597,10 @@ fn obstacle(
 /// K's couplings (on right-angled meshes not across the diagonals, so that 24 of them reach about
 /// as far as 16 mesh edges; with 16, one more global step at 1024² cells).
 const BAND_RINGS: usize = 24;
+/// The rings of the band inside the proposed contact set: w = 0 there whatever the data outside
+/// the band, so the band needs only room for the free boundary to move in (with 2, the same
+/// global steps as with 24 at 1024² cells; with none, one more).
+const HELD_RINGS: usize = 4;
 /// Active-set iterations of one local correction.
 const LOCAL_ITERATIONS: usize = 20;
 /// A local correction is skipped when its band would hold more than this share of the unknowns
@@ -695,7 +699,7 @@ impl<'p> WProblem<'p> {
         stats: &mut SolverStats,
     ) -> Vec<bool> {
         let p = self.problem;
-        let band = band(p, system, seeds, BAND_RINGS);
+        let band = band(p, system, seeds, &next, [BAND_RINGS, HELD_RINGS]);
         if band.is_empty() || band.len() as f64 > BAND_SHARE * system.n() as f64 {
             return next;
         }
@@ -743,17 +747,27 @@ impl<'p> WProblem<'p> {
     }
 }
 
-/// The unknowns of `system` within `rings` graph steps of `seeds`, sorted.
-fn band(problem: &DiscreteProblem, system: &InteriorSystem, seeds: &[usize], rings: usize) -> Vec<usize> {
+/// The unknowns of `system` within `rings[0]` graph steps of `seeds`, sorted, where the steps
+/// from an `active` unknown go on only while fewer than `rings[1]`.
+fn band(
+    problem: &DiscreteProblem,
+    system: &InteriorSystem,
+    seeds: &[usize],
+    active: &[bool],
+    [rings, held_rings]: [usize; 2],
+) -> Vec<usize> {
     let index = &system.unknown;
     let mut in_band = vec![false; system.n()];
     let mut front: Vec<usize> = seeds.to_vec();
     for &i in &front {
         in_band[i] = true;
     }
-    for _ in 0..rings {
+    for ring in 0..rings {
         let mut next = Vec::new();
         for &i in &front {
+            if active[i] && ring >= held_rings {
+                continue;
+            }
             for (b, _) in problem.stiffness.row(system.vertices[i]) {
                 let j = index[b];
                 if j != usize::MAX && !in_band[j] {
@@ -1136,23 +1150,39 @@ mod tests {
             .collect();
         assert!(expected.len() > 4 && expected.len() < n / 2);
         assert_eq!(interface(&p, &system, &active), expected);
-        // The band of r rings: the unknowns within r edges of a seed, by breadth-first search.
+        // The band of r rings: the unknowns within r edges of a seed, by breadth-first search
+        // where active unknowns `held` steps or more from a seed lead no further.
         let seeds = [system.unknown[4 * 9 + 2], system.unknown[6 * 9 + 6]];
-        let mut distance = vec![usize::MAX; n];
-        let mut queue: std::collections::VecDeque<usize> = seeds.iter().copied().collect();
-        seeds.iter().for_each(|&i| distance[i] = 0);
-        while let Some(i) = queue.pop_front() {
-            for &j in &neighbours[i] {
-                if distance[j] == usize::MAX {
-                    distance[j] = distance[i] + 1;
-                    queue.push_back(j);
+        let distances = |held: usize| {
+            let mut distance = vec![usize::MAX; n];
+            let mut queue: std::collections::VecDeque<usize> = seeds.iter().copied().collect();
+            seeds.iter().for_each(|&i| distance[i] = 0);
+            while let Some(i) = queue.pop_front() {
+                if active[i] && distance[i] >= held {
+                    continue;
+                }
+                for &j in &neighbours[i] {
+                    if distance[j] == usize::MAX {
+                        distance[j] = distance[i] + 1;
+                        queue.push_back(j);
+                    }
                 }
             }
-        }
+            distance
+        };
+        let distance = distances(usize::MAX);
         for rings in 0..5 {
             let expected: Vec<usize> = (0..n).filter(|&i| distance[i] <= rings).collect();
-            assert_eq!(band(&p, &system, &seeds, rings), expected, "{rings} rings");
+            assert_eq!(
+                band(&p, &system, &seeds, &active, [rings, rings]),
+                expected,
+                "{rings} rings"
+            );
         }
+        let distance = distances(1);
+        let expected: Vec<usize> = (0..n).filter(|&i| distance[i] <= 4).collect();
+        assert!(expected.len() < band(&p, &system, &seeds, &active, [4, 4]).len());
+        assert_eq!(band(&p, &system, &seeds, &active, [4, 1]), expected);
     }
 
     #[test]
