@@ -81,10 +81,11 @@ impl Prolongation {
 }
 
 /// Point location in a mesh: the triangle containing a point and its barycentric coordinates.
-/// Tried in turn: the triangle of the previous point (consecutive vertices are mostly near each
-/// other), the triangles around the nearest vertex (on nested meshes every finer vertex is a
-/// vertex or an edge midpoint of this mesh, so this finds it), and the triangles whose bounding
-/// boxes hold the point (their buckets built at the first point that needs them).
+/// Tried in turn: the triangle of the previous point and those around its corners (consecutive
+/// vertices are mostly near each other), the triangles around the nearest vertex (on nested
+/// meshes every finer vertex is a vertex or an edge midpoint of this mesh, so this finds it), and
+/// the triangles whose bounding boxes hold the point (their buckets built at the first point that
+/// needs them).
 struct Locator<'m> {
     mesh: &'m Mesh,
     vertices: Buckets,
@@ -94,10 +95,15 @@ struct Locator<'m> {
 
 impl<'m> Locator<'m> {
     fn new(mesh: &'m Mesh) -> Self {
+        let (vertices, stars) = crate::assembly::both(
+            true,
+            || Buckets::new(mesh.points.iter().copied(), mesh.n_vertices()),
+            || Stars::new(mesh),
+        );
         Locator {
             mesh,
-            vertices: Buckets::new(mesh.points.iter().copied(), mesh.n_vertices()),
-            stars: Stars::new(mesh),
+            vertices,
+            stars,
             boxes: OnceLock::new(),
         }
     }
@@ -121,7 +127,9 @@ impl<'m> Locator<'m> {
             let q = mesh.points[*a];
             (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
         };
-        let found = (hint < mesh.triangles.len() && holds(hint))
+        let found = (hint < mesh.triangles.len()
+            && (holds(hint)
+                || (mesh.triangles[hint].iter()).any(|&a| self.stars.around(a).any(|(t, _)| holds(t)))))
             || (self.vertices.around(p))
                 .min_by(|a, b| distance(a).total_cmp(&distance(b)))
                 .is_some_and(|a| self.stars.around(a).any(|(t, _)| holds(t)))
