@@ -13,6 +13,7 @@
 //! for min(w_a, λ_a) = 0): A = {a : λ_a − c_a w_a > 0}, w = 0 on A, the equation off A, repeated
 //! until A no longer changes, which is then the exact solution of (3.4) up to round-off.
 
+use crate::assembly::both;
 use crate::linear::{Factorization, InteriorSystem};
 use crate::mesh::{Mesh, Prolongation};
 use crate::multigrid::{Hierarchy, Multigrid, NotConverged};
@@ -511,7 +512,7 @@ fn obstacle(
         factor_nnz: system.factor_nnz(),
         ..Default::default()
     };
-    let mut w_problem = WProblem::new(problem);
+    let mut w_problem = WProblem::new(problem, multigrid.and_then(|m| m.2));
     let rhs = w_problem.rhs(system, &problem.g_h);
     let mut active: Vec<bool> = match &warm {
         Some(guess) => (system.vertices.iter())
@@ -611,6 +612,8 @@ const BAND_SHARE: f64 = 0.5;
 struct WProblem<'p> {
     problem: &'p DiscreteProblem,
     mu_star: f64,
+    /// Whether the second core is free for the residuals (see [`Multigrid::second_core`]).
+    second_core: Option<&'p AtomicBool>,
     /// Room for the numbering of a local correction's band, one entry per vertex, all
     /// `usize::MAX` between corrections (so that each costs O(band), not O(vertices)).
     scratch: Vec<usize>,
@@ -626,9 +629,10 @@ struct Step {
 }
 
 impl<'p> WProblem<'p> {
-    fn new(problem: &'p DiscreteProblem) -> Self {
+    fn new(problem: &'p DiscreteProblem, second_core: Option<&'p AtomicBool>) -> Self {
         WProblem {
             problem,
+            second_core,
             mu_star: problem.data.mu1 * problem.data.mu2 / (problem.data.mu1 + problem.data.mu2),
             scratch: Vec::new(),
         }
@@ -672,15 +676,27 @@ impl<'p> WProblem<'p> {
         &self,
         system: &InteriorSystem,
         w_int: &[f64],
-        w: impl Fn(usize) -> f64,
+        w: impl Fn(usize) -> f64 + Sync,
     ) -> (Vec<f64>, Vec<bool>) {
         let k = &self.problem.stiffness;
-        let residual: Vec<f64> = (system.vertices.iter())
-            .map(|&a| self.mu_star * k.row(a).map(|(b, v)| v * w(b)).sum::<f64>() - self.load(a))
-            .collect();
-        let next = (system.vertices.iter().enumerate())
-            .map(|(i, &a)| self.predicts_contact(a, residual[i], w_int[i]))
-            .collect();
+        // The two halves of the unknowns, on two threads when the second core is free.
+        let part = |unknowns: std::ops::Range<usize>| {
+            let residual: Vec<f64> = (system.vertices[unknowns.clone()].iter())
+                .map(|&a| self.mu_star * k.row(a).map(|(b, v)| v * w(b)).sum::<f64>() - self.load(a))
+                .collect();
+            let next: Vec<bool> = (unknowns.zip(&residual))
+                .map(|(i, &r)| self.predicts_contact(system.vertices[i], r, w_int[i]))
+                .collect();
+            (residual, next)
+        };
+        let (n, parallel) = (
+            system.n(),
+            self.second_core.is_some_and(|f| f.load(Ordering::Relaxed)),
+        );
+        let ((mut residual, mut next), (residual1, next1)) =
+            both(parallel, || part(0..n / 2), || part(n / 2..n));
+        residual.extend(residual1);
+        next.extend(next1);
         (residual, next)
     }
 

@@ -182,6 +182,44 @@ pub(crate) mod tests {
         }
     }
 
+    #[test]
+    fn nested_vertices_are_found_without_the_box_search() {
+        // Every vertex of the finer mesh is a vertex or an edge midpoint of the coarser one: the
+        // star of the nearest vertex (with no hint) or of the hint's corners holds it.
+        let coarse = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 5, 3, Diagonal::Right).unwrap();
+        let fine = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 10, 6, Diagonal::Right).unwrap();
+        let locator = Locator::new(&coarse);
+        let mut hint = usize::MAX;
+        for &p in &fine.points {
+            for start in [usize::MAX, hint] {
+                let (t, b) = locator.locate(p, start);
+                assert!(b.iter().all(|&w| w >= -1e-12), "{p:?} in triangle {t}: {b:?}");
+                let q = (0..2).map(|k| (0..3).map(|j| b[j] * coarse.corners(t)[j][k]).sum::<f64>());
+                assert!(q.zip(p).all(|(q, p)| (q - p).abs() < 1e-14), "{p:?}");
+                hint = t;
+            }
+        }
+        assert!(locator.boxes.get().is_none(), "the bounding boxes were searched");
+    }
+
+    #[test]
+    fn vertices_outside_the_coarser_mesh_are_interpolated_from_the_nearest_triangle() {
+        // The refined disk's new boundary vertices lie on the circle, outside the coarser
+        // polygon: their weights (clamped) are still a partition of unity, as every row's.
+        let mut disk = crate::case::Case::read(std::path::Path::new("data/cases/disk_contact.toml")).unwrap();
+        disk.refine = 1;
+        let (fine, coarser) = disk.hierarchy(true).unwrap();
+        let p = Prolongation::new(&fine, &coarser[0]);
+        let outside = (0..fine.n_vertices())
+            .filter(|&a| {
+                let (_, w) = p.matrix().row(a);
+                assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12 && w.iter().all(|&w| w > 0.0));
+                fine.on_boundary[a] && w.len() > 1
+            })
+            .count();
+        assert!(outside > 10, "{outside} boundary vertices between coarse ones");
+    }
+
     /// (f, φ_A) on `coarse` equals Pᵀ (f, φ_a) on `fine` when the meshes are nested: the
     /// degree-4 rule is exact for f φ on both.
     pub(crate) fn assert_loads_restrict_exactly(coarse: &Mesh, fine: &Mesh, f: &str) {
