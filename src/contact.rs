@@ -19,6 +19,7 @@ use crate::mesh::{Mesh, Prolongation};
 use crate::multigrid::{Hierarchy, Multigrid, NotConverged};
 use crate::problem::{boundary_values, DataError, DiscreteProblem};
 use crate::result::{Attr, Attribute, Describe, Field, Place};
+use std::borrow::Cow;
 use std::fmt;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, MutexGuard, OnceLock};
@@ -325,7 +326,7 @@ pub fn solve(
         let x = {
             let _turn = turn.map(take_turn);
             solver.prepare(&vec![false; system.n()], &mut stats)?;
-            solver.solve(rhs, &mut stats)?
+            solver.solve(Cow::Owned(rhs), &mut stats)?
         };
         w_free.store(cores > 1, Ordering::Relaxed);
         let bc: Vec<f64> = (0..problem.g_h.len()).map(bc).collect();
@@ -664,7 +665,7 @@ impl<'p> WProblem<'p> {
         bc: &[f64],
         stats: &mut SolverStats,
     ) -> Result<Step, SolveError> {
-        let w_int = solver.solve(rhs.to_vec(), stats)?;
+        let w_int = solver.solve(Cow::Borrowed(rhs), stats)?;
         let w = system.scatter(&w_int, bc);
         let (residual, next) = self.residual_and_next(system, &w_int, |b| w[b]);
         Ok(Step { w, residual, next })
@@ -734,7 +735,7 @@ impl<'p> WProblem<'p> {
         for _ in 0..LOCAL_ITERATIONS {
             stats.local_iterations += 1;
             let solved = (solver.prepare(&active, &mut local_stats))
-                .and_then(|()| solver.solve(rhs.clone(), &mut local_stats));
+                .and_then(|()| solver.solve(Cow::Borrowed(&rhs), &mut local_stats));
             let Ok(w_int) = solved else {
                 settled = false;
                 break;
@@ -903,10 +904,11 @@ impl<'s> Inner<'s> {
         }
     }
 
-    /// K_FF x = b, x = 0 on the held unknowns (b taken, so that it is not kept beside CG's vectors).
-    fn solve(&mut self, b: Vec<f64>, stats: &mut SolverStats) -> Result<Vec<f64>, SolveError> {
+    /// K_FF x = b, x = 0 on the held unknowns (b owned when the caller has no further use for it,
+    /// so that it is not kept beside CG's vectors; borrowed, it is not copied for CG).
+    fn solve(&mut self, b: Cow<[f64]>, stats: &mut SolverStats) -> Result<Vec<f64>, SolveError> {
         match self {
-            Inner::Direct(factor) => Ok(solve_with(factor, b, stats)),
+            Inner::Direct(factor) => Ok(solve_with(factor, b.into_owned(), stats)),
             Inner::Multigrid {
                 system,
                 cycle,
