@@ -22,17 +22,14 @@
 
 use crate::assembly::{gradients, in_two_halves};
 use crate::flux::Flux;
-use crate::mesh::{orient, DualMesh, Mesh};
+use crate::mesh::{orient, DualMesh, Mesh, Stars};
 
 /// No neighbour (a boundary edge) or no stream-function unknown (a vertex of S_h where ψ = 0).
 const NONE: usize = usize::MAX;
 
 /// The triangles around each vertex and the neighbour across each edge, for the patch problems.
 pub struct Patches {
-    /// CSR offsets of `star`.
-    start: Vec<usize>,
-    /// For each vertex a, the triangles containing it, with a's position in each.
-    star: Vec<(usize, usize)>,
+    stars: Stars,
     /// Across edge j = `(t[j], t[j + 1])` of each triangle: the neighbour, or NONE on ∂ω.
     pub neighbour: Vec<[usize; 3]>,
 }
@@ -40,24 +37,6 @@ pub struct Patches {
 impl Patches {
     /// The patches of `mesh`.
     pub fn new(mesh: &Mesh) -> Self {
-        let n = mesh.n_vertices();
-        let mut start = vec![0; n + 1];
-        for tri in &mesh.triangles {
-            for &a in tri {
-                start[a + 1] += 1;
-            }
-        }
-        for a in 0..n {
-            start[a + 1] += start[a];
-        }
-        let mut fill = start.clone();
-        let mut star = vec![(0, 0); start[n]];
-        for (t, tri) in mesh.triangles.iter().enumerate() {
-            for (k, &a) in tri.iter().enumerate() {
-                star[fill[a]] = (t, k);
-                fill[a] += 1;
-            }
-        }
         let mut halves: Vec<((usize, usize), usize, usize)> = (mesh.triangles.iter().enumerate())
             .flat_map(|(t, tri)| {
                 (0..3).map(move |j| {
@@ -75,15 +54,14 @@ impl Patches {
             }
         }
         Patches {
-            start,
-            star,
+            stars: Stars::new(mesh),
             neighbour,
         }
     }
 
     /// The triangles containing `a`, with a's position in each.
-    pub fn around(&self, a: usize) -> &[(usize, usize)] {
-        &self.star[self.start[a]..self.start[a + 1]]
+    pub fn around(&self, a: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
+        self.stars.around(a)
     }
 }
 
@@ -177,7 +155,7 @@ struct Patch {
 impl Patch {
     /// The cells, links, spanning tree and stream-function system of the patch of `a`.
     fn build(&mut self, mesh: &Mesh, dual: &DualMesh, patches: &Patches, a: usize) {
-        let star = patches.around(a);
+        let star: Vec<(usize, usize)> = patches.around(a).collect();
         let mut others: Vec<usize> = (star.iter())
             .flat_map(|&(t, k)| [1, 2].map(|d| mesh.triangles[t][(k + d) % 3]))
             .collect();
