@@ -22,7 +22,8 @@ impl Stiffness {
         let n = mesh.n_vertices();
         let stars = Stars::new(mesh);
         // Row by row from the triangles around each vertex, the two halves of the rows on two
-        // threads; each entry summed in the order of the triangles.
+        // threads (a triangle's local matrix is computed for each of its three rows, so the
+        // threads share nothing); each entry summed in the order of the triangles.
         let halves = in_two_halves(n, |rows| {
             let len = rows.len();
             let (mut ends, mut col, mut val) = (

@@ -600,8 +600,8 @@ fn obstacle(
 /// as far as 16 mesh edges; with 16, one more global step at 1024² cells).
 const BAND_RINGS: usize = 24;
 /// The rings of the band inside the proposed contact set: w = 0 there whatever the data outside
-/// the band, so the band needs only room for the free boundary to move in (with 2, the same
-/// global steps as with 24 at 1024² cells; with none, one more).
+/// the band, so the band needs only room for the free boundary to move in (measured in the
+/// README).
 const HELD_RINGS: usize = 4;
 /// Active-set iterations of one local correction.
 const LOCAL_ITERATIONS: usize = 20;

@@ -189,6 +189,11 @@ impl Stars {
     /// The stars of the vertices of `mesh`.
     pub fn new(mesh: &Mesh) -> Self {
         let n = mesh.n_vertices();
+        // Corners are numbered 3 t + k in 32 bits (the memory guard stops meshes long before).
+        assert!(
+            u32::try_from(3 * mesh.triangles.len()).is_ok(),
+            "3 × triangles exceed 2³²"
+        );
         let mut start = vec![0u32; n + 1];
         for t in &mesh.triangles {
             for &a in t {
