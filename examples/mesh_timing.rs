@@ -22,7 +22,7 @@ fn main() {
             let ratio = mesh.n_vertices() as f64 * h * h / domain.area();
             // The checks of Mesh::new, part of the time above, timed again on their own.
             let t = Instant::now();
-            Mesh::new(mesh.points.clone(), mesh.triangles.clone()).unwrap();
+            Mesh::new(mesh.points.clone(), mesh.triangles().collect()).unwrap();
             let checks = t.elapsed().as_secs_f64();
             println!(
                 "{name} h = {h}: {} vertices in {seconds:.2} s ({:.2} µs per vertex; checks {checks:.2} s), \

@@ -46,7 +46,7 @@ impl Step {
         let mesh = &r.problem.mesh;
         Step {
             vertices: mesh.n_vertices(),
-            triangles: mesh.triangles.len(),
+            triangles: mesh.n_triangles(),
             marked,
             estimator: r.estimate.as_ref().expect("estimated").total,
             error: r.errors.as_ref().and_then(|e| e.energy),

@@ -36,7 +36,7 @@ impl Stiffness {
                 entries.clear();
                 for (t, k) in stars.around(a) {
                     let local = local_stiffness(mesh.corners(t));
-                    entries.extend((0..3).map(|j| (mesh.triangles[t][j] as u32, local[k][j])));
+                    entries.extend((0..3).map(|j| (mesh.triangle(t)[j] as u32, local[k][j])));
                 }
                 // Stable: the contributions to each entry stay in the order of the triangles.
                 entries.sort_by_key(|e| e.0);
@@ -122,9 +122,9 @@ pub fn gradients([p, q, r]: [[f64; 2]; 3]) -> [[f64; 2]; 3] {
 /// m_a = ∫φ_a = Σ_{K ∋ a} |K|/3, which is also meas(D_a) (Section 4.2).
 pub fn lumped_mass(mesh: &Mesh) -> Vec<f64> {
     let mut m = vec![0.0; mesh.n_vertices()];
-    for (t, tri) in mesh.triangles.iter().enumerate() {
+    for (t, tri) in mesh.triangles().enumerate() {
         let third = mesh.area(t) / 3.0;
-        for &a in tri {
+        for a in tri {
             m[a] += third;
         }
     }
@@ -260,7 +260,7 @@ pub fn load(mesh: &Mesh, f: &Expr, quad: Quadrature) -> Result<Vec<f64>, NotFini
         // Exact for constants: (c, φ_a) = c m_a.
         return Ok(lumped_mass(mesh).into_iter().map(|m| c * m).collect());
     }
-    let [first, second] = in_two_halves(mesh.triangles.len(), |range| load_part(mesh, f, quad, range));
+    let [first, second] = in_two_halves(mesh.n_triangles(), |range| load_part(mesh, f, quad, range));
     let mut out = first?;
     for (o, s) in out.iter_mut().zip(second?) {
         *o += s;
@@ -281,7 +281,7 @@ fn load_part(
         triangles,
         [f],
         |t, points, [values]| {
-            let tri = mesh.triangles[t];
+            let tri = mesh.triangle(t);
             for (p, &v) in points.iter().zip(values) {
                 if !v.is_finite() && bad.is_none() {
                     bad = Some(NotFinite { point: p.x, value: v });
@@ -484,13 +484,13 @@ mod tests {
         // For f linear, ∫_K f λ_a = |K|/12 (f(a) + f(p) + f(q) + f(r)) over each triangle K = pqr
         // at a. On 60 triangles, so that each half spans a full block of 16 and part of another.
         let m = Mesh::rectangle([0.0, 0.0], [1.0, 0.75], 5, 3, Diagonal::Crossed).unwrap();
-        assert_eq!(m.triangles.len(), 60);
+        assert_eq!(m.n_triangles(), 60);
         let f = |p: [f64; 2]| 1.0 + 2.0 * p[0] - 3.0 * p[1];
         let mut exact = vec![0.0; m.n_vertices()];
-        for tri in &m.triangles {
+        for tri in m.triangles() {
             let [p, q, r] = tri.map(|v| m.points[v]);
             let area = 0.5 * ((q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0]));
-            for &a in tri {
+            for a in tri {
                 exact[a] += area / 12.0 * (f(m.points[a]) + f(p) + f(q) + f(r));
             }
         }

@@ -28,15 +28,15 @@ impl Flux {
     /// t_ih for the P1 field `u` with tension `mu` (`dual` = S_h of `mesh`).
     pub fn reconstruct(mesh: &Mesh, dual: &DualMesh, u: &[f64], mu: f64) -> Flux {
         // −μ ∇u_h on each triangle, and the mean over the triangles sharing each edge of T_h.
-        let flux: Vec<[f64; 2]> = (0..mesh.triangles.len())
+        let flux: Vec<[f64; 2]> = (0..mesh.n_triangles())
             .map(|t| {
                 let g = gradients(mesh.corners(t));
-                let tri = mesh.triangles[t];
+                let tri = mesh.triangle(t);
                 [0, 1].map(|k| -mu * (0..3).map(|i| g[i][k] * u[tri[i]]).sum::<f64>())
             })
             .collect();
         let edges = dual.edges();
-        let edge = |t: usize, k: usize| edges.between(mesh.triangles[t][k], mesh.triangles[t][(k + 1) % 3]);
+        let edge = |t: usize, k: usize| edges.between(mesh.triangle(t)[k], mesh.triangle(t)[(k + 1) % 3]);
         let (mut sum, mut count) = (vec![[0.0; 2]; edges.count()], vec![0.0; edges.count()]);
         for (t, f) in flux.iter().enumerate() {
             for k in 0..3 {
@@ -210,7 +210,7 @@ mod tests {
                 }
             }
         }
-        assert!(interior > 9 * mesh.triangles.len() - mesh.n_vertices());
+        assert!(interior > 9 * mesh.n_triangles() - mesh.n_vertices());
     }
 
     #[test]

@@ -139,7 +139,7 @@ impl Describe for Errors {
 
 /// (‖u − u_h‖_L², |u − u_h|_H¹) for a P1 field u_h.
 fn p1_errors(mesh: &Mesh, uh: &[f64], u: &Expr, grad: Option<&[Expr; 2]>) -> (f64, Option<f64>) {
-    let [first, second] = in_two_halves(mesh.triangles.len(), |range| {
+    let [first, second] = in_two_halves(mesh.n_triangles(), |range| {
         p1_error_sums(mesh, uh, u, grad, range)
     });
     let (l2, h1) = (first.0 + second.0, first.1 + second.1);
@@ -157,7 +157,7 @@ fn p1_error_sums(
     let (mut l2, mut h1) = (0.0, 0.0);
     let corners = |t| mesh.corners(t);
     ERROR_QUADRATURE.visit(corners, range.clone(), [u], |t, points, [u]| {
-        let tri = mesh.triangles[t];
+        let tri = mesh.triangle(t);
         for (p, u) in points.iter().zip(u) {
             let value: f64 = (0..3).map(|k| p.barycentric[k] * uh[tri[k]]).sum();
             l2 += p.weight * (u - value).powi(2);
@@ -165,7 +165,7 @@ fn p1_error_sums(
     });
     if let Some([gx, gy]) = grad {
         ERROR_QUADRATURE.visit(corners, range, [gx, gy], |t, points, [gx, gy]| {
-            let tri = mesh.triangles[t];
+            let tri = mesh.triangle(t);
             let g = gradients(mesh.corners(t));
             let grad_h = [0, 1].map(|k| (0..3).map(|i| g[i][k] * uh[tri[i]]).sum::<f64>());
             for ((p, gx), gy) in points.iter().zip(gx).zip(gy) {
@@ -193,8 +193,8 @@ pub(crate) fn dual_norm(mesh: &Mesh, f: &Expr, c: impl Fn(usize) -> f64) -> f64 
     let k = Stiffness::assemble(mesh);
     let mut b = vec![0.0; mesh.n_vertices()];
     let corners = |t| mesh.corners(t);
-    ERROR_QUADRATURE.visit(corners, 0..mesh.triangles.len(), [f], |t, points, [f]| {
-        let tri = mesh.triangles[t];
+    ERROR_QUADRATURE.visit(corners, 0..mesh.n_triangles(), [f], |t, points, [f]| {
+        let tri = mesh.triangle(t);
         for (p, f) in points.iter().zip(f) {
             for i in 0..3 {
                 b[tri[i]] += p.weight * (f - c(t)) * p.barycentric[i];

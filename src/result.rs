@@ -198,7 +198,7 @@ impl Grid<'_> {
 
     fn n_cells(&self) -> usize {
         match self.triangulation {
-            Triangulation::Mesh(m) => m.triangles.len(),
+            Triangulation::Mesh(m) => m.n_triangles(),
             Triangulation::Dual(d) => d.n_cells(),
         }
     }
@@ -228,7 +228,7 @@ impl Grid<'_> {
     /// that they fit).
     fn topology(&self, rows: Range<usize>, out: &mut Vec<i32>) {
         match self.triangulation {
-            Triangulation::Mesh(m) => out.extend(m.triangles[rows].iter().flatten().map(|&v| v as i32)),
+            Triangulation::Mesh(m) => out.extend(rows.flat_map(|t| m.triangle(t)).map(|v| v as i32)),
             Triangulation::Dual(d) => out.extend(rows.flat_map(|s| d.cell(s)).map(|v| v as i32)),
         }
     }
@@ -489,7 +489,7 @@ mod tests {
         let edges = Edges::new(&mesh);
         let dual = DualMesh::new(&mesh, &edges);
         let u: Vec<f64> = (0..mesh.n_vertices()).map(|a| (a as f64).sin()).collect();
-        let on_cells: Vec<f64> = (0..mesh.triangles.len()).map(|t| t as f64 / 7.0).collect();
+        let on_cells: Vec<f64> = (0..mesh.n_triangles()).map(|t| t as f64 / 7.0).collect();
         let on_dual: Vec<f64> = (0..dual.n_cells()).map(|s| s as f64 / 3.0).collect();
         let fields = [
             Field::new("u", Place::Vertices, &u),
@@ -519,11 +519,14 @@ mod tests {
             assert!(d.dtype().unwrap().is::<i32>(), "{path}");
             d.read_raw::<i32>().unwrap()
         };
-        let (n, nt) = (mesh.n_vertices(), mesh.triangles.len());
+        let (n, nt) = (mesh.n_vertices(), mesh.n_triangles());
         let (np, ns) = (dual.n_points(), dual.n_cells());
         let flat = |v: &[[usize; 3]]| v.iter().flatten().map(|&i| i as i32).collect::<Vec<_>>();
         assert_eq!(f64s("mesh/geometry", &[n, 2]), mesh.points.concat());
-        assert_eq!(i32s("mesh/topology", &[nt, 3]), flat(&mesh.triangles));
+        assert_eq!(
+            i32s("mesh/topology", &[nt, 3]),
+            flat(&mesh.triangles().collect::<Vec<_>>())
+        );
         let points: Vec<[f64; 2]> = (0..np).map(|p| dual.point(p)).collect();
         let cells: Vec<[usize; 3]> = (0..ns).map(|s| dual.cell(s)).collect();
         assert_eq!(f64s("dual/geometry", &[np, 2]), points.concat());

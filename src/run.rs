@@ -170,7 +170,7 @@ impl Run<'_> {
              checks      passed, each relative to the terms that cancel (tolerance {:.0e}): Prop. 12 {:.1e}, \
              λ ≥ 0 {:.1e}, (4.8) {:.1e}, u1 − u2 ≥ 0 {:.1e}; round-off of λ_h {:.1e} of the loads (limit {:.0e})\n",
             m.n_vertices(),
-            m.triangles.len(),
+            m.n_triangles(),
             m.h(),
             s.unknowns,
             s.iterations,
@@ -279,7 +279,7 @@ impl Describe for Run<'_> {
         let mut attrs = self.case.attributes();
         attrs.extend([
             ("vertices", mesh.n_vertices().into()),
-            ("triangles", mesh.triangles.len().into()),
+            ("triangles", mesh.n_triangles().into()),
             ("h", mesh.h().into()),
         ]);
         attrs.extend(self.solution.attributes());

@@ -67,7 +67,7 @@ fn adaptivity_on_the_l_shape_reaches_the_optimal_rate_with_a_guaranteed_bound() 
     // The smallest triangles of the last mesh sit at the re-entrant corner (0, 0).
     let last = out.join(format!("step-{:03}/solution.h5", steps.len() - 1));
     let mesh = file::read(&last).unwrap();
-    let smallest = (0..mesh.triangles.len())
+    let smallest = (0..mesh.n_triangles())
         .min_by(|&s, &t| mesh.area(s).total_cmp(&mesh.area(t)))
         .unwrap();
     let c = mesh.corners(smallest);
@@ -110,15 +110,15 @@ fn adaptivity_follows_the_true_error_in_and_out_of_contact() {
     // The true local error Σ_i μ_i ‖∇(u_i − u_ih)‖²_K, from the exact gradients.
     let exact = case.exact.as_ref().unwrap();
     let [g1, g2] = [exact.grad_u1.as_ref().unwrap(), exact.grad_u2.as_ref().unwrap()];
-    let mut error = vec![0.0; mesh.triangles.len()];
+    let mut error = vec![0.0; mesh.n_triangles()];
     let rule = Quadrature { degree: 10 };
     rule.visit(
         |t| mesh.corners(t),
-        0..mesh.triangles.len(),
+        0..mesh.n_triangles(),
         [&g1[0], &g1[1], &g2[0], &g2[1]],
         |t, points, g| {
             let grads = gradients(mesh.corners(t));
-            let tri = mesh.triangles[t];
+            let tri = mesh.triangle(t);
             let uh = [&r.solution.u1, &r.solution.u2]
                 .map(|u| [0, 1].map(|k| (0..3).map(|j| grads[j][k] * u[tri[j]]).sum::<f64>()));
             for (q, p) in points.iter().enumerate() {
@@ -138,7 +138,7 @@ fn adaptivity_follows_the_true_error_in_and_out_of_contact() {
         ("outside", &|r: f64| r > 0.3),
     ] {
         let (mut e2, mut err2) = (0.0, 0.0);
-        for t in 0..mesh.triangles.len() {
+        for t in 0..mesh.n_triangles() {
             let c = mesh.corners(t);
             let rc =
                 ((c[0][0] + c[1][0] + c[2][0]) / 3.0 - 0.5).hypot((c[0][1] + c[1][1] + c[2][1]) / 3.0 - 0.5);

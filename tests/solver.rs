@@ -34,7 +34,7 @@ fn solve<'c>(c: &'c Case, start: Start<'c>) -> Run<'c> {
 fn dense(mesh: &Mesh) -> (Mat<f64>, Vec<f64>) {
     let n = mesh.n_vertices();
     let (mut k, mut m) = (Mat::<f64>::zeros(n, n), vec![0.0; n]);
-    for tri in &mesh.triangles {
+    for tri in mesh.triangles() {
         let p = tri.map(|v| mesh.points[v]);
         let area =
             0.5 * ((p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[1][1] - p[0][1]) * (p[2][0] - p[0][0]));

@@ -40,7 +40,7 @@ pub fn lifting(
     gap: &[f64],
 ) -> Vec<OnTriangle> {
     let rule = gauss_legendre_halves();
-    (0..mesh.triangles.len())
+    (0..mesh.n_triangles())
         .map(|t| {
             let on_boundary: Vec<usize> = (0..3).filter(|&j| neighbour[t][j] == usize::MAX).collect();
             let edge = |j: usize| on_edge(mesh, t, j, g, lambda, &rule);
@@ -63,7 +63,7 @@ fn on_edge(
     lambda: &[f64],
     rule: &[(f64, f64)],
 ) -> (OnTriangle, f64) {
-    let tri = mesh.triangles[t];
+    let tri = mesh.triangle(t);
     let corners = mesh.corners(t);
     let (p, q, c) = (corners[j], corners[(j + 1) % 3], corners[(j + 2) % 3]);
     let grads = gradients(corners);
@@ -97,7 +97,7 @@ fn on_edge(
 /// vertices, δ negative), ψ = max(ψ_0, −w_h) instead, with |∇ψ|² ≤ |∇ψ_0|² + |∇w_h|².
 fn corner(mesh: &Mesh, t: usize, edges: [(OnTriangle, f64); 2], gap: &[f64]) -> OnTriangle {
     let norm0 = edges[0].0.grad_norm + edges[1].0.grad_norm;
-    let tri = mesh.triangles[t];
+    let tri = mesh.triangle(t);
     let lowest = tri.iter().map(|&a| gap[a]).fold(f64::INFINITY, f64::min);
     let dip: f64 = edges.iter().map(|e| (-e.1).max(0.0)).sum();
     let grad_norm = if lowest >= dip {
@@ -167,11 +167,11 @@ mod tests {
     /// ∫_K |∇ψ|² = ½ ∫_0^1 (2τ − 1)² + τ⁴ dτ = 4/15.
     #[test]
     fn the_lifting_of_a_parabola_has_its_closed_form_norm() {
-        let mesh = Mesh {
-            points: vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
-            triangles: vec![[0, 1, 2]],
-            on_boundary: vec![true; 3],
-        };
+        let mesh = Mesh::checked(
+            vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
+            vec![[0, 1, 2]],
+            vec![true; 3],
+        );
         let neighbour = [[usize::MAX, 0, 0]];
         let g = Expr::parse("x^2").unwrap();
         let on = lifting(&mesh, &neighbour, &g, &[0.0, 0.0, 2.0], &[0.0; 3]);

@@ -37,7 +37,7 @@ pub struct Patches {
 impl Patches {
     /// The patches of `mesh`.
     pub fn new(mesh: &Mesh) -> Self {
-        let mut halves: Vec<((usize, usize), usize, usize)> = (mesh.triangles.iter().enumerate())
+        let mut halves: Vec<((usize, usize), usize, usize)> = (mesh.triangles().enumerate())
             .flat_map(|(t, tri)| {
                 (0..3).map(move |j| {
                     let (a, b) = (tri[j], tri[(j + 1) % 3]);
@@ -46,7 +46,7 @@ impl Patches {
             })
             .collect();
         halves.sort_unstable();
-        let mut neighbour = vec![[NONE; 3]; mesh.triangles.len()];
+        let mut neighbour = vec![[NONE; 3]; mesh.n_triangles()];
         for pair in halves.chunk_by(|x, y| x.0 == y.0) {
             if let [(_, s, i), (_, t, j)] = *pair {
                 neighbour[s][i] = t;
@@ -79,10 +79,10 @@ pub struct Membrane<'a> {
 
 /// τ_1, τ_2 = Σ_a τ_{i,a}, by their normal fluxes on the cells of S_h (the convention of [`Flux`]).
 pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: [&Membrane; 2]) -> [Flux; 2] {
-    let grad_u: Vec<[[f64; 2]; 2]> = (0..mesh.triangles.len())
+    let grad_u: Vec<[[f64; 2]; 2]> = (0..mesh.n_triangles())
         .map(|t| {
             let g = gradients(mesh.corners(t));
-            let tri = mesh.triangles[t];
+            let tri = mesh.triangle(t);
             membranes.map(|m| [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()))
         })
         .collect();
@@ -157,14 +157,14 @@ impl Patch {
     fn build(&mut self, mesh: &Mesh, dual: &DualMesh, patches: &Patches, a: usize) {
         let star: Vec<(usize, usize)> = patches.around(a).collect();
         let mut others: Vec<usize> = (star.iter())
-            .flat_map(|&(t, k)| [1, 2].map(|d| mesh.triangles[t][(k + d) % 3]))
+            .flat_map(|&(t, k)| [1, 2].map(|d| mesh.triangle(t)[(k + d) % 3]))
             .collect();
         others.sort_unstable();
         others.dedup();
         let midpoint_unknown = |v: usize| 1 + others.binary_search(&v).expect("a neighbour of a");
         self.cells.clear();
         for (i, &(t, k)) in star.iter().enumerate() {
-            let tri = mesh.triangles[t];
+            let tri = mesh.triangle(t);
             let grad_phi = gradients(mesh.corners(t))[k];
             let centre = 1 + others.len() + i;
             for c in 0..6 {

@@ -104,7 +104,7 @@ impl Estimate {
             &solution.obstacle.gap,
         );
         let terms = triangle_terms(problem, dual, solution, action, &tau, &loads);
-        let n = mesh.triangles.len();
+        let n = mesh.n_triangles();
         let mut e = Estimate {
             indicator: vec![0.0; n],
             flux: [0, 1].map(|i| terms.iter().map(|t| t.flux2[i].sqrt()).collect()),
@@ -162,7 +162,7 @@ fn quadrature_defects(problem: &DiscreteProblem, loads: &[CellLoads]) -> [Vec<f6
     [0, 1].map(|i| {
         let mut on_s_h = vec![0.0; mesh.n_vertices()];
         for (s, l) in loads.iter().enumerate() {
-            for (&a, v) in mesh.triangles[s / 6].iter().zip(l.f_phi[i]) {
+            for (a, v) in mesh.triangle(s / 6).into_iter().zip(l.f_phi[i]) {
                 on_s_h[a] += v;
             }
         }
@@ -217,7 +217,7 @@ fn cell_loads(problem: &DiscreteProblem, dual: &DualMesh, alpha: f64) -> Vec<Cel
 
 /// The mean over cell s of a P1 field `v` of T_h (its value at the cell's centroid).
 fn cell_mean(mesh: &Mesh, s: usize, v: &[f64]) -> f64 {
-    let tri = mesh.triangles[s / 6];
+    let tri = mesh.triangle(s / 6);
     let frame = DualMesh::frame(s);
     (0..3)
         .map(|j| (0..3).map(|c| frame[c][j]).sum::<f64>() / 3.0 * v[tri[j]])
@@ -255,7 +255,7 @@ fn triangle_terms(
         (triangles)
             .map(|t| {
                 let g = gradients(mesh.corners(t));
-                let tri = mesh.triangles[t];
+                let tri = mesh.triangle(t);
                 let grad = [0, 1]
                     .map(|i| [0, 1].map(|k| mu[i] * (0..3).map(|j| g[j][k] * u[i][tri[j]]).sum::<f64>()));
                 let mut terms = TriangleTerms::default();
@@ -300,7 +300,7 @@ fn triangle_terms(
             })
             .collect::<Vec<_>>()
     };
-    in_two_halves(mesh.triangles.len(), part)
+    in_two_halves(mesh.n_triangles(), part)
         .into_iter()
         .flatten()
         .collect()

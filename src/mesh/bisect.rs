@@ -18,8 +18,8 @@ impl Mesh {
             let (x, y) = (self.points[p], self.points[q]);
             (x[0] - y[0]).powi(2) + (x[1] - y[1]).powi(2)
         };
-        let triangles = (self.triangles.iter())
-            .map(|&t| {
+        let triangles = (self.triangles())
+            .map(|t| {
                 // The edge opposite t[k], as (length², smaller, larger vertex).
                 let key = |k: usize| {
                     let (p, q) = (t[(k + 1) % 3], t[(k + 2) % 3]);
@@ -34,11 +34,7 @@ impl Mesh {
                 [t[k], t[(k + 1) % 3], t[(k + 2) % 3]]
             })
             .collect();
-        Mesh {
-            points: self.points.clone(),
-            triangles,
-            on_boundary: self.on_boundary.clone(),
-        }
+        Mesh::checked(self.points.clone(), triangles, self.on_boundary.clone())
     }
 
     /// Newest-vertex bisection of the `marked` triangles (one flag per triangle) and of as many
@@ -49,7 +45,7 @@ impl Mesh {
     /// refinement edge is marked. The vertices of `self` keep their numbers, the new ones follow
     /// (in the order of [`Mesh::edges`]); the children follow the labelling of the module.
     pub fn bisected(&self, marked: &[bool], curves: &Curves) -> Result<Mesh, MeshError> {
-        assert_eq!(marked.len(), self.triangles.len(), "one flag per triangle");
+        assert_eq!(marked.len(), self.n_triangles(), "one flag per triangle");
         let edges = EdgeTable::new(self);
         let split = edges.closure(marked);
         let mut points = self.points.clone();
@@ -63,8 +59,8 @@ impl Mesh {
                 [0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])]
             });
         }
-        let mut triangles = Vec::with_capacity(self.triangles.len() + 2 * (points.len() - self.n_vertices()));
-        for (&t, &[bc, ca, ab]) in self.triangles.iter().zip(&edges.of_triangle) {
+        let mut triangles = Vec::with_capacity(self.n_triangles() + 2 * (points.len() - self.n_vertices()));
+        for (t, &[bc, ca, ab]) in self.triangles().zip(&edges.of_triangle) {
             let Some(m) = mid[bc] else {
                 triangles.push(t);
                 continue;
@@ -101,12 +97,12 @@ impl EdgeTable {
     /// Groups the triangles' edges by their smaller vertex (a counting sort), then by the larger
     /// one: linear in the size of the mesh.
     fn new(mesh: &Mesh) -> Self {
-        let opposite = |t: &[usize; 3], k: usize| {
+        let opposite = |t: [usize; 3], k: usize| {
             let (p, q) = (t[(k + 1) % 3], t[(k + 2) % 3]);
             (p.min(q), p.max(q))
         };
         let mut first = vec![0usize; mesh.n_vertices() + 1];
-        for t in &mesh.triangles {
+        for t in mesh.triangles() {
             for k in 0..3 {
                 first[opposite(t, k).0 + 1] += 1;
             }
@@ -115,8 +111,8 @@ impl EdgeTable {
             first[a + 1] += first[a];
         }
         let mut fill = first.clone();
-        let mut half = vec![(0usize, 0usize); 3 * mesh.triangles.len()];
-        for (t, tri) in mesh.triangles.iter().enumerate() {
+        let mut half = vec![(0usize, 0usize); 3 * mesh.n_triangles()];
+        for (t, tri) in mesh.triangles().enumerate() {
             for k in 0..3 {
                 let (a, b) = opposite(tri, k);
                 half[fill[a]] = (b, 3 * t + k);
@@ -125,7 +121,7 @@ impl EdgeTable {
         }
         let mut table = EdgeTable {
             ends: Vec::with_capacity(half.len() / 2 + 1),
-            of_triangle: vec![[0; 3]; mesh.triangles.len()],
+            of_triangle: vec![[0; 3]; mesh.n_triangles()],
             start: Vec::with_capacity(half.len() / 2 + 2),
             triangle: Vec::with_capacity(half.len()),
         };
@@ -186,7 +182,7 @@ mod tests {
 
     /// The smallest angle of the mesh's triangles.
     fn min_angle(m: &Mesh) -> f64 {
-        (0..m.triangles.len())
+        (0..m.n_triangles())
             .map(|t| min_angle_of(m.corners(t)))
             .fold(f64::INFINITY, f64::min)
     }
@@ -212,7 +208,7 @@ mod tests {
             .map(|(i, p)| (p.map(f64::to_bits), i))
             .collect();
         let mut expected = Vec::new();
-        let mut stack = coarse.triangles.clone();
+        let mut stack: Vec<[usize; 3]> = coarse.triangles().collect();
         while let Some([a, b, c]) = stack.pop() {
             let (p, q) = (fine.points[b], fine.points[c]);
             match index.get(&[0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])].map(f64::to_bits)) {
@@ -220,7 +216,7 @@ mod tests {
                 None => expected.push([a, b, c]),
             }
         }
-        let mut got = fine.triangles.clone();
+        let mut got: Vec<[usize; 3]> = fine.triangles().collect();
         got.sort_unstable();
         expected.sort_unstable();
         assert_eq!(got, expected);
@@ -255,7 +251,7 @@ mod tests {
             (rotated.points, rotated.on_boundary)
         );
         let d = |p: usize, q: usize| crate::mesh::dist(mesh.points[p], mesh.points[q]);
-        for &[a, b, c] in &mesh.triangles {
+        for [a, b, c] in mesh.triangles() {
             assert!(d(b, c) >= d(a, b) && d(b, c) >= d(c, a));
         }
         // Two longest edges of exactly equal length, 12 and 02: the smaller pair, 02, wins.
@@ -276,9 +272,9 @@ mod tests {
             let uniform = coarse.refined(&Curves::default()).unwrap();
             let mut mesh = coarse.longest_edge_labelled();
             for _ in 0..2 {
-                mesh = bisect_and_check(&mesh, &vec![true; mesh.triangles.len()]);
+                mesh = bisect_and_check(&mesh, &vec![true; mesh.n_triangles()]);
             }
-            assert_eq!(mesh.triangles.len(), 4 * coarse.triangles.len());
+            assert_eq!(mesh.n_triangles(), 4 * coarse.n_triangles());
             assert!((mesh.measure() - uniform.measure()).abs() < 1e-14);
             assert_eq!(vertex_set(&mesh), vertex_set(&uniform), "{diagonal:?}");
         }
@@ -293,20 +289,20 @@ mod tests {
                 let [p, q, r] = mesh.corners(t);
                 (p[0] + q[0] + r[0] - 3.0 * target[0]).hypot(p[1] + q[1] + r[1] - 3.0 * target[1])
             };
-            let nearest = (0..mesh.triangles.len())
+            let nearest = (0..mesh.n_triangles())
                 .filter(|&t| chosen(t))
                 .min_by(|&s, &t| distance(s).total_cmp(&distance(t)))
                 .unwrap();
-            let mut marked = vec![false; mesh.triangles.len()];
+            let mut marked = vec![false; mesh.n_triangles()];
             marked[nearest] = true;
             let fine = bisect_and_check(mesh, &marked);
             assert!((fine.measure() - mesh.measure()).abs() <= 1e-14 * mesh.measure());
-            let mut old = mesh.triangles.clone();
+            let mut old: Vec<[usize; 3]> = mesh.triangles().collect();
             old.sort_unstable();
-            let new = (fine.triangles.iter())
+            let new = (fine.triangles())
                 .filter(|t| old.binary_search(t).is_err())
                 .count();
-            (fine.triangles.len() - mesh.triangles.len(), new)
+            (fine.n_triangles() - mesh.n_triangles(), new)
         };
         let square = |n| {
             let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], n, n, Diagonal::Right).unwrap();
@@ -321,14 +317,14 @@ mod tests {
             let mesh = l_shape(h);
             let pair = |p: usize, q: usize| (p.min(q), p.max(q));
             let (mut refinement, mut all) = (HashMap::new(), HashMap::new());
-            for t in &mesh.triangles {
+            for t in mesh.triangles() {
                 *refinement.entry(pair(t[1], t[2])).or_insert(0) += 1;
                 for k in 0..3 {
                     *all.entry(pair(t[k], t[(k + 1) % 3])).or_insert(0) += 1;
                 }
             }
             let lone = |t: usize| {
-                let e = pair(mesh.triangles[t][1], mesh.triangles[t][2]);
+                let e = pair(mesh.triangle(t)[1], mesh.triangle(t)[2]);
                 refinement[&e] == 1 && all[&e] == 2
             };
             let (added, new) = changed(&mesh, &lone, [-0.45, 0.55]);
@@ -342,7 +338,7 @@ mod tests {
         // NVB bisects each triangle into finitely many similarity classes, all among its first
         // few generations: the smallest angle any refinement can reach.
         let mut bound = f64::INFINITY;
-        let mut generation = mesh.triangles.clone();
+        let mut generation: Vec<[usize; 3]> = mesh.triangles().collect();
         let mut points = mesh.points.clone();
         for _ in 0..5 {
             let mut next = Vec::new();
@@ -356,15 +352,15 @@ mod tests {
         }
         let corner = (mesh.points.iter()).position(|&p| p == [0.0, 0.0]).unwrap();
         let largest_at_corner = |m: &Mesh| {
-            (0..m.triangles.len())
-                .filter(|&t| m.triangles[t].contains(&corner))
+            (0..m.n_triangles())
+                .filter(|&t| m.triangle(t).contains(&corner))
                 .map(|t| m.area(t))
                 .fold(0.0, f64::max)
         };
         let (initial, initial_at_corner) = (min_angle(&mesh), largest_at_corner(&mesh));
         let mut angles = Vec::new();
         for _ in 0..20 {
-            let marked: Vec<bool> = mesh.triangles.iter().map(|t| t.contains(&corner)).collect();
+            let marked: Vec<bool> = mesh.triangles().map(|t| t.contains(&corner)).collect();
             mesh = bisect_and_check(&mesh, &marked);
             angles.push(min_angle(&mesh));
         }
@@ -392,7 +388,7 @@ mod tests {
         let mut on_circles = [0, 0];
         for round in 0..4 {
             // Every other triangle at the boundary, and a few inside.
-            let marked: Vec<bool> = (mesh.triangles.iter().enumerate())
+            let marked: Vec<bool> = (mesh.triangles().enumerate())
                 .map(|(t, tri)| {
                     ((t + round) % 2 == 0 && tri.iter().any(|&a| mesh.on_boundary[a])) || t % 7 == 0
                 })

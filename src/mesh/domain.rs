@@ -318,7 +318,7 @@ mod tests {
             let m = d.mesh(h).unwrap();
             assert!((m.measure() - exact).abs() < 1e-13, "{}", m.measure());
             // Triangles about as large as asked (those at the boundary may exceed the area bound).
-            let largest = (0..m.triangles.len()).map(|t| m.area(t)).fold(0.0, f64::max);
+            let largest = (0..m.n_triangles()).map(|t| m.area(t)).fold(0.0, f64::max);
             assert!(
                 largest <= 1.5 * EQUILATERAL * h * h && m.h() <= 1.5 * h,
                 "{largest}, {}",
@@ -331,7 +331,7 @@ mod tests {
             );
             // No triangle in the hole.
             let hole = [[0.5, 0.3], [0.5, 0.7], [0.9, 0.5]];
-            assert!((0..m.triangles.len()).all(|t| {
+            assert!((0..m.n_triangles()).all(|t| {
                 let [p, q, r] = m.corners(t);
                 !inside([(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0], &hole)
             }));

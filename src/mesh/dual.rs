@@ -25,7 +25,7 @@ impl Edges {
     pub fn new(mesh: &Mesh) -> Self {
         let n = mesh.n_vertices();
         let index = |v: usize| u32::try_from(v).expect("fewer than 2³² edges and vertices");
-        let (start, mut larger) = super::by_smaller_vertex(n, &mesh.triangles, |_, b| index(b));
+        let (start, mut larger) = super::by_smaller_vertex(n, mesh.triangles(), |_, b| index(b));
         for a in 0..n {
             larger[start[a]..start[a + 1]].sort_unstable();
         }
@@ -90,12 +90,12 @@ impl<'a> DualMesh<'a> {
 
     /// The number of points: vertices, edges and triangles of T_h.
     pub fn n_points(&self) -> usize {
-        self.mesh.n_vertices() + self.edges.count() + self.mesh.triangles.len()
+        self.mesh.n_vertices() + self.edges.count() + self.mesh.n_triangles()
     }
 
     /// The number of cells: six per triangle of T_h.
     pub fn n_cells(&self) -> usize {
-        6 * self.mesh.triangles.len()
+        6 * self.mesh.n_triangles()
     }
 
     /// Point p: a vertex of T_h, an edge midpoint or a barycentre.
@@ -115,7 +115,7 @@ impl<'a> DualMesh<'a> {
     pub fn cell(&self, s: usize) -> [usize; 3] {
         let (t, k) = (s / 6, (s % 6) / 2);
         let n = self.mesh.n_vertices();
-        let tri = self.mesh.triangles[t];
+        let tri = self.mesh.triangle(t);
         let centre = n + self.edges.count() + t;
         if s.is_multiple_of(2) {
             [tri[k], n + self.edges.between(tri[k], tri[(k + 1) % 3]), centre]
@@ -138,7 +138,7 @@ impl<'a> DualMesh<'a> {
 
     /// The vertex a of T_h whose cell D_a contains cell s.
     pub fn owner(&self, s: usize) -> usize {
-        self.mesh.triangles[s / 6][(s % 6) / 2]
+        self.mesh.triangle(s / 6)[(s % 6) / 2]
     }
 
     /// The barycentric coordinates, in its triangle K, of the corners of cell s of S_h: cell 2k is
@@ -178,7 +178,7 @@ mod tests {
         let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 3, 5, Diagonal::Right).unwrap();
         let edges = Edges::new(&mesh);
         let dual = DualMesh::new(&mesh, &edges);
-        assert_eq!(dual.n_cells(), 6 * mesh.triangles.len());
+        assert_eq!(dual.n_cells(), 6 * mesh.n_triangles());
         let mass = crate::assembly::lumped_mass(&mesh);
         let mut area = vec![0.0; mesh.n_vertices()];
         for s in 0..dual.n_cells() {
@@ -221,7 +221,7 @@ mod tests {
         }));
         let midpoint = |a: usize, b: usize| n + edges.binary_search(&(a.min(b), a.max(b))).unwrap();
         let (mut triangles, mut owner) = (Vec::new(), Vec::new());
-        for (t, tri) in mesh.triangles.iter().enumerate() {
+        for (t, tri) in mesh.triangles().enumerate() {
             let [p, q, r] = mesh.corners(t);
             let centre = points.len();
             points.push([(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0]);

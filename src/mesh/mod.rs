@@ -26,8 +26,9 @@ use std::fmt;
 pub struct Mesh {
     /// The vertices.
     pub points: Vec<[f64; 2]>,
-    /// The triangles, counter-clockwise.
-    pub triangles: Vec<[usize; 3]>,
+    /// The triangles, counter-clockwise, their vertex numbers in 32 bits (a third of the mesh's
+    /// memory less than in 64; see [`Mesh::triangle`]).
+    triangles: Vec<[u32; 3]>,
     /// `on_boundary[a]`: vertex a lies on ∂ω (an endpoint of an edge with one triangle).
     pub on_boundary: Vec<bool>,
 }
@@ -191,12 +192,12 @@ impl Stars {
         let n = mesh.n_vertices();
         // Corners are numbered 3 t + k in 32 bits (the memory guard stops meshes long before).
         assert!(
-            u32::try_from(3 * mesh.triangles.len()).is_ok(),
+            u32::try_from(3 * mesh.n_triangles()).is_ok(),
             "3 × triangles exceed 2³²"
         );
         let mut start = vec![0u32; n + 1];
-        for t in &mesh.triangles {
-            for &a in t {
+        for t in mesh.triangles() {
+            for a in t {
                 start[a + 1] += 1;
             }
         }
@@ -204,8 +205,8 @@ impl Stars {
             start[a + 1] += start[a];
         }
         let mut fill = start.clone();
-        let mut corner = vec![0u32; 3 * mesh.triangles.len()];
-        for (t, tri) in mesh.triangles.iter().enumerate() {
+        let mut corner = vec![0u32; 3 * mesh.n_triangles()];
+        for (t, tri) in mesh.triangles().enumerate() {
             for (k, &a) in tri.iter().enumerate() {
                 corner[fill[a] as usize] = (3 * t + k) as u32;
                 fill[a] += 1;
@@ -257,11 +258,21 @@ impl Mesh {
         if on_boundary.iter().all(|&b| b) {
             return Err(MeshError::NoInteriorVertex);
         }
-        Ok(Mesh {
+        Ok(Mesh::checked(points, triangles, on_boundary))
+    }
+
+    /// The mesh of a valid triangulation (made by [`Mesh::new`], or by refining a valid one).
+    pub(crate) fn checked(points: Vec<[f64; 2]>, triangles: Vec<[usize; 3]>, on_boundary: Vec<bool>) -> Self {
+        assert!(
+            u32::try_from(points.len()).is_ok(),
+            "vertex numbers fit in 32 bits"
+        );
+        let triangles = triangles.into_iter().map(|t| t.map(|a| a as u32)).collect();
+        Mesh {
             points,
             triangles,
             on_boundary,
-        })
+        }
     }
 
     /// The number of vertices.
@@ -269,10 +280,26 @@ impl Mesh {
         self.points.len()
     }
 
+    /// The number of triangles.
+    pub fn n_triangles(&self) -> usize {
+        self.triangles.len()
+    }
+
+    /// The vertex numbers of triangle t, counter-clockwise.
+    #[inline]
+    pub fn triangle(&self, t: usize) -> [usize; 3] {
+        self.triangles[t].map(|a| a as usize)
+    }
+
+    /// The vertex numbers of every triangle, in order.
+    pub fn triangles(&self) -> impl ExactSizeIterator<Item = [usize; 3]> + Clone + '_ {
+        self.triangles.iter().map(|t| t.map(|a| a as usize))
+    }
+
     /// The vertices of triangle t.
     #[inline]
     pub fn corners(&self, t: usize) -> [[f64; 2]; 3] {
-        let [a, b, c] = self.triangles[t];
+        let [a, b, c] = self.triangle(t);
         [self.points[a], self.points[b], self.points[c]]
     }
 
@@ -285,7 +312,7 @@ impl Mesh {
 
     /// The mesh size h: the largest triangle diameter.
     pub fn h(&self) -> f64 {
-        (0..self.triangles.len())
+        (0..self.n_triangles())
             .map(|t| {
                 let [p, q, r] = self.corners(t);
                 dist(p, q).max(dist(q, r)).max(dist(r, p))
@@ -296,7 +323,7 @@ impl Mesh {
     /// |ω|.
     #[cfg(test)]
     pub fn measure(&self) -> f64 {
-        (0..self.triangles.len()).map(|t| self.area(t)).sum()
+        (0..self.n_triangles()).map(|t| self.area(t)).sum()
     }
 
     /// The interior vertices V_h, in increasing order.
@@ -308,8 +335,7 @@ impl Mesh {
     /// The edges of the mesh as sorted vertex pairs, each once.
     pub fn edges(&self) -> Vec<(usize, usize)> {
         let mut e: Vec<(usize, usize)> = self
-            .triangles
-            .iter()
+            .triangles()
             .flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]))))
             .collect();
         e.sort_unstable();
@@ -372,11 +398,11 @@ fn distinct_vertices(points: &[[f64; 2]]) -> Result<(), MeshError> {
 /// triangle t, in the order of the triangles.
 fn by_smaller_vertex<T: Copy + Default>(
     n: usize,
-    triangles: &[[usize; 3]],
+    triangles: impl ExactSizeIterator<Item = [usize; 3]> + Clone,
     item: impl Fn(usize, usize) -> T,
 ) -> (Vec<usize>, Vec<T>) {
     let mut start = vec![0usize; n + 1];
-    for tri in triangles {
+    for tri in triangles.clone() {
         for k in 0..3 {
             start[tri[k].min(tri[(k + 1) % 3]) + 1] += 1;
         }
@@ -386,7 +412,7 @@ fn by_smaller_vertex<T: Copy + Default>(
     }
     let mut fill = start.clone();
     let mut items = vec![T::default(); 3 * triangles.len()];
-    for (t, tri) in triangles.iter().enumerate() {
+    for (t, tri) in triangles.enumerate() {
         for k in 0..3 {
             let (a, b) = (tri[k], tri[(k + 1) % 3]);
             items[fill[a.min(b)]] = item(t, a.max(b));
@@ -404,7 +430,7 @@ type EdgeMatch = (Vec<bool>, Vec<(usize, usize)>, usize);
 /// matched by the larger one. Returns the boundary vertices and edges, and the number of
 /// components of triangles joined by edges.
 fn match_edges(n: usize, triangles: &[[usize; 3]]) -> Result<EdgeMatch, MeshError> {
-    let (start, mut half) = by_smaller_vertex(n, triangles, |t, b| (b, t));
+    let (start, mut half) = by_smaller_vertex(n, triangles.iter().copied(), |t, b| (b, t));
     let mut on_boundary = vec![false; n];
     let mut boundary_edges = Vec::new();
     let mut parent: Vec<usize> = (0..triangles.len()).collect();

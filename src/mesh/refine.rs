@@ -10,7 +10,7 @@ impl Mesh {
     /// triangles per triangle, counter-clockwise as their parent.
     pub fn refined(&self, curves: &Curves) -> Result<Mesh, MeshError> {
         let n = self.n_vertices();
-        let mut half: Vec<(usize, usize)> = (self.triangles.iter())
+        let mut half: Vec<(usize, usize)> = (self.triangles())
             .flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]))))
             .collect();
         half.sort_unstable();
@@ -27,8 +27,8 @@ impl Mesh {
             edges.push((a, b));
         }
         let mid = |a: usize, b: usize| n + edges.binary_search(&(a.min(b), a.max(b))).expect("an edge");
-        let mut triangles = Vec::with_capacity(4 * self.triangles.len());
-        for &[a, b, c] in &self.triangles {
+        let mut triangles = Vec::with_capacity(4 * self.n_triangles());
+        for [a, b, c] in self.triangles() {
             let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
             triangles.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
         }
@@ -57,13 +57,13 @@ impl Mesh {
         for (i, &a) in order.iter().enumerate() {
             new[a] = i;
         }
-        let mut triangles: Vec<[usize; 3]> = self.triangles.iter().map(|t| t.map(|a| new[a])).collect();
+        let mut triangles: Vec<[usize; 3]> = self.triangles().map(|t| t.map(|a| new[a])).collect();
         triangles.sort_by_key(|t| (*t.iter().min().expect("three vertices"), t[0], t[1]));
-        Mesh {
-            points: order.iter().map(|&a| self.points[a]).collect(),
+        Mesh::checked(
+            order.iter().map(|&a| self.points[a]).collect(),
             triangles,
-            on_boundary: order.iter().map(|&a| self.on_boundary[a]).collect(),
-        }
+            order.iter().map(|&a| self.on_boundary[a]).collect(),
+        )
     }
 }
 
@@ -87,11 +87,11 @@ mod tests {
         let fine = coarse.refined(&Curves::default()).unwrap();
         let direct = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 6, 4, Diagonal::Right).unwrap();
         assert_eq!(fine.n_vertices(), direct.n_vertices());
-        assert_eq!(fine.triangles.len(), 4 * coarse.triangles.len());
+        assert_eq!(fine.n_triangles(), 4 * coarse.n_triangles());
         assert_eq!(fine.points[..coarse.n_vertices()], coarse.points[..]);
         assert!((fine.h() - direct.h()).abs() < 1e-15);
         let key = |m: &Mesh| {
-            let mut t: Vec<Vec<[u64; 2]>> = (m.triangles.iter())
+            let mut t: Vec<Vec<[u64; 2]>> = (m.triangles())
                 .map(|t| {
                     let mut v: Vec<[u64; 2]> = t.iter().map(|&a| m.points[a].map(f64::to_bits)).collect();
                     v.sort_unstable();
@@ -154,7 +154,7 @@ mod tests {
         );
         // The same triangles, by coordinates, and the same boundary.
         let key = |m: &Mesh| {
-            let mut t: Vec<[[u64; 2]; 3]> = (m.triangles.iter())
+            let mut t: Vec<[[u64; 2]; 3]> = (m.triangles())
                 .map(|t| {
                     let mut v = t.map(|a| m.points[a].map(f64::to_bits));
                     v.sort_unstable();
@@ -174,7 +174,7 @@ mod tests {
             b
         };
         assert_eq!(boundary(&mesh), boundary(&renumbered));
-        let again = Mesh::new(renumbered.points.clone(), renumbered.triangles.clone()).unwrap();
+        let again = Mesh::new(renumbered.points.clone(), renumbered.triangles().collect()).unwrap();
         assert_eq!(again.on_boundary, renumbered.on_boundary);
     }
 }

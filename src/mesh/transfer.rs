@@ -35,7 +35,7 @@ impl Prolongation {
             for &p in &fine.points[range] {
                 let (t, bary) = locator.locate(p, hint);
                 hint = t;
-                let mut row = [0, 1, 2].map(|k| (coarse.triangles[t][k], bary[k]));
+                let mut row = [0, 1, 2].map(|k| (coarse.triangle(t)[k], bary[k]));
                 row.sort_unstable_by_key(|e| e.0);
                 for (j, w) in row.into_iter().filter(|e| e.1.abs() > WEIGHT_EPS) {
                     col.push(j as u32);
@@ -127,25 +127,25 @@ impl<'m> Locator<'m> {
             let q = mesh.points[*a];
             (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
         };
-        let found = (hint < mesh.triangles.len()
+        let found = (hint < mesh.n_triangles()
             && (holds(hint)
-                || (mesh.triangles[hint].iter()).any(|&a| self.stars.around(a).any(|(t, _)| holds(t)))))
+                || (mesh.triangle(hint).into_iter()).any(|a| self.stars.around(a).any(|(t, _)| holds(t)))))
             || (self.vertices.around(p))
                 .min_by(|a, b| distance(a).total_cmp(&distance(b)))
                 .is_some_and(|a| self.stars.around(a).any(|(t, _)| holds(t)))
             || {
                 let boxes = self.boxes.get_or_init(|| {
-                    let boxes = (0..mesh.triangles.len()).map(|t| {
+                    let boxes = (0..mesh.n_triangles()).map(|t| {
                         let [p, q, r] = mesh.corners(t);
                         (min2(min2(p, q), r), max2(max2(p, q), r))
                     });
-                    Buckets::from_boxes(boxes, mesh.triangles.len())
+                    Buckets::from_boxes(boxes, mesh.n_triangles())
                 });
                 let mut candidates = boxes.near_box(p, p).peekable();
                 if candidates.peek().is_some() {
                     candidates.any(&mut holds)
                 } else {
-                    (0..mesh.triangles.len()).any(&mut holds)
+                    (0..mesh.n_triangles()).any(&mut holds)
                 }
             };
         if found {
