@@ -167,7 +167,7 @@ mod tests {
     /// ∫_K |∇ψ|² = ½ ∫_0^1 (2τ − 1)² + τ⁴ dτ = 4/15.
     #[test]
     fn the_lifting_of_a_parabola_has_its_closed_form_norm() {
-        let mesh = Mesh::checked(
+        let mesh = Mesh::from_parts(
             vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
             vec![[0, 1, 2]],
             vec![true; 3],

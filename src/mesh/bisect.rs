@@ -34,7 +34,7 @@ impl Mesh {
                 [t[k], t[(k + 1) % 3], t[(k + 2) % 3]]
             })
             .collect();
-        Mesh::checked(self.points.clone(), triangles, self.on_boundary.clone())
+        Mesh::from_parts(self.points.clone(), triangles, self.on_boundary.clone())
     }
 
     /// Newest-vertex bisection of the `marked` triangles (one flag per triangle) and of as many

@@ -258,11 +258,15 @@ impl Mesh {
         if on_boundary.iter().all(|&b| b) {
             return Err(MeshError::NoInteriorVertex);
         }
-        Ok(Mesh::checked(points, triangles, on_boundary))
+        Ok(Mesh::from_parts(points, triangles, on_boundary))
     }
 
     /// The mesh of a valid triangulation (made by [`Mesh::new`], or by refining a valid one).
-    pub(crate) fn checked(points: Vec<[f64; 2]>, triangles: Vec<[usize; 3]>, on_boundary: Vec<bool>) -> Self {
+    pub(crate) fn from_parts(
+        points: Vec<[f64; 2]>,
+        triangles: Vec<[usize; 3]>,
+        on_boundary: Vec<bool>,
+    ) -> Self {
         assert!(
             u32::try_from(points.len()).is_ok(),
             "vertex numbers fit in 32 bits"

@@ -59,7 +59,7 @@ impl Mesh {
         }
         let mut triangles: Vec<[usize; 3]> = self.triangles().map(|t| t.map(|a| new[a])).collect();
         triangles.sort_by_key(|t| (*t.iter().min().expect("three vertices"), t[0], t[1]));
-        Mesh::checked(
+        Mesh::from_parts(
             order.iter().map(|&a| self.points[a]).collect(),
             triangles,
             order.iter().map(|&a| self.on_boundary[a]).collect(),
