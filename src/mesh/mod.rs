@@ -233,6 +233,11 @@ impl Mesh {
     /// and one-to-one on the boundary (no two boundary edges meet but at a shared vertex), which
     /// together make the triangles cover ω exactly once.
     pub fn new(points: Vec<[f64; 2]>, mut triangles: Vec<[usize; 3]>) -> Result<Self, MeshError> {
+        // Far beyond what the memory guard lets through: an assertion rather than an error.
+        assert!(
+            u32::try_from(points.len()).is_ok(),
+            "vertex numbers fit in 32 bits"
+        );
         if triangles.is_empty() {
             return Err(MeshError::Empty);
         }
@@ -261,16 +266,13 @@ impl Mesh {
         Ok(Mesh::from_parts(points, triangles, on_boundary))
     }
 
-    /// The mesh of a valid triangulation (made by [`Mesh::new`], or by refining a valid one).
+    /// The mesh of a valid triangulation (made by [`Mesh::new`], which checks that its vertex
+    /// numbers fit in 32 bits, or from the vertices of one).
     pub(crate) fn from_parts(
         points: Vec<[f64; 2]>,
         triangles: Vec<[usize; 3]>,
         on_boundary: Vec<bool>,
     ) -> Self {
-        assert!(
-            u32::try_from(points.len()).is_ok(),
-            "vertex numbers fit in 32 bits"
-        );
         let triangles = triangles.into_iter().map(|t| t.map(|a| a as u32)).collect();
         Mesh {
             points,
@@ -382,15 +384,26 @@ fn orient_triangles(
     Ok(used)
 }
 
-/// No two vertices at the same place.
+/// No two vertices at the same place. The (finite) points sorted by place, then by number, as
+/// integers that order as the coordinates do (−0 as 0): equal places are neighbours.
 fn distinct_vertices(points: &[[f64; 2]]) -> Result<(), MeshError> {
-    let mut sorted: Vec<usize> = (0..points.len()).collect();
-    sorted.sort_by(|&a, &b| points[a].partial_cmp(&points[b]).unwrap());
+    let ordered = |x: f64| {
+        let bits = (x + 0.0).to_bits();
+        if bits >> 63 == 1 {
+            !bits
+        } else {
+            bits | 1 << 63
+        }
+    };
+    let mut sorted: Vec<([u64; 2], u32)> = (points.iter().enumerate())
+        .map(|(a, p)| (p.map(ordered), a as u32))
+        .collect();
+    sorted.sort_unstable();
     for w in sorted.windows(2) {
-        if points[w[0]] == points[w[1]] {
+        if w[0].0 == w[1].0 {
             return Err(MeshError::DuplicateVertex {
-                first: w[0].min(w[1]),
-                second: w[0].max(w[1]),
+                first: w[0].1 as usize,
+                second: w[1].1 as usize,
             });
         }
     }
@@ -652,6 +665,13 @@ mod tests {
         assert!(matches!(
             Mesh::new(dup, fan.clone()),
             Err(MeshError::DuplicateVertex { first: 4, second: 5 })
+        ));
+        // −0 is the place of 0.
+        let mut signed_zero = sq.clone();
+        signed_zero.push([-0.0, 0.0]);
+        assert!(matches!(
+            Mesh::new(signed_zero, fan.clone()),
+            Err(MeshError::DuplicateVertex { first: 0, second: 5 })
         ));
         let mut flat = fan.clone();
         flat[0] = [0, 1, 0];
