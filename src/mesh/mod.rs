@@ -385,7 +385,8 @@ fn orient_triangles(
 }
 
 /// No two vertices at the same place. The (finite) points sorted by place, then by number, as
-/// integers that order as the coordinates do (−0 as 0): equal places are neighbours.
+/// integers that order as the coordinates do (−0 as 0): equal places are neighbours, and the pair
+/// reported is the first in the order of the coordinates, lower number first.
 fn distinct_vertices(points: &[[f64; 2]]) -> Result<(), MeshError> {
     let ordered = |x: f64| {
         let bits = (x + 0.0).to_bits();
