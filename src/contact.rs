@@ -57,9 +57,9 @@ impl fmt::Display for SolveError {
             SolveError::CoarseData(e) => write!(f, "on a coarser mesh of nested iteration: {e}"),
             SolveError::NotConverged(e) => write!(
                 f,
-                "conjugate gradients did not converge in {} iterations (relative residual {:.1e}); \
-                 try [solver] linear = \"direct\"",
-                e.iterations, e.relative_residual
+                "conjugate gradients did not converge in {} iterations (residual density {:.1e}, \
+                 {:.1e} wanted); try [solver] linear = \"direct\"",
+                e.iterations, e.residual, e.target
             ),
         }
     }
@@ -321,8 +321,8 @@ pub fn solve(
         let load = |a: usize| problem.load1[a] + problem.load2[a];
         let rhs = system.lifted_rhs(&problem.stiffness, load, mu1 + mu2, bc);
         let mut stats = SolverStats::default();
-        let multigrid = hierarchy.as_ref().map(|h| (h, CG_TOLERANCE, Some(&v_free)));
-        let mut solver = Inner::new(system, multigrid, None);
+        let multigrid = hierarchy.as_ref().map(|h| (h, FINAL_STOP, Some(&v_free)));
+        let mut solver = Inner::new(system, multigrid, None, 0.0);
         let x = {
             let _turn = turn.map(take_turn);
             solver.prepare(&vec![false; system.n()], &mut stats)?;
@@ -345,7 +345,7 @@ pub fn solve(
     let w_job = |nested: Result<_, SolveError>| {
         let ((guess, coarse_iterations, coarse_cg), coarse_seconds) = nested?;
         let (system, hierarchy, _) = shared.get_or_init(analyse);
-        let multigrid = hierarchy.as_ref().map(|h| (h, CG_TOLERANCE, Some(&w_free)));
+        let multigrid = hierarchy.as_ref().map(|h| (h, FINAL_STOP, Some(&w_free)));
         let mut w = obstacle(problem, system, multigrid, guess, options, turn)?;
         w.stats.coarse_iterations = coarse_iterations;
         w.stats.coarse_cg_iterations = coarse_cg;
@@ -485,9 +485,7 @@ fn nested_guess(
         // The coarsest level has no levels below: Cholesky.
         let below = (multigrid && k + 1 < prolongations.len()).then(|| &prolongations[k + 1..]);
         let (system, hierarchy) = analysed(&level, below);
-        let multigrid = hierarchy
-            .as_ref()
-            .map(|h| (h, NESTED_CG_TOLERANCE, Some(second_core)));
+        let multigrid = hierarchy.as_ref().map(|h| (h, GUESS_STOP, Some(second_core)));
         let o = obstacle(&level, &system, multigrid, guess.take(), options, None)?;
         iterations.push(o.stats.iterations);
         cg.push(o.stats.cg_iterations.clone());
@@ -533,11 +531,12 @@ fn obstacle(
     // CG starts from the guess's gap, then from the previous step's w.
     let warm_start = warm.is_some();
     let start = warm.map(|g| system.vertices.iter().map(|&a| g.gap[a]).collect());
-    let mut solver = Inner::new(system, multigrid, start);
+    let loads = load_density(problem, system, |a| w_problem.load(a), w_problem.mu_star);
+    let mut solver = Inner::new(system, multigrid, start, loads);
     if warm_start {
         // The first step from a guess only proposes the next active set: it is solved to the
         // coarser levels' tolerance, and the set is confirmed by steps to the full one.
-        solver.loosen(NESTED_CG_TOLERANCE);
+        solver.loosen(GUESS_STOP);
     }
     let (mut correcting, mut same_set) = (true, false);
     loop {
@@ -608,6 +607,19 @@ const LOCAL_ITERATIONS: usize = 20;
 /// A local correction is skipped when its band would hold more than this share of the unknowns
 /// (at 256² cells the band of the first step holds a third of them).
 const BAND_SHARE: f64 = 0.5;
+
+/// max_a |load(a)|/(scale m_a) over the unknowns of `system`: the density of the loads of
+/// scale·K u = load (see [`Stop::Loads`]).
+fn load_density(
+    problem: &DiscreteProblem,
+    system: &InteriorSystem,
+    load: impl Fn(usize) -> f64,
+    scale: f64,
+) -> f64 {
+    (system.vertices.iter())
+        .map(|&a| (load(a) / (scale * problem.mass[a])).abs())
+        .fold(0.0, f64::max)
+}
 
 /// The obstacle problem for w on one mesh: μ* K w ≥ f_w, w ≥ 0, complementarity.
 struct WProblem<'p> {
@@ -822,48 +834,51 @@ enum Inner<'s> {
         hierarchy: &'s Hierarchy<'s>,
         cycle: Option<Multigrid<'s>>,
         x: Vec<f64>,
-        tolerance: f64,
-        /// A looser tolerance for the solves until [`Inner::tighten`].
-        loose: Option<f64>,
+        stop: Stop,
+        /// Another stop for the solves until [`Inner::tighten`].
+        loose: Option<Stop>,
+        /// The density of the loads (see [`Stop::Loads`]).
+        loads: f64,
         second_core: Option<&'s AtomicBool>,
     },
 }
 
-/// Multigrid's hierarchy, CG's tolerance, and whether the second core is free (see
+/// Multigrid's hierarchy, where CG stops, and whether the second core is free (see
 /// [`Multigrid::second_core`]).
-type Multilevel<'s> = (&'s Hierarchy<'s>, f64, Option<&'s AtomicBool>);
+type Multilevel<'s> = (&'s Hierarchy<'s>, Stop, Option<&'s AtomicBool>);
 
 impl<'s> Inner<'s> {
-    /// Cholesky on `system`, or CG with V-cycles on the hierarchy of `multigrid` to its
-    /// tolerance, starting from `start` (or 0).
-    fn new(system: &'s InteriorSystem, multigrid: Option<Multilevel<'s>>, start: Option<Vec<f64>>) -> Self {
+    /// Cholesky on `system`, or CG with V-cycles on the hierarchy of `multigrid` to its stop
+    /// (with `loads` the density of the loads), starting from `start` (or 0).
+    fn new(
+        system: &'s InteriorSystem,
+        multigrid: Option<Multilevel<'s>>,
+        start: Option<Vec<f64>>,
+        loads: f64,
+    ) -> Self {
         match multigrid {
             None => Inner::Direct(system.factorization()),
-            Some((hierarchy, tolerance, second_core)) => Inner::Multigrid {
+            Some((hierarchy, stop, second_core)) => Inner::Multigrid {
                 system,
                 hierarchy,
                 cycle: None,
                 x: system.extended(&start.unwrap_or_else(|| vec![0.0; system.n()])),
-                tolerance,
+                stop,
                 loose: None,
+                loads,
                 second_core,
             },
         }
     }
 
-    /// Multigrid: solves to `tolerance` (when looser than its own) until [`Inner::tighten`].
-    fn loosen(&mut self, tolerance: f64) {
-        if let Inner::Multigrid {
-            tolerance: own,
-            loose,
-            ..
-        } = self
-        {
-            *loose = (tolerance > *own).then_some(tolerance);
+    /// Multigrid: solves to `stop` (when not its own) until [`Inner::tighten`].
+    fn loosen(&mut self, stop: Stop) {
+        if let Inner::Multigrid { stop: own, loose, .. } = self {
+            *loose = (stop != *own).then_some(stop);
         }
     }
 
-    /// Back to the full tolerance; whether the solves were looser.
+    /// Back to its own stop; whether the solves stopped elsewhere.
     fn tighten(&mut self) -> bool {
         match self {
             Inner::Multigrid { loose, .. } => loose.take().is_some(),
@@ -913,16 +928,22 @@ impl<'s> Inner<'s> {
                 system,
                 cycle,
                 x,
-                tolerance,
+                stop,
                 loose,
+                loads,
                 ..
             } => {
                 let t = Instant::now();
                 let cycle = cycle.as_mut().expect("prepared before solving");
                 let extended = system.extended(&b);
                 drop(b);
-                let tolerance = loose.unwrap_or(*tolerance);
-                let iterations = (cycle.solve(extended, x, tolerance, CG_MAX_ITERATIONS))
+                let target = match loose.unwrap_or(*stop) {
+                    Stop::Loads(tolerance) if *loads > 0.0 => tolerance * *loads,
+                    Stop::Residual(tolerance) | Stop::Loads(tolerance) => {
+                        tolerance * cycle.density(&extended)
+                    }
+                };
+                let iterations = (cycle.solve_to(extended, x, target, CG_MAX_ITERATIONS))
                     .map_err(SolveError::NotConverged)?;
                 stats.cg_iterations.push(iterations);
                 stats.solve_seconds += t.elapsed().as_secs_f64();
@@ -940,12 +961,26 @@ impl<'s> Inner<'s> {
     }
 }
 
-/// CG stops at max_a |r_a|/m_a ≤ this × max_a |b_a|/m_a (see [`Multigrid::solve`]): the fields
-/// and λ_h then agree with the direct solve to about 1e-12 relative.
-const CG_TOLERANCE: f64 = 1e-13;
-/// The coarser levels of nested iteration give a guess only: their CG stops at this tolerance
-/// (their discretisation error is larger still).
-const NESTED_CG_TOLERANCE: f64 = 1e-8;
+/// Where multigrid's CG stops: max_a |r_a|/m_a (see [`Multigrid::solve_to`]) at most a tolerance
+/// times a density.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Stop {
+    /// Times max_a |b_a|/m_a, b the right-hand side: a backward error, the scale of the round-off
+    /// of K x (like a Cholesky solve's). Next to ∂ω with g ≠ 0, b holds the lift of g, about g/h²:
+    /// an error of λ_h growing as h⁻² relative to the loads, but so does its round-off.
+    Residual(f64),
+    /// Times the density of the loads ([`load_density`]; the right-hand side's when they vanish):
+    /// the same accuracy of λ_h relative to the loads on every mesh, which is what the active
+    /// set a solve proposes depends on.
+    Loads(f64),
+}
+
+/// The solves whose result is returned: to the round-off of K x, as the direct solve (how closely
+/// the two agree, and why λ_h's agreement widens on fine meshes with g ≠ 0: README).
+const FINAL_STOP: Stop = Stop::Residual(1e-13);
+/// The coarser levels of nested iteration and the first step from their guess only propose an
+/// active set: λ_h to this part of the loads, far below its discretisation error on those meshes.
+const GUESS_STOP: Stop = Stop::Loads(1e-4);
 /// Above this many vertices the multigrid v solve runs beside the coarser levels of nested
 /// iteration and the final mesh's set-up only, and w's steps there after it: the CG vectors and
 /// coarse operators of the two solves on the final mesh are then never in memory at once
@@ -1229,5 +1264,54 @@ mod tests {
             "{s:?}"
         );
         assert!(s.local_seconds > 0.0 && s.local_seconds < s.wall_seconds, "{s:?}");
+    }
+
+    #[test]
+    fn a_proposal_is_solved_relative_to_the_loads_and_a_result_to_the_right_hand_side() {
+        // f1 = 1, f2 = 0, μ1 = 1, μ2 = 2: f_w = 2/3 = μ*, so (f_w, φ_a)/(μ* m_a) = 1 exactly;
+        // g = 100 puts a lift Σ_b 100 |K_ab|/m_a of up to 2·100·64² next to ∂ω into the
+        // right-hand side.
+        let p = problem(64, "1", "100");
+        let coarser: Vec<Mesh> = [32, 16, 8]
+            .map(|n| Mesh::rectangle([0.0, 0.0], [1.0, 1.0], n, n, Diagonal::Right).unwrap())
+            .into();
+        let prolongations = chain(&p.mesh, &coarser);
+        let (system, hierarchy) = analysed(&p, Some(&prolongations));
+        let hierarchy = hierarchy.unwrap();
+        let w_problem = WProblem::new(&p, None);
+        let rhs = w_problem.rhs(&system, &p.g_h);
+        let loads = load_density(&p, &system, |a| w_problem.load(a), w_problem.mu_star);
+        assert!((loads - 1.0).abs() < 1e-12, "{loads}");
+        let density = |r: &dyn Fn(usize) -> f64| {
+            (system.vertices.iter().enumerate())
+                .map(|(i, &a)| (r(i) / p.mass[a]).abs())
+                .fold(0.0, f64::max)
+        };
+        let lifted = density(&|i| rhs[i]);
+        assert!(lifted > 8e5, "{lifted}");
+        // The true residual density of each solve against its target.
+        let mut iterations = Vec::new();
+        for stop in [Stop::Loads(1e-6), Stop::Residual(1e-6)] {
+            let mut solver = Inner::new(&system, Some((&hierarchy, stop, None)), None, loads);
+            let mut stats = SolverStats::default();
+            solver.prepare(&vec![false; system.n()], &mut stats).unwrap();
+            let x = solver.solve(Cow::Borrowed(&rhs), &mut stats).unwrap();
+            let residual = density(&|i| {
+                let a = system.vertices[i];
+                let kx: f64 = (p.stiffness.row(a))
+                    .filter(|&(b, _)| system.unknown[b] != usize::MAX)
+                    .map(|(b, v)| v * x[system.unknown[b]])
+                    .sum();
+                rhs[i] - kx
+            });
+            let target = match stop {
+                Stop::Loads(t) => t * loads,
+                Stop::Residual(t) => t * lifted,
+            };
+            assert!(residual <= 1.001 * target, "{stop:?}: {residual:e} > {target:e}");
+            iterations.push(stats.cg_iterations[0]);
+        }
+        // Against the lift, CG stops about six orders of magnitude earlier.
+        assert!(iterations[0] >= iterations[1] + 3, "{iterations:?}");
     }
 }

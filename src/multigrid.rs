@@ -78,6 +78,10 @@ fn galerkin(a: &Csr, p: &Csr, pt: &Csr, alive: &[bool], kept: &[bool], base: Opt
     Csr::joined(halves, nc).with_diagonal()
 }
 
+/// The marker of a coarse column that E drops (below any row number: [`Csr`] rows fit in 32 bits
+/// with room to spare).
+const NOT_KEPT: u32 = u32::MAX - 1;
+
 /// Rows `rows` of [`galerkin`].
 fn galerkin_rows(
     a: &Csr,
@@ -96,7 +100,12 @@ fn galerkin_rows(
         Vec::with_capacity(room),
         Vec::with_capacity(room),
     );
-    let mut marker = vec![usize::MAX; nc];
+    // Per coarse column: the row whose sum it last entered, or NOT_KEPT (a column of E's zeros,
+    // so that one load decides both), and that sum.
+    let mut marker: Vec<u32> = kept
+        .iter()
+        .map(|&k| if k { u32::MAX } else { NOT_KEPT })
+        .collect();
     let mut acc = vec![0.0; nc];
     for big_i in rows {
         let start = col.len();
@@ -105,6 +114,7 @@ fn galerkin_rows(
             col.extend_from_slice(cols);
             val.extend_from_slice(vals);
         } else if kept[big_i] {
+            let row = big_i as u32;
             let (fine, weights) = pt.row(big_i);
             for (&i, &w) in fine.iter().zip(weights) {
                 let i = i as usize;
@@ -121,21 +131,20 @@ fn galerkin_rows(
                     let (js, pvals) = p.row(k);
                     for (&j, &q) in js.iter().zip(pvals) {
                         let j = j as usize;
-                        if !kept[j] {
-                            continue;
-                        }
-                        if marker[j] == big_i {
-                            acc[j] += f * q;
-                        } else {
-                            marker[j] = big_i;
-                            acc[j] = f * q;
-                            col.push(j as u32);
+                        match marker[j] {
+                            m if m == row => acc[j] += f * q,
+                            NOT_KEPT => {}
+                            _ => {
+                                marker[j] = row;
+                                acc[j] = f * q;
+                                col.push(j as u32);
+                            }
                         }
                     }
                 }
             }
             col[start..].sort_unstable();
-            let diagonal = if marker[big_i] == big_i {
+            let diagonal = if marker[big_i] == row {
                 acc[big_i].abs()
             } else {
                 0.0
@@ -523,8 +532,10 @@ impl Coarsest {
 pub struct NotConverged {
     /// Iterations done.
     pub iterations: usize,
-    /// max |r_a|/m_a over max |b_a|/m_a reached (see [`Multigrid::solve`]).
-    pub relative_residual: f64,
+    /// max_a |r_a|/m_a reached (see [`Multigrid::solve_to`]).
+    pub residual: f64,
+    /// The density it was to reach.
+    pub target: f64,
 }
 
 /// The V-cycle for one held set (see the module's documentation), and CG preconditioned by it.
@@ -612,15 +623,8 @@ impl Multigrid<'_> {
         bx
     }
 
-    /// Solves K_FF x = b (b taken: its room holds the residual) on the free unknowns by CG
-    /// preconditioned by the V-cycle, from the guess `x` (its held entries are set to 0), until
-    /// max_a |r_a|/m_a ≤ `tolerance` max_a |b_a|/m_a over the free unknowns, r = b − K_FF x the
-    /// recursively updated residual and m_a = ∫φ_a: the residual as a load density against the
-    /// largest one, in the units of λ_h = r_a/m_a (4.5). (A relative ‖r‖₂ does not bound λ_h's
-    /// error: it leaves up to √n times the tolerance at a vertex.) Returns the iterations.
-    ///
-    /// K_FF of the search direction comes from the recurrence K p = K z + β K p_old, with K z
-    /// from the V-cycle's last sweep: no matrix product of its own per iteration.
+    /// [`Multigrid::solve_to`] the density `tolerance` max_a |b_a|/m_a (over the free unknowns):
+    /// the residual against the largest load density of b.
     pub fn solve(
         &mut self,
         b: Vec<f64>,
@@ -628,14 +632,33 @@ impl Multigrid<'_> {
         tolerance: f64,
         max_iterations: usize,
     ) -> Result<usize, NotConverged> {
+        let target = tolerance * self.density(&b);
+        self.solve_to(b, x, target, max_iterations)
+    }
+
+    /// Solves K_FF x = b (b taken: its room holds the residual) on the free unknowns by CG
+    /// preconditioned by the V-cycle, from the guess `x` (its held entries are set to 0), until
+    /// max_a |r_a|/m_a ≤ `target` over the free unknowns, r = b − K_FF x the recursively updated
+    /// residual and m_a = ∫φ_a: the residual as a load density, in the units of λ_h = r_a/m_a
+    /// (4.5). (A relative ‖r‖₂ does not bound λ_h's error: it leaves up to √n times the tolerance
+    /// at a vertex.) With `target` = 0, x = 0 when b = 0 on the free unknowns. Returns the
+    /// iterations.
+    ///
+    /// K_FF of the search direction comes from the recurrence K p = K z + β K p_old, with K z
+    /// from the V-cycle's last sweep: no matrix product of its own per iteration.
+    pub fn solve_to(
+        &mut self,
+        b: Vec<f64>,
+        x: &mut [f64],
+        target: f64,
+        max_iterations: usize,
+    ) -> Result<usize, NotConverged> {
         for (i, x) in x.iter_mut().enumerate() {
             if self.held(i) {
                 *x = 0.0;
             }
         }
-        let target = tolerance * self.density(&b);
-        if target == 0.0 {
-            // b = 0 on the free unknowns: x = 0.
+        if target == 0.0 && self.density(&b) == 0.0 {
             x.fill(0.0);
             return Ok(0);
         }
@@ -706,7 +729,8 @@ impl Multigrid<'_> {
         }
         Err(NotConverged {
             iterations: max_iterations,
-            relative_residual: self.density(&r) * tolerance / target,
+            residual: self.density(&r),
+            target,
         })
     }
 }
@@ -714,7 +738,7 @@ impl Multigrid<'_> {
 impl Multigrid<'_> {
     /// max_a |r_a|/m_a over the free unknowns: r as a load density (NaN if some r_a is, so that
     /// CG does not stop on it).
-    fn density(&self, r: &[f64]) -> f64 {
+    pub fn density(&self, r: &[f64]) -> f64 {
         (r.iter().zip(self.mass).zip(&self.levels[0].skip))
             .filter(|(_, &skip)| !skip)
             .fold(0.0, |m, ((r, w), _)| max_density(m, r / w))
@@ -873,7 +897,7 @@ fn forward_from_zero(a: &Csr, skip: &[bool], b: &[f64], base: usize, x: &mut [f6
         }
         let (lower, _, _) = a.split(i);
         let own = a.part_at_or_above(lower, base);
-        let xi = (b[i] - a.gather_from(own.clone(), x, base)) * a.inv_diag[i];
+        let xi = (b[i] - a.gather_from(own.clone(), x, base)) * reciprocal(a.diagonal(i));
         x[li] = xi;
         for p in own {
             let j = a.col[p] as usize;
@@ -884,11 +908,21 @@ fn forward_from_zero(a: &Csr, skip: &[bool], b: &[f64], base: usize, x: &mut [f6
     }
 }
 
+/// 1/a_ii, the factor of a Gauss–Seidel update (0 where a_ii ≤ 0: the row is left as it is).
+#[inline(always)]
+fn reciprocal(a_ii: f64) -> f64 {
+    if a_ii > 0.0 {
+        1.0 / a_ii
+    } else {
+        0.0
+    }
+}
+
 /// One forward Gauss–Seidel sweep on the unknowns not skipped.
 fn forward(a: &Csr, skip: &[bool], b: &[f64], x: &mut [f64]) {
     for i in 0..a.rows() {
         if !skip[i] {
-            x[i] += (b[i] - a.row_dot(i, x)) * a.inv_diag[i];
+            x[i] += (b[i] - a.row_dot(i, x)) * reciprocal(a.diagonal(i));
         }
     }
 }
@@ -924,6 +958,8 @@ fn backward<const AX: bool>(
             a.part_below(upper.clone(), end),
         );
         let diagonal = a.val[d];
+        // Off the chain of dependent rows: the update below multiplies.
+        let inverse = reciprocal(diagonal);
         // The nearest entry right of the diagonal (the row just updated) last: a shorter chain.
         let mut s = a.gather_from(own_lower.clone(), x, base)
             + diagonal * x[li]
@@ -931,7 +967,7 @@ fn backward<const AX: bool>(
         for p in (lower.start..own_lower.start).chain(own_upper.end..upper.end) {
             s += a.val[p] * blocks.ghost(a.col[p]);
         }
-        let delta = (b[i] - s) * a.inv_diag[i];
+        let delta = (b[i] - s) * inverse;
         x[li] += delta;
         bx += b[i] * x[li];
         if AX {

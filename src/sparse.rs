@@ -10,8 +10,8 @@ use std::ops::Range;
 pub(crate) const NEGLIGIBLE: f64 = 1e-14;
 
 /// A sparse matrix by rows with 32-bit column numbers, each row sorted by column; for square
-/// operators also the position of each row's diagonal entry and its reciprocal (for the
-/// Gauss–Seidel sweeps of multigrid).
+/// operators also the position of each row's diagonal entry (for the Gauss–Seidel sweeps of
+/// multigrid).
 #[derive(Debug, Clone, Default)]
 pub struct Csr {
     pub(crate) row_ptr: Vec<u32>,
@@ -21,9 +21,6 @@ pub struct Csr {
     /// Where row i's diagonal entry is (where it would be when it has none); empty for the
     /// interpolations.
     pub(crate) diag: Vec<u32>,
-    /// 1/a_ii (0 where there is none or a_ii ≤ 0): the smoother multiplies, off its chain of
-    /// dependent rows.
-    pub(crate) inv_diag: Vec<f64>,
 }
 
 /// Consecutive rows of a matrix: where each row ends (counted from the part's first entry), the
@@ -99,18 +96,12 @@ impl Csr {
         }
     }
 
-    /// Finds the diagonal entries and their reciprocals.
+    /// Finds the diagonal entries.
     pub(crate) fn with_diagonal(mut self) -> Self {
         self.diag = (0..self.rows())
             .map(|i| {
                 let (cols, _) = self.row(i);
                 self.row_ptr[i] + cols.partition_point(|&j| (j as usize) < i) as u32
-            })
-            .collect();
-        self.inv_diag = (0..self.rows())
-            .map(|i| match self.diagonal(i) {
-                d if d > 0.0 => 1.0 / d,
-                _ => 0.0,
             })
             .collect();
         self
@@ -254,7 +245,6 @@ impl Csr {
             val,
             cols: self.rows(),
             diag: Vec::new(),
-            inv_diag: Vec::new(),
         }
         .checked()
     }
