@@ -224,10 +224,14 @@ pub struct NotFinite {
     pub value: f64,
 }
 
-/// `part` of 0..n over its two halves, the first on a second thread: always two, so that sums do
-/// not depend on the machine.
+/// Below this many items the two halves of [`in_two_halves`] run on one thread: a thread costs
+/// more than the work.
+const SMALL: usize = 1 << 14;
+
+/// `part` of 0..n over its two halves, the first on a second thread when n is not [`SMALL`]:
+/// always two, so that sums do not depend on the machine.
 pub fn in_two_halves<T: Send>(n: usize, part: impl Fn(std::ops::Range<usize>) -> T + Sync) -> [T; 2] {
-    let (first, second) = both(true, || part(0..n / 2), || part(n / 2..n));
+    let (first, second) = both(n >= SMALL, || part(0..n / 2), || part(n / 2..n));
     [first, second]
 }
 
