@@ -346,7 +346,7 @@ pub fn solve(
         let ((guess, coarse_iterations, coarse_cg), coarse_seconds) = nested?;
         let (system, hierarchy, _) = shared.get_or_init(analyse);
         let multigrid = hierarchy.as_ref().map(|h| (h, FINAL_STOP, Some(&w_free)));
-        let mut w = obstacle(problem, system, multigrid, guess, options, turn)?;
+        let mut w = obstacle(problem, system, multigrid, guess, options, Role::Solution(turn))?;
         w.stats.coarse_iterations = coarse_iterations;
         w.stats.coarse_cg_iterations = coarse_cg;
         w.stats.coarse_seconds = coarse_seconds;
@@ -455,9 +455,10 @@ fn chain(fine: &Mesh, coarser: &[Mesh]) -> Vec<Prolongation> {
 type NestedGuess = (Option<Guess>, Vec<usize>, Vec<Vec<usize>>);
 
 /// Nested iteration: the obstacle problem on the `coarser` meshes (from fine to coarse, with the
-/// `prolongations` between them), each level's loads restricted from the one above, solved from
-/// the coarsest up, each warm-started from the one below; the last one prolonged onto `problem`'s
-/// mesh is the guess. With multigrid, each level is solved by multigrid on the levels below it.
+/// `prolongations` between them), each level's loads restricted from the one above, from the
+/// coarsest up: the coarsest solved, each finer one by one global step from the guess of the one
+/// below ([`Role::Proposal`]); the last one prolonged onto `problem`'s mesh is the guess. With
+/// multigrid, each level's steps are solved by multigrid on the levels below it.
 fn nested_guess(
     problem: &DiscreteProblem,
     coarser: Vec<Mesh>,
@@ -486,12 +487,23 @@ fn nested_guess(
         let below = (multigrid && k + 1 < prolongations.len()).then(|| &prolongations[k + 1..]);
         let (system, hierarchy) = analysed(&level, below);
         let multigrid = hierarchy.as_ref().map(|h| (h, GUESS_STOP, Some(second_core)));
-        let o = obstacle(&level, &system, multigrid, guess.take(), options, None)?;
+        let o = obstacle(&level, &system, multigrid, guess.take(), options, Role::Proposal)?;
         iterations.push(o.stats.iterations);
         cg.push(o.stats.cg_iterations.clone());
         guess = Some(Guess::prolong(&prolongations[k], &o));
     }
     Ok((guess, iterations, cg))
+}
+
+/// What [`obstacle`] solves for.
+#[derive(Clone, Copy)]
+enum Role<'t> {
+    /// The solution of the mesh; the steps take turns with v's solve on `turn` when given.
+    Solution(Option<&'t Mutex<()>>),
+    /// A coarser level of nested iteration: from a guess, one global step (after the local
+    /// correction of the guess) proposes the next level's guess, as one Newton step per level of
+    /// grid sequencing does; a level without a guess (the coarsest) is solved.
+    Proposal,
 }
 
 /// The obstacle problem for w on `problem`'s mesh by primal–dual active sets, its linear solves
@@ -503,8 +515,12 @@ fn obstacle(
     multigrid: Option<Multilevel>,
     warm: Option<Guess>,
     options: SolverOptions,
-    turn: Option<&Mutex<()>>,
+    role: Role,
 ) -> Result<Obstacle, SolveError> {
+    let (turn, proposal) = match role {
+        Role::Solution(turn) => (turn, false),
+        Role::Proposal => (None, warm.is_some()),
+    };
     let n = system.n();
     let mut stats = SolverStats {
         unknowns: n,
@@ -566,7 +582,7 @@ fn obstacle(
             // Confirmed to the loose tolerance only: once more to the full one.
             continue;
         }
-        if same_set {
+        if same_set || proposal {
             stats.analyses = solver.analyses();
             let nv = problem.mesh.n_vertices();
             let (mut lambda, mut contact) = (vec![0.0; nv], vec![false; nv]);
@@ -1134,7 +1150,15 @@ mod tests {
         // Membrane 1 pressed onto membrane 2 in the middle: some contact, several iterations.
         let p = problem(24, "-10", "0.05");
         let system = InteriorSystem::new(&p.stiffness, &p.mesh.on_boundary);
-        let o = obstacle(&p, &system, None, None, SolverOptions::default(), None).unwrap();
+        let o = obstacle(
+            &p,
+            &system,
+            None,
+            None,
+            SolverOptions::default(),
+            Role::Solution(None),
+        )
+        .unwrap();
         let s = &o.stats;
         let inside = |a: usize| !p.mesh.on_boundary[a];
         let interior = (0..p.mesh.n_vertices()).filter(|&a| inside(a)).count();
@@ -1313,5 +1337,34 @@ mod tests {
         }
         // Against the lift, CG stops about six orders of magnitude earlier.
         assert!(iterations[0] >= iterations[1] + 3, "{iterations:?}");
+    }
+
+    #[test]
+    fn the_coarser_levels_take_one_step_each_and_the_finest_is_solved() {
+        // Nested iteration from the coarsest 8² mesh (solved) through 16² and 32² (one global step
+        // each from the guess below) to 64², by both linear solvers: the same solution as from no
+        // guess, to round-off.
+        let p = problem(64, "-1", "0.072");
+        let coarser = || -> Vec<Mesh> {
+            [32, 16, 8]
+                .map(|n| Mesh::rectangle([0.0, 0.0], [1.0, 1.0], n, n, Diagonal::Right).unwrap())
+                .into()
+        };
+        let cold = solve(&p, Start::Cold, Vec::new(), SolverOptions::default()).unwrap();
+        for linear in [LinearSolver::Multigrid, LinearSolver::Direct] {
+            let options = SolverOptions {
+                linear,
+                ..Default::default()
+            };
+            let nested = solve(&p, Start::Nested, coarser(), options).unwrap();
+            let s = &nested.obstacle.stats;
+            assert_eq!(s.coarse_iterations.len(), 3, "{linear:?}");
+            assert!(s.coarse_iterations[0] > 1, "{:?}", s.coarse_iterations);
+            assert_eq!(s.coarse_iterations[1..], [1, 1], "{linear:?}");
+            assert_eq!(nested.obstacle.contact, cold.obstacle.contact, "{linear:?}");
+            let d = (nested.obstacle.gap.iter().zip(&cold.obstacle.gap))
+                .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(d < 1e-12, "{linear:?}: {d:e}");
+        }
     }
 }
