@@ -500,9 +500,9 @@ fn nested_guess(
 enum Role<'t> {
     /// The solution of the mesh; the steps take turns with v's solve on `turn` when given.
     Solution(Option<&'t Mutex<()>>),
-    /// A coarser level of nested iteration: from a guess, one global step (after the local
-    /// correction of the guess) proposes the next level's guess, as one Newton step per level of
-    /// grid sequencing does; a level without a guess (the coarsest) is solved.
+    /// A coarser level of nested iteration: from a guess, one global step proposes the next
+    /// level's guess, as one Newton step per level of grid sequencing does (no local correction:
+    /// the final mesh settles the free boundary); a level without a guess (the coarsest) is solved.
     Proposal,
 }
 
@@ -535,7 +535,7 @@ fn obstacle(
             .collect(),
         None => vec![false; n],
     };
-    if let Some(guess) = &warm {
+    if let (Some(guess), false) = (&warm, proposal) {
         // The guess's free boundary is off by a few mesh sizes: settle it locally first, with the
         // guess (and g_h on ∂ω) as Dirichlet data.
         let data: Vec<f64> = (guess.gap.iter().zip(&problem.g_h).enumerate())
@@ -1366,5 +1366,19 @@ mod tests {
                 .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
             assert!(d < 1e-12, "{linear:?}: {d:e}");
         }
+        // A proposal from a guess is one global step, without local correction; the solution
+        // from the same guess corrects it locally first.
+        let coarse = problem(32, "-1", "0.072");
+        let from = solve(&coarse, Start::Cold, Vec::new(), SolverOptions::default()).unwrap();
+        let prolongation = Prolongation::new(&p.mesh, &coarse.mesh);
+        let system = InteriorSystem::new(&p.stiffness, &p.mesh.on_boundary);
+        let options = SolverOptions::default();
+        let guess = || Some(Guess::prolong(&prolongation, &from.obstacle));
+        let proposal = obstacle(&p, &system, None, guess(), options, Role::Proposal).unwrap();
+        let solution = obstacle(&p, &system, None, guess(), options, Role::Solution(None)).unwrap();
+        let (s, t) = (&proposal.stats, &solution.stats);
+        assert_eq!((s.iterations, s.local_iterations), (1, 0), "{s:?}");
+        assert!(t.local_iterations > 0, "{t:?}");
+        assert_eq!(solution.contact, cold.obstacle.contact);
     }
 }
