@@ -81,8 +81,8 @@ impl Prolongation {
 }
 
 /// Point location in a mesh: the triangle containing a point and its barycentric coordinates.
-/// Tried in turn: the triangle of the previous point and those around its corners (consecutive
-/// vertices are mostly near each other), the triangles around the nearest vertex (on nested
+/// Tried in turn: the triangle of the previous point and those around its corners, the nearest
+/// corner first (consecutive vertices are mostly near each other), the triangles around the nearest vertex (on nested
 /// meshes every finer vertex is a vertex or an edge midpoint of this mesh, so this finds it), and
 /// the triangles whose bounding boxes hold the point (their buckets built at the first point that
 /// needs them).
@@ -128,8 +128,14 @@ impl<'m> Locator<'m> {
             (q[0] - p[0]).powi(2) + (q[1] - p[1]).powi(2)
         };
         let found = (hint < mesh.n_triangles()
-            && (holds(hint)
-                || (mesh.triangle(hint).into_iter()).any(|a| self.stars.around(a).any(|(t, _)| holds(t)))))
+            && (holds(hint) || {
+                // The stars of the hint's corners, the nearest corner's first.
+                let mut corners = mesh.triangle(hint);
+                corners.sort_unstable_by(|a, b| distance(a).total_cmp(&distance(b)));
+                corners
+                    .into_iter()
+                    .any(|a| self.stars.around(a).any(|(t, _)| holds(t)))
+            }))
             || (self.vertices.around(p))
                 .min_by(|a, b| distance(a).total_cmp(&distance(b)))
                 .is_some_and(|a| self.stars.around(a).any(|(t, _)| holds(t)))
