@@ -566,9 +566,16 @@ fn obstacle(
         if !same_set {
             solver.analyse(&active, &mut stats);
         }
+        // Multigrid's first operators are made before the turn, beside v's solve (which the
+        // steps wait for on the largest meshes); Cholesky factorizes in turn (two factors at once
+        // would double the memory).
+        let early = stats.iterations == 1 && multigrid.is_some();
+        if !same_set && early {
+            solver.prepare(&active, &mut stats)?;
+        }
         let step = {
             let _turn = turn.map(take_turn);
-            if !same_set {
+            if !same_set && !early {
                 solver.prepare(&active, &mut stats)?;
             }
             w_problem.step(system, &mut solver, &rhs, &problem.g_h, &mut stats)?
@@ -878,7 +885,7 @@ impl<'s> Inner<'s> {
                 system,
                 hierarchy,
                 cycle: None,
-                x: system.extended(&start.unwrap_or_else(|| vec![0.0; system.n()])),
+                x: start.map_or_else(|| vec![0.0; system.unknown.len()], |x| system.extended(&x)),
                 stop,
                 loose: None,
                 loads,

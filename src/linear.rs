@@ -79,7 +79,7 @@ impl InteriorSystem {
     /// [`Factorization`]s of it cannot be made).
     pub fn numbering(on_boundary: &[bool]) -> Self {
         let mut unknown = vec![usize::MAX; on_boundary.len()];
-        let mut vertices = Vec::new();
+        let mut vertices = Vec::with_capacity(on_boundary.iter().filter(|&&b| !b).count());
         for (a, &b) in on_boundary.iter().enumerate() {
             if !b {
                 unknown[a] = vertices.len();
