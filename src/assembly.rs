@@ -228,7 +228,7 @@ pub struct NotFinite {
 /// more than the work.
 const SMALL: usize = 1 << 14;
 
-/// `part` of 0..n over its two halves, the first on a second thread when n is not [`SMALL`]:
+/// `part` of 0..n over its two halves, the first on a second thread when n is at least 2¹⁴:
 /// always two, so that sums do not depend on the machine.
 pub fn in_two_halves<T: Send>(n: usize, part: impl Fn(std::ops::Range<usize>) -> T + Sync) -> [T; 2] {
     let (first, second) = both(n >= SMALL, || part(0..n / 2), || part(n / 2..n));
