@@ -507,8 +507,9 @@ enum Role<'t> {
 }
 
 /// The obstacle problem for w on `problem`'s mesh by primal–dual active sets, its linear solves
-/// by Cholesky or, with `multigrid` = (hierarchy, tolerance), by CG preconditioned by V-cycles;
-/// from the guess `warm` when given (dropped once it has given the first active set and CG's start).
+/// by Cholesky or, with `multigrid` = (hierarchy, stop, second core), by CG preconditioned by
+/// V-cycles; from the guess `warm` when given (dropped once it has given the first active set and
+/// CG's start); solved, or one step proposed, as the `role` says.
 fn obstacle(
     problem: &DiscreteProblem,
     system: &InteriorSystem,
@@ -551,7 +552,7 @@ fn obstacle(
     let mut solver = Inner::new(system, multigrid, start, loads);
     if warm_start {
         // The first step from a guess only proposes the next active set: it is solved to the
-        // coarser levels' tolerance, and the set is confirmed by steps to the full one.
+        // coarser levels' stop, and the set is confirmed by steps to the full one.
         solver.loosen(GUESS_STOP);
     }
     let (mut correcting, mut same_set) = (true, false);
