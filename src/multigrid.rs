@@ -78,8 +78,8 @@ fn galerkin(a: &Csr, p: &Csr, pt: &Csr, alive: &[bool], kept: &[bool], base: Opt
     Csr::joined(halves, nc).with_diagonal()
 }
 
-/// The marker of a coarse column that E drops (below any row number: [`Csr`] rows fit in 32 bits
-/// with room to spare).
+/// The marker of a coarse column that E drops: never a row number (the rows of a [`Csr`] number
+/// fewer than 2³² − 2).
 const NOT_KEPT: u32 = u32::MAX - 1;
 
 /// Rows `rows` of [`galerkin`].

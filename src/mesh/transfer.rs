@@ -82,10 +82,10 @@ impl Prolongation {
 
 /// Point location in a mesh: the triangle containing a point and its barycentric coordinates.
 /// Tried in turn: the triangle of the previous point and those around its corners, the nearest
-/// corner first (consecutive vertices are mostly near each other), the triangles around the nearest vertex (on nested
-/// meshes every finer vertex is a vertex or an edge midpoint of this mesh, so this finds it), and
-/// the triangles whose bounding boxes hold the point (their buckets built at the first point that
-/// needs them).
+/// corner first (consecutive vertices are mostly near each other), the triangles around the
+/// nearest vertex (on nested meshes every finer vertex is a vertex or an edge midpoint of this
+/// mesh, so this finds it), and the triangles whose bounding boxes hold the point (their buckets
+/// built at the first point that needs them).
 struct Locator<'m> {
     mesh: &'m Mesh,
     vertices: Buckets,
