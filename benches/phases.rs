@@ -17,6 +17,10 @@ use membrane_contact::multigrid::Hierarchy;
 use membrane_contact::run;
 use std::time::Instant;
 
+/// Large allocations on huge pages (see [`membrane_contact::pages`]).
+#[global_allocator]
+static ALLOCATOR: membrane_contact::pages::HugePages = membrane_contact::pages::HugePages;
+
 /// Peak resident set size of this process, in MB.
 fn peak_mb() -> f64 {
     let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();

@@ -65,6 +65,7 @@ pub mod linear;
 pub mod mesh;
 pub mod multigrid;
 pub mod norms;
+pub mod pages;
 pub mod problem;
 mod quadrature_tables;
 pub mod result;

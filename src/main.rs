@@ -9,6 +9,10 @@ use membrane_contact::study::{self, StudyOptions};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+/// Large allocations on huge pages (see [`membrane_contact::pages`]).
+#[global_allocator]
+static ALLOCATOR: membrane_contact::pages::HugePages = membrane_contact::pages::HugePages;
+
 #[derive(Parser)]
 #[command(
     version,
