@@ -4,7 +4,7 @@
 use crate::expr::Expr;
 use crate::mesh::{Mesh, Stars};
 use crate::quadrature_tables::TRIANGLE_RULES;
-use crate::sparse::{Csr, NEGLIGIBLE};
+use crate::sparse::{part_room, Csr, NEGLIGIBLE};
 
 /// K_ab = ∫∇φ_b·∇φ_a on all vertices (no boundary condition applied): symmetric, by rows, with
 /// the couplings that vanish left out — on right-angled triangles the two vertices facing the
@@ -25,12 +25,7 @@ impl Stiffness {
         // threads (a triangle's local matrix is computed for each of its three rows, so the
         // threads share nothing); each entry summed in the order of the triangles.
         let halves = in_two_halves(n, |rows| {
-            let len = rows.len();
-            let (mut ends, mut col, mut val) = (
-                Vec::with_capacity(len),
-                Vec::with_capacity(7 * len),
-                Vec::with_capacity(7 * len),
-            );
+            let (mut ends, mut col, mut val) = part_room(&rows, n, 7);
             let mut entries: Vec<(u32, f64)> = Vec::new();
             for a in rows {
                 entries.clear();

@@ -57,7 +57,7 @@
 use crate::assembly::{both, Stiffness};
 use crate::linear::{Cholesky, NotPositiveDefinite};
 use crate::mesh::Prolongation;
-use crate::sparse::{Csr, NEGLIGIBLE};
+use crate::sparse::{part_room, Csr, NEGLIGIBLE};
 use std::borrow::Cow;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::OnceLock;
@@ -94,12 +94,7 @@ fn galerkin_rows(
 ) -> (Vec<u32>, Vec<u32>, Vec<f64>) {
     let nc = pt.rows();
     // Room for as many entries per row as the finer operator has, and one more.
-    let room = rows.len() * (a.nnz() / a.rows().max(1) + 1);
-    let (mut ends, mut col, mut val) = (
-        Vec::with_capacity(rows.len()),
-        Vec::with_capacity(room),
-        Vec::with_capacity(room),
-    );
+    let (mut ends, mut col, mut val) = part_room(&rows, nc, a.nnz() / a.rows().max(1) + 1);
     // Per coarse column: the row whose sum it last entered, or NOT_KEPT (a column of E's zeros,
     // so that one load decides both), and that sum.
     let mut marker: Vec<u32> = kept
@@ -177,8 +172,8 @@ pub struct Hierarchy<'h> {
     /// The boundary, and the coarse operators with it alone skipped (v's), made once when first
     /// needed, each with the coarse unknowns it skips.
     base: Option<(Vec<bool>, OnceLock<BaseLevels>)>,
-    /// With a base: the transposed interpolations, made at the first held set (the base's own
-    /// products make theirs and drop them), and the blocks of the finest level's smoother.
+    /// With a base: the transposed interpolations, made with the base's operators and kept for
+    /// those of the held sets, and the blocks of the finest level's smoother.
     transposes: OnceLock<Vec<Csr>>,
     fine_blocks: OnceLock<Blocks>,
 }
@@ -245,11 +240,11 @@ impl<'h> Hierarchy<'h> {
         let blocks = |a: &Csr| Blocks::new(a, self.block_rows);
         let (operators, fine_blocks) = match &self.base {
             None => {
-                let full = self.full(skip.clone()).into_iter();
+                let full = self.full(skip.clone(), None).into_iter();
                 (full.map(|(a, s)| (Cow::Owned(a), s)).collect(), blocks(self.fine))
             }
             Some((boundary, base)) => {
-                let base = base.get_or_init(|| self.full(boundary.clone()));
+                let base = base.get_or_init(|| self.full(boundary.clone(), Some(self.transposes())));
                 let fine_blocks = self.fine_blocks.get_or_init(|| blocks(self.fine)).clone();
                 (self.near_base(&skip, boundary, base), fine_blocks)
             }
@@ -300,9 +295,7 @@ impl<'h> Hierarchy<'h> {
                     0 => (self.fine, self.fine),
                     _ => (&*out[l - 1].0, &base[l - 1].0),
                 };
-                let transposes =
-                    (self.transposes).get_or_init(|| self.p.iter().map(|p| p.matrix().transpose()).collect());
-                let pt = &transposes[l];
+                let pt = &self.transposes()[l];
                 dirty = dirty_rows(finer_base, p, pt, &dirty, &kept, b_skip);
                 Cow::Owned(galerkin(finer, p, pt, &alive, &kept, Some((b, &dirty))))
             };
@@ -312,14 +305,28 @@ impl<'h> Hierarchy<'h> {
         out
     }
 
-    /// The coarse operators for `skip` built in full, each with the coarse unknowns it skips.
-    fn full(&self, mut skip: Vec<bool>) -> BaseLevels {
+    /// The transposed interpolations of a hierarchy with a base, made once.
+    fn transposes(&self) -> &[Csr] {
+        (self.transposes).get_or_init(|| self.p.iter().map(|p| p.matrix().transpose()).collect())
+    }
+
+    /// The coarse operators for `skip` built in full, each with the coarse unknowns it skips,
+    /// with the given `transposes` of the interpolations, or each made and dropped in turn.
+    fn full(&self, mut skip: Vec<bool>, transposes: Option<&[Csr]>) -> BaseLevels {
         let mut out: BaseLevels = Vec::with_capacity(self.p.len());
-        for p in self.p {
+        for (l, p) in self.p.iter().enumerate() {
             let (p, finer) = (p.matrix(), out.last().map_or(self.fine, |(c, _)| c));
             let alive: Vec<bool> = skip.iter().map(|&s| !s).collect();
             let kept = kept(p, &alive);
-            let a = galerkin(finer, p, &p.transpose(), &alive, &kept, None);
+            let made;
+            let pt = match transposes {
+                Some(t) => &t[l],
+                None => {
+                    made = p.transpose();
+                    &made
+                }
+            };
+            let a = galerkin(finer, p, pt, &alive, &kept, None);
             skip = kept.iter().map(|&k| !k).collect();
             out.push((a, skip.clone()));
         }

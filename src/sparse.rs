@@ -27,14 +27,28 @@ pub struct Csr {
 /// columns and the values.
 pub(crate) type RowsPart = (Vec<u32>, Vec<u32>, Vec<f64>);
 
+/// Empty room for the part `rows` of a matrix of `n` rows with up to `per_row` entries each, to
+/// be [joined](Csr::joined) to the other part: the first part's room holds the entries of
+/// both, so that joining copies the second part once and moves nothing (growing a vector of
+/// hundreds of megabytes moves its pages, which cost more than the rows took to compute). Room
+/// not written is never touched, so it takes no memory.
+pub(crate) fn part_room(rows: &Range<usize>, n: usize, per_row: usize) -> RowsPart {
+    let entries = per_row * if rows.start == 0 { n } else { rows.len() };
+    (
+        Vec::with_capacity(rows.len()),
+        Vec::with_capacity(entries),
+        Vec::with_capacity(entries),
+    )
+}
+
 /// Why a matrix cannot be stored with 32-bit positions.
 fn fits(n: usize, what: &str) -> u32 {
     u32::try_from(n).unwrap_or_else(|_| panic!("{what} {n} exceed 2³² (the memory guard stops such meshes)"))
 }
 
 impl Csr {
-    /// The matrix of the rows of two parts (made e.g. on two threads), the first part's rows
-    /// first, with `cols` columns.
+    /// The matrix of the rows of two parts (made e.g. on two threads, in the room of
+    /// [`part_room`]), the first part's rows first, with `cols` columns.
     pub(crate) fn joined(
         [(first, mut col, mut val), (second, col2, val2)]: [RowsPart; 2],
         cols: usize,
@@ -247,5 +261,41 @@ impl Csr {
             diag: Vec::new(),
         }
         .checked()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parts_made_in_their_room_join_without_growing() {
+        // The tridiagonal matrix (−1, 2, −1) of 9 rows, made in two parts.
+        let n = 9;
+        let parts = crate::assembly::in_two_halves(n, |rows| {
+            let (mut ends, mut col, mut val) = part_room(&rows, n, 3);
+            for i in rows {
+                for j in i.saturating_sub(1)..(i + 2).min(n) {
+                    col.push(j as u32);
+                    val.push(if i == j { 2.0 } else { -1.0 });
+                }
+                ends.push(col.len() as u32);
+            }
+            (ends, col, val)
+        });
+        let entries = parts[0].1.len() + parts[1].1.len();
+        assert!(parts[0].1.capacity() >= entries && parts[0].2.capacity() >= entries);
+        let a = Csr::joined(parts, n);
+        assert_eq!((a.rows(), a.cols(), a.nnz()), (n, n, 3 * n - 2));
+        for i in 0..n {
+            for j in 0..n {
+                let expected = match i.abs_diff(j) {
+                    0 => 2.0,
+                    1 => -1.0,
+                    _ => 0.0,
+                };
+                assert_eq!(a.get(i, j), expected, "({i}, {j})");
+            }
+        }
     }
 }

@@ -2,7 +2,7 @@
 //! fine one, and its transpose, which restricts nodal loads.
 
 use super::{max2, min2, orient, Buckets, Mesh, Stars};
-use crate::sparse::Csr;
+use crate::sparse::{part_room, Csr};
 use std::sync::OnceLock;
 
 /// P1 interpolation from a coarse mesh onto the vertices of a fine one: each fine vertex is
@@ -26,12 +26,8 @@ impl Prolongation {
         // The two halves of the fine vertices on two threads; consecutive vertices are mostly
         // near each other, so the last one's triangle is tried first.
         let halves = crate::assembly::in_two_halves(fine.n_vertices(), |range| {
-            let (mut hint, len) = (0, range.len());
-            let (mut ends, mut col, mut val) = (
-                Vec::with_capacity(len),
-                Vec::with_capacity(3 * len),
-                Vec::with_capacity(3 * len),
-            );
+            let mut hint = 0;
+            let (mut ends, mut col, mut val) = part_room(&range, fine.n_vertices(), 3);
             for &p in &fine.points[range] {
                 let (t, bary) = locator.locate(p, hint);
                 hint = t;
