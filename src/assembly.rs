@@ -221,7 +221,7 @@ pub struct NotFinite {
 
 /// Below this many items the two halves of [`in_two_halves`] run on one thread: a thread costs
 /// more than the work.
-const SMALL: usize = 1 << 14;
+pub(crate) const SMALL: usize = 1 << 14;
 
 /// `part` of 0..n over its two halves, the first on a second thread when n is at least 2¹⁴:
 /// always two, so that sums do not depend on the machine.

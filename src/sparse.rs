@@ -233,7 +233,8 @@ impl Csr {
         self
     }
 
-    /// The transpose.
+    /// The transpose: its two halves of rows filled on two threads, each into its own part of
+    /// the entries (both read all of this matrix, each writes half of the transpose).
     pub fn transpose(&self) -> Csr {
         let mut count = vec![0u32; self.cols + 1];
         for &j in &self.col {
@@ -242,17 +243,31 @@ impl Csr {
         for j in 0..self.cols {
             count[j + 1] += count[j];
         }
-        let mut fill: Vec<usize> = count.iter().map(|&c| c as usize).collect();
         let (mut col, mut val) = (vec![0u32; self.nnz()], vec![0.0; self.nnz()]);
-        for i in 0..self.rows() {
-            let (cols, vals) = self.row(i);
-            for (&j, &v) in cols.iter().zip(vals) {
-                let p = &mut fill[j as usize];
-                col[*p] = i as u32;
-                val[*p] = v;
-                *p += 1;
+        // Rows `rows` of the transpose into their entries `col` and `val`.
+        let fill = |rows: Range<usize>, col: &mut [u32], val: &mut [f64]| {
+            let first = count[rows.start];
+            let mut next: Vec<u32> = count[rows.clone()].iter().map(|&c| c - first).collect();
+            for i in 0..self.rows() {
+                let (cols, vals) = self.row(i);
+                for (&j, &v) in cols.iter().zip(vals) {
+                    let slot = (j as usize).checked_sub(rows.start).and_then(|k| next.get_mut(k));
+                    if let Some(p) = slot {
+                        col[*p as usize] = i as u32;
+                        val[*p as usize] = v;
+                        *p += 1;
+                    }
+                }
             }
-        }
+        };
+        let mid = self.cols / 2;
+        let split = count[mid] as usize;
+        let ((col0, col1), (val0, val1)) = (col.split_at_mut(split), val.split_at_mut(split));
+        crate::assembly::both(
+            self.nnz() >= crate::assembly::SMALL,
+            || fill(0..mid, col0, val0),
+            || fill(mid..self.cols, col1, val1),
+        );
         Csr {
             row_ptr: count,
             col,
@@ -296,6 +311,32 @@ mod tests {
                 };
                 assert_eq!(a.get(i, j), expected, "({i}, {j})");
             }
+        }
+    }
+
+    #[test]
+    fn the_transpose_on_two_threads_is_the_transpose() {
+        // 300 × 200 with about 60 entries per row (above the size that splits the work).
+        let (rows, cols) = (300, 200);
+        let mut part = (Vec::new(), Vec::new(), Vec::new());
+        for i in 0..rows {
+            for j in (0..cols).filter(|j| (i * 7 + j * 13) % 10 < 3) {
+                part.1.push(j as u32);
+                part.2.push((i * cols + j) as f64 + 0.5);
+            }
+            part.0.push(part.1.len() as u32);
+        }
+        let a = Csr::joined([part, (Vec::new(), Vec::new(), Vec::new())], cols);
+        assert!(a.nnz() >= crate::assembly::SMALL);
+        let t = a.transpose();
+        assert_eq!((t.rows(), t.cols(), t.nnz()), (cols, rows, a.nnz()));
+        for i in 0..rows {
+            for j in 0..cols {
+                assert_eq!(t.get(j, i), a.get(i, j), "({j}, {i})");
+            }
+        }
+        for j in 0..cols {
+            assert!(t.row(j).0.windows(2).all(|w| w[0] < w[1]), "row {j} sorted");
         }
     }
 }
