@@ -70,9 +70,9 @@ fn advised(ptr: *mut u8, size: usize) -> *mut u8 {
 mod tests {
     use super::*;
 
-    /// The kernel's flags of the mapping that holds `address` (the `VmFlags` line of
-    /// /proc/self/smaps: `hg` is MADV_HUGEPAGE).
-    fn flags_at(address: usize) -> String {
+    /// Whether the mapping that holds `address` is advised onto huge pages (`hg` among its
+    /// `VmFlags` in /proc/self/smaps), with the flags to show.
+    fn advised_at(address: usize) -> (bool, String) {
         let smaps = std::fs::read_to_string("/proc/self/smaps").expect("/proc/self/smaps");
         let mut inside = false;
         for line in smaps.lines() {
@@ -86,7 +86,7 @@ mod tests {
                 }
             }
             if inside && line.starts_with("VmFlags:") {
-                return line.to_string();
+                return (line.split_whitespace().any(|f| f == "hg"), line.to_string());
             }
         }
         panic!("no mapping holds {address:#x}")
@@ -107,22 +107,16 @@ mod tests {
             let p = HugePages.alloc_zeroed(layout);
             assert!(!p.is_null());
             let middle = p as usize + (32 << 20);
-            assert!(
-                flags_at(middle).split_whitespace().any(|f| f == "hg"),
-                "{}",
-                flags_at(middle)
-            );
+            let (advised, flags) = advised_at(middle);
+            assert!(advised, "{flags}");
             assert_eq!(*p.add(12345), 0);
             *p.add(12345) = 7;
             // Grown (mremap moves the mapping), still advised, the contents kept.
             let q = HugePages.realloc(p, layout, 128 << 20);
             assert_eq!(*q.add(12345), 7);
             let middle = q as usize + (96 << 20);
-            assert!(
-                flags_at(middle).split_whitespace().any(|f| f == "hg"),
-                "{}",
-                flags_at(middle)
-            );
+            let (advised, flags) = advised_at(middle);
+            assert!(advised, "{flags}");
             HugePages.dealloc(q, Layout::from_size_align(128 << 20, 8).unwrap());
         }
     }
@@ -135,12 +129,44 @@ mod tests {
             assert!(!p.is_null());
             p.write_bytes(1, layout.size());
             let middle = p as usize + THRESHOLD / 4;
-            assert!(
-                !flags_at(middle).split_whitespace().any(|f| f == "hg"),
-                "{}",
-                flags_at(middle)
-            );
+            let (advised, flags) = advised_at(middle);
+            assert!(!advised, "{flags}");
             HugePages.dealloc(p, layout);
+        }
+    }
+
+    #[test]
+    fn the_advice_stays_inside_the_block() {
+        if !kernel_has_huge_pages() {
+            return;
+        }
+        // Three blocks of 64 MiB in one mapping of our own; the middle one advised as if it
+        // had been allocated there, one byte off a page boundary at both ends.
+        let block = 64 << 20;
+        unsafe {
+            let base = libc::mmap(
+                std::ptr::null_mut(),
+                3 * block,
+                libc::PROT_READ | libc::PROT_WRITE,
+                libc::MAP_PRIVATE | libc::MAP_ANONYMOUS,
+                -1,
+                0,
+            );
+            assert_ne!(base, libc::MAP_FAILED);
+            let base = base as usize;
+            advised((base + block + 1) as *mut u8, block - 2);
+            for (at, expected) in [
+                (base + block / 2, false),
+                (base + 3 * block / 2, true),
+                (base + 5 * block / 2, false),
+            ] {
+                let (advised, flags) = advised_at(at);
+                assert_eq!(advised, expected, "{:#x} into the mapping: {flags}", at - base);
+            }
+            // The pages holding the block's first and last bytes are shared with its neighbours:
+            // they are not advised.
+            assert!(!advised_at(base + block).0 && !advised_at(base + 2 * block - 1).0);
+            libc::munmap(base as *mut libc::c_void, 3 * block);
         }
     }
 }
