@@ -70,8 +70,14 @@ impl Staging {
         HANDLER.call_once(|| {
             // Installed once per process; if another handler is there, signals keep their effect.
             let _ = ctrlc::set_handler(|| {
+                // The writer goes on while this runs and may add a file after remove_dir_all has
+                // listed the directory (its last rmdir then fails): again until it is gone.
                 for dir in pending().iter() {
-                    let _ = std::fs::remove_dir_all(dir);
+                    for _ in 0..100 {
+                        if std::fs::remove_dir_all(dir).is_ok() || !dir.exists() {
+                            break;
+                        }
+                    }
                 }
                 // No exit handlers: another thread may be inside the HDF5 library.
                 unsafe { libc::_exit(130) }
