@@ -111,8 +111,21 @@ def at_points(source, points):
 
 def as_ufl(source, domain):
     """A case expression (string, number or parsed tree) as UFL of the spatial coordinate of
-    `domain`."""
-    return expr.to_ufl(expr.parse(source), domain)
+    `domain`; never UFL's Zero. UFL turns a zero number into Zero and simplifies what it touches
+    (`0`, `0*x`, `x*0 + y*0`, `0^2`, `sqrt(0)`: Zero, or a plain Python 0.0 for a function of a
+    constant), and Zero * v is Zero again, without the test function v: the load form
+    `f * v * dx` of a zero f has no argument, dolfinx compiles it as a rank-0 form without a
+    function space, and `assemble_vector` fails on it (IndexError in function_spaces[0]). A zero
+    is therefore a `fem.Constant` of value 0, which UFL does not simplify away (the load
+    assembles to exact zeros). A nonzero constant stays a UFL literal, as before."""
+    import ufl
+    from dolfinx import fem
+    from petsc4py import PETSc
+
+    value = ufl.as_ufl(expr.to_ufl(expr.parse(source), domain))
+    if isinstance(value, ufl.constantvalue.Zero):
+        return fem.Constant(domain, PETSc.ScalarType(0.0))
+    return value
 
 
 def shipped_cases(only_validation=False):
