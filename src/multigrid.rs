@@ -534,12 +534,73 @@ impl Coarsest {
     }
 }
 
+/// Where CG stops: |r_a| ≤ min(density m_a, backward (σ_a + floor(a))) at every free unknown
+/// a, with m_a = ∫φ_a and σ = |K_FF| |x| + |b| (the backward error only once the density is
+/// met, from that iterate: σ needs an x near the solution).
+///
+/// The density bounds r as a load density, in the units of λ_h = r_a/m_a (4.5) (a relative
+/// ‖r‖₂ would leave up to √n times the tolerance at a vertex). The backward tolerance bounds the
+/// componentwise backward error of x (Oettli–Prager): it is what the checks of a solution
+/// measure (`action::Checks`, relative to the terms of (4.5) at each vertex, which σ_a bounds
+/// from below), so that a solution CG accepts passes them wherever the data put those terms —
+/// also at a vertex where u_h and the loads are small beside a large boundary lift.
+#[derive(Clone, Copy)]
+pub struct Tolerance<'a> {
+    /// The largest residual density max_a |r_a|/m_a.
+    pub density: f64,
+    /// When asked for, the largest componentwise backward error max_a |r_a|/(σ_a + floor(a)),
+    /// with a floor per vertex: the sizes of the loads whose combination b holds, which the
+    /// checks count (b may cancel them).
+    pub backward: Option<(f64, &'a (dyn Fn(usize) -> f64 + Sync))>,
+}
+
+/// A [`Tolerance`] per unknown, with σ = |K_FF| |x| + |b| of a recent iterate x.
+struct Bound<'t> {
+    tolerance: Tolerance<'t>,
+    sigma: Vec<f64>,
+}
+
+impl Bound<'_> {
+    /// The largest |r_i| allowed: the tolerance, but never below the round-off of r_i itself
+    /// ([`ROUNDOFF`] σ_i: a density the data cannot resolve is left to the checks of the
+    /// solution, which say so).
+    #[inline]
+    fn at(&self, mass: &[f64], i: usize) -> f64 {
+        let density = self.tolerance.density * mass[i];
+        let wanted = match &self.tolerance.backward {
+            Some((backward, floor)) => density.min(backward * (self.sigma[i] + floor(i))),
+            None => density,
+        };
+        wanted.max(ROUNDOFF * self.sigma[i])
+    }
+}
+
+/// The round-off of a residual r_a = b_a − Σ_b K_ab x_b, relative to σ_a = |b_a| + Σ_b |K_ab x_b|:
+/// a few units of f64's precision per term of a row of K.
+const ROUNDOFF: f64 = 16.0 * f64::EPSILON;
+
+/// CG renews σ every this many iterations (and when the bound is met).
+const SIGMA_EVERY: usize = 4;
+
+/// How often CG goes on from its iterate when the residual recomputed from b misses a backward
+/// tolerance (the recursively updated residual drifts from it by round-off, and σ moves with x).
+const RESTARTS: usize = 4;
+
+/// The power of two nearest 1/`size` (1 for 0 or a non-finite size), within f64's normal range.
+fn power_of_two_near(size: f64) -> f64 {
+    if !(size.is_finite() && size > 0.0) {
+        return 1.0;
+    }
+    let exponent = size.log2().round().clamp(-1000.0, 1000.0) as i32;
+    2.0_f64.powi(-exponent)
+}
+
 /// CG did not reach the tolerance within the iteration cap.
 #[derive(Debug, Clone, PartialEq)]
 pub struct NotConverged {
     /// Iterations done.
     pub iterations: usize,
-    /// max_a |r_a|/m_a reached (see [`Multigrid::solve_to`]).
+    /// max_a |r_a|/m_a reached (see [`Tolerance`]).
     pub residual: f64,
     /// The density it was to reach.
     pub target: f64,
@@ -639,25 +700,29 @@ impl Multigrid<'_> {
         tolerance: f64,
         max_iterations: usize,
     ) -> Result<usize, NotConverged> {
-        let target = tolerance * self.density(&b);
-        self.solve_to(b, x, target, max_iterations)
+        let density = tolerance * self.density(&b);
+        self.solve_to(
+            b,
+            x,
+            Tolerance {
+                density,
+                backward: None,
+            },
+            max_iterations,
+        )
     }
 
-    /// Solves K_FF x = b (b taken: its room holds the residual) on the free unknowns by CG
-    /// preconditioned by the V-cycle, from the guess `x` (its held entries are set to 0), until
-    /// max_a |r_a|/m_a ≤ `target` over the free unknowns, r = b − K_FF x the recursively updated
-    /// residual and m_a = ∫φ_a: the residual as a load density, in the units of λ_h = r_a/m_a
-    /// (4.5). (A relative ‖r‖₂ does not bound λ_h's error: it leaves up to √n times the tolerance
-    /// at a vertex.) With `target` = 0, x = 0 when b = 0 on the free unknowns. Returns the
-    /// iterations.
-    ///
-    /// K_FF of the search direction comes from the recurrence K p = K z + β K p_old, with K z
-    /// from the V-cycle's last sweep: no matrix product of its own per iteration.
+    /// Solves K_FF x = b (b taken) on the free unknowns by CG preconditioned by the V-cycle, from
+    /// the guess `x` (its held entries are set to 0), until the residual r = b − K_FF x meets
+    /// `tolerance` at every free unknown (see [`Tolerance`]). With a backward tolerance the
+    /// residual is recomputed from b once the density is met, and CG goes on from x while that
+    /// true residual misses the backward error, at most [`RESTARTS`] times. With a density of 0, x = 0 when b = 0 on
+    /// the free unknowns. Returns the iterations.
     pub fn solve_to(
         &mut self,
         b: Vec<f64>,
         x: &mut [f64],
-        target: f64,
+        tolerance: Tolerance,
         max_iterations: usize,
     ) -> Result<usize, NotConverged> {
         for (i, x) in x.iter_mut().enumerate() {
@@ -665,57 +730,159 @@ impl Multigrid<'_> {
                 *x = 0.0;
             }
         }
-        if target == 0.0 && self.density(&b) == 0.0 {
+        if tolerance.density == 0.0 && self.density(&b) == 0.0 {
             x.fill(0.0);
             return Ok(0);
         }
-        let (n, mid) = (self.n(), self.levels[0].blocks.mid);
-        let second_core = self.second_core;
-        let parallel = || second_core.is_some_and(|free| free.load(Ordering::Relaxed));
-        // r = b − K_FF x, in b's place.
-        let mut r = b;
-        {
-            let (fine, skip, x) = (self.fine, &self.levels[0].skip, &*x);
-            let residual = |base: usize, r: &mut [f64]| {
-                for (li, r) in r.iter_mut().enumerate() {
-                    let i = base + li;
-                    *r = if skip[i] { 0.0 } else { *r - fine.row_dot(i, x) };
-                }
-            };
-            let (r0, r1) = r.split_at_mut(mid);
-            both(parallel(), || residual(0, r0), || residual(mid, r1));
+        let failed = |e: NotConverged| NotConverged {
+            target: tolerance.density,
+            ..e
+        };
+        let mut bound = Bound {
+            tolerance,
+            sigma: Vec::new(),
+        };
+        let Some(_) = tolerance.backward else {
+            let mut r = b;
+            self.residual(&mut r, x);
+            return (self.iterate(r, x, &mut bound, max_iterations)).map_err(failed);
+        };
+        // The recursively updated residual drifts from the true one: CG goes on from x while
+        // the true one misses the bound.
+        let mut iterations = 0;
+        for _ in 0..=RESTARTS {
+            let mut r = b.clone();
+            self.residual(&mut r, x);
+            self.sigma(&r, 1.0, x, &mut bound.sigma);
+            if self.meets(&r, |i| bound.at(self.mass, i)) {
+                return Ok(iterations);
+            }
+            let left = max_iterations - iterations;
+            iterations += (self.iterate(r, x, &mut bound, left)).map_err(failed)?;
         }
-        if self.density(&r) <= target {
+        let mut r = b;
+        self.residual(&mut r, x);
+        Err(self.not_converged(iterations, &r, tolerance.density))
+    }
+
+    /// r = b − K_FF x on the free unknowns, 0 on the held ones, with b given in r.
+    fn residual(&self, r: &mut [f64], x: &[f64]) {
+        let (fine, skip, mid) = (self.fine, &self.levels[0].skip, self.levels[0].blocks.mid);
+        let part = |base: usize, r: &mut [f64]| {
+            for (li, r) in r.iter_mut().enumerate() {
+                let i = base + li;
+                *r = if skip[i] { 0.0 } else { *r - fine.row_dot(i, x) };
+            }
+        };
+        let (r0, r1) = r.split_at_mut(mid);
+        both(self.parallel(), || part(0, r0), || part(mid, r1));
+    }
+
+    /// σ = |K_FF| |x| + |b| on the free unknowns for the residual r = b − K_FF x (r given times
+    /// 1/`unscale`): the scale of r's round-off and of the backward error (Oettli–Prager).
+    fn sigma(&self, r: &[f64], unscale: f64, x: &[f64], sigma: &mut Vec<f64>) {
+        let (fine, skip, mid) = (self.fine, &self.levels[0].skip, self.levels[0].blocks.mid);
+        sigma.resize(self.n(), 0.0);
+        let part = |base: usize, sigma: &mut [f64]| {
+            for (li, sigma) in sigma.iter_mut().enumerate() {
+                let i = base + li;
+                if skip[i] {
+                    continue;
+                }
+                let (cols, vals) = fine.row(i);
+                let (mut kx, mut size) = (0.0, 0.0);
+                for (&j, &v) in cols.iter().zip(vals) {
+                    let t = v * x[j as usize];
+                    kx += t;
+                    size += t.abs();
+                }
+                *sigma = size + (r[i] * unscale + kx).abs();
+            }
+        };
+        let (s0, s1) = sigma.split_at_mut(mid);
+        both(self.parallel(), || part(0, s0), || part(mid, s1));
+    }
+
+    /// Whether |r_a| ≤ bound(a) at every free unknown (not where r_a is NaN).
+    fn meets(&self, r: &[f64], bound: impl Fn(usize) -> f64) -> bool {
+        (r.iter().enumerate()).all(|(i, r)| self.held(i) || r.abs() <= bound(i))
+    }
+
+    fn not_converged(&self, iterations: usize, r: &[f64], target: f64) -> NotConverged {
+        NotConverged {
+            iterations,
+            residual: self.density(r),
+            target,
+        }
+    }
+
+    /// Whether the second core is free now (see [`Multigrid::second_core`]).
+    fn parallel(&self) -> bool {
+        self.second_core.is_some_and(|free| free.load(Ordering::Relaxed))
+    }
+
+    /// CG iterations from x with its residual r until |r_a| ≤ bound(a) at every free unknown, r
+    /// the recursively updated residual, the bound's σ from the x that meets it. CG works on r scaled by a power of two that
+    /// brings its largest entry near 1, so that no product of two residual-sized numbers
+    /// overflows or underflows whatever the units of the data (the scaling is exact: the iterates
+    /// are those of CG on r itself). Returns the iterations.
+    ///
+    /// K_FF of the search direction comes from the recurrence K p = K z + β K p_old, with K z
+    /// from the V-cycle's last sweep: no matrix product of its own per iteration.
+    fn iterate(
+        &mut self,
+        mut r: Vec<f64>,
+        x: &mut [f64],
+        bound: &mut Bound,
+        max_iterations: usize,
+    ) -> Result<usize, NotConverged> {
+        if bound.sigma.is_empty() {
+            self.sigma(&r, 1.0, x, &mut bound.sigma);
+        }
+        if self.meets(&r, |i| bound.at(self.mass, i)) {
             return Ok(0);
         }
+        let largest = r.iter().fold(0.0_f64, |m, r| m.max(r.abs()));
+        let scale = power_of_two_near(largest);
+        let unscale = 1.0 / scale;
+        for r in &mut r {
+            *r *= scale;
+        }
+        let (n, mid) = (self.n(), self.levels[0].blocks.mid);
         let (mut z, mut kz) = (vec![0.0; n], vec![0.0; n]);
-        let mut rz = self.cycle::<true>(0, &r, &mut z, &mut kz, parallel());
+        let mut rz = self.cycle::<true>(0, &r, &mut z, &mut kz, self.parallel());
         let (mut p, mut q) = (z.clone(), kz.clone());
         let mut pq = dot(&p, &q);
         for iteration in 1..=max_iterations {
             let alpha = rz / pq;
-            let parallel = parallel();
-            // x += α p, r −= α q, and r's density.
-            let density = {
-                let (mass, skip) = (self.mass, &self.levels[0].skip);
+            if !alpha.is_finite() {
+                break;
+            }
+            let parallel = self.parallel();
+            // x += α p (unscaled), r −= α q, and whether r meets the bound.
+            let met = {
+                let (skip, mass, bound) = (&self.levels[0].skip, self.mass, &*bound);
                 let update = |base: usize, x: &mut [f64], r: &mut [f64]| {
-                    let mut density = 0.0_f64;
+                    let mut met = true;
                     for (li, (x, r)) in x.iter_mut().zip(r).enumerate() {
                         let i = base + li;
-                        *x += alpha * p[i];
+                        *x += alpha * p[i] * unscale;
                         *r -= alpha * q[i];
-                        if !skip[i] {
-                            density = max_density(density, *r / mass[i]);
-                        }
+                        met &= skip[i] || r.abs() * unscale <= bound.at(mass, i);
                     }
-                    density
+                    met
                 };
                 let ((x0, x1), (r0, r1)) = (x.split_at_mut(mid), r.split_at_mut(mid));
-                let (d0, d1) = both(parallel, || update(0, x0, r0), || update(mid, x1, r1));
-                max_density(d0, d1)
+                let (m0, m1) = both(parallel, || update(0, x0, r0), || update(mid, x1, r1));
+                m0 && m1
             };
-            if density <= target {
-                return Ok(iteration);
+            // σ moves with x: the bound is met only against σ of this x (and σ is renewed now
+            // and then, so that CG stops once r is at its round-off).
+            if met || iteration % SIGMA_EVERY == 0 {
+                self.sigma(&r, unscale, x, &mut bound.sigma);
+                if self.meets(&r, |i| bound.at(self.mass, i) * scale) {
+                    return Ok(iteration);
+                }
             }
             let rz_next = self.cycle::<true>(0, &r, &mut z, &mut kz, parallel);
             let beta = rz_next / rz;
@@ -734,11 +901,10 @@ impl Multigrid<'_> {
             let (pq0, pq1) = both(parallel, || update(0, p0, q0), || update(mid, p1, q1));
             pq = pq0 + pq1;
         }
-        Err(NotConverged {
-            iterations: max_iterations,
-            residual: self.density(&r),
-            target,
-        })
+        for r in &mut r {
+            *r *= unscale;
+        }
+        Err(self.not_converged(max_iterations, &r, f64::NAN))
     }
 }
 

@@ -1,0 +1,122 @@
+//! The default solver (multigrid) accepts what it computes: its results pass their own checks on
+//! every built-in mesh, and it solves cases in any units double precision can hold, as the direct
+//! solver does.
+
+use membrane_contact::case::Case;
+use membrane_contact::contact::{LinearSolver, Start};
+use membrane_contact::run::{self, Run, RunError};
+use std::path::PathBuf;
+
+fn options() -> run::Options<'static> {
+    run::Options {
+        start: Start::Nested,
+        hminus1: false,
+        flux: false,
+        estimate: false,
+    }
+}
+
+fn case(text: &str) -> Case {
+    Case::parse(text, "test case", PathBuf::new()).unwrap()
+}
+
+/// u2 ≡ 0, u1 = max(r² − 1/9, 0)², λ = 1 on the contact disk r < 1/3 about (1/2, 1/2): g ≠ 0,
+/// and u1, u2 and the loads of v all vanish on the contact set, where the checks' terms are small
+/// beside the lift of g.
+const U2_ZERO: &str = r#"
+mu1 = 1.0
+mu2 = 1.0
+f1 = "if((x-0.5)^2+(y-0.5)^2 < 1/9, -1, -(16*((x-0.5)^2+(y-0.5)^2) - 8/9))"
+f2 = "if((x-0.5)^2+(y-0.5)^2 < 1/9, 1, 0)"
+g = "max((x-0.5)^2+(y-0.5)^2 - 1/9, 0)^2"
+[mesh]
+kind = "rectangle"
+"#;
+
+#[test]
+fn multigrid_results_pass_their_checks_on_every_diagonal() {
+    // The checks failed from 256² on (λ_h ≥ 0 at 3.6e-10 with crossed diagonals) while CG
+    // stopped at its own tolerance.
+    let sizes = [
+        (64, ["right", "left", "crossed"].as_slice()),
+        (256, &["right", "left", "crossed"]),
+        (512, &["right", "crossed"]),
+        (1024, &["right"]),
+    ];
+    for (n, diagonals) in sizes {
+        for diagonal in diagonals {
+            let c = case(&format!("{U2_ZERO}n = {n}\ndiagonal = \"{diagonal}\"\n"));
+            assert_eq!(c.solver.linear, LinearSolver::Multigrid);
+            let r = run::run(&c, &options()).unwrap_or_else(|e| panic!("{n}² {diagonal}: {e}"));
+            let checks = &r.action.checks;
+            assert!(
+                checks.negative_lambda <= 1e-10 && checks.prop12 <= 1e-10,
+                "{checks:?}"
+            );
+            assert!(r.action.contact_area > 0.3, "{n}² {diagonal}");
+        }
+    }
+}
+
+/// The unit square scaled by `side`, with a load of 8 and g = 0.1 (not scaled with it).
+fn square(side: f64, linear: &str) -> Case {
+    case(&format!(
+        "mu1 = 1.0\nmu2 = 2.0\nf1 = -8\nf2 = 0\ng = 0.1\n[solver]\nlinear = \"{linear}\"\n\
+         [mesh]\nkind = \"rectangle\"\ncorners = [[0.0, 0.0], [{side:e}, {side:e}]]\nn = 32\n"
+    ))
+}
+
+fn max_relative_difference(a: &[f64], b: &[f64]) -> f64 {
+    let scale = b.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    a.iter().zip(b).fold(0.0_f64, |m, (x, y)| m.max((x - y).abs())) / scale
+}
+
+#[test]
+fn multigrid_solves_in_any_units_as_the_direct_solver() {
+    // Sides of 1e±100 and 1e±150 made CG's products of residuals overflow or underflow (NaN);
+    // the direct solver solved them, or refused those whose λ_h double precision cannot resolve.
+    for side in [1e-150, 1e-100, 1e-3, 1e3, 1e100, 1e150] {
+        let (mg, direct) = (square(side, "multigrid"), square(side, "direct"));
+        let (a, b): (Result<Run, RunError>, Result<Run, RunError>) =
+            (run::run(&mg, &options()), run::run(&direct, &options()));
+        match (a, b) {
+            (Ok(a), Ok(b)) => {
+                assert!(
+                    max_relative_difference(&a.solution.u1, &b.solution.u1) < 1e-12,
+                    "{side:e}"
+                );
+                // λ_h to CG's stop, relative to the lift of g (about g/h²: up to 1e-6 of the
+                // load 8 here, where λ_h is round-off without contact).
+                let (la, lb) = (&a.solution.obstacle.lambda, &b.solution.obstacle.lambda);
+                let most = lb.iter().fold(8.0_f64, |m, v| m.max(v.abs()));
+                let d = la.iter().zip(lb).fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
+                assert!(d < 1e-6 * most, "{side:e}: {d:e}");
+                assert_eq!(
+                    a.solution.obstacle.contact, b.solution.obstacle.contact,
+                    "{side:e}"
+                );
+            }
+            (Err(a), Err(b)) => assert_eq!(a.to_string(), b.to_string(), "{side:e}"),
+            (a, b) => panic!("{side:e}: multigrid {:?}, direct {:?}", a.err(), b.err()),
+        }
+    }
+    // Scaled with the data (f × 1/side²), the solution is the same at every scale.
+    let unit_case = square(1.0, "multigrid");
+    let unit = run::run(&unit_case, &options()).unwrap();
+    for side in [2f64.powi(-500), 2f64.powi(-333), 2f64.powi(333), 2f64.powi(500)] {
+        let text = format!(
+            "mu1 = 1.0\nmu2 = 2.0\nf1 = \"-8/{side:e}^2\"\nf2 = 0\ng = 0.1\n[mesh]\nkind = \"rectangle\"\n\
+             corners = [[0.0, 0.0], [{side:e}, {side:e}]]\nn = 32\n"
+        );
+        let scaled = case(&text);
+        let r = run::run(&scaled, &options()).unwrap_or_else(|e| panic!("{side:e}: {e}"));
+        assert!(
+            max_relative_difference(&r.solution.u1, &unit.solution.u1) < 1e-12,
+            "{side:e}"
+        );
+        assert_eq!(
+            r.solution.obstacle.contact, unit.solution.obstacle.contact,
+            "{side:e}"
+        );
+    }
+}
