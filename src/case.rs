@@ -471,7 +471,13 @@ impl Case {
     /// refined meshes are renumbered along a Z-order curve; built-in and file meshes keep theirs.
     /// Below a disk or polygon come, last, the domain meshed with 2h, 4h, … (not nested).
     pub fn hierarchy(&self, coarser: bool) -> Result<(Mesh, Vec<Mesh>), CaseError> {
-        let mut levels = vec![self.given_mesh()?];
+        let given = self.given_mesh()?;
+        let generated = if coarser {
+            self.coarser_generated(&given)
+        } else {
+            Vec::new()
+        };
+        let mut levels = vec![given];
         let curves = self.curves();
         for k in 1..=self.refine {
             let finer = (levels.last().expect("a level").refined(&curves)).map_err(|e| {
@@ -488,11 +494,6 @@ impl Case {
             (false, _) => Vec::new(),
             (true, 0) => self.coarser_builtin()?,
             (true, _) => levels,
-        };
-        let generated = if coarser {
-            self.coarser_generated()
-        } else {
-            Vec::new()
         };
         Ok((mesh, below.into_iter().chain(generated).collect()))
     }
@@ -538,6 +539,9 @@ impl Case {
                 return Ok(mesh);
             }
         };
+        if let MeshSpec::Domain { domain, h } = &self.mesh {
+            domain.check_size(*h).map_err(|e| err(format!("[mesh] h: {e}")))?;
+        }
         mesh::check_memory(self.estimated_vertices(), self.bytes_per_vertex())
             .map_err(|e| err(format!("{keys}: {e}")))?;
         let built = match &self.mesh {
@@ -553,17 +557,28 @@ impl Case {
 
     /// The meshes of nested iteration below a built-in mesh of n cells per side: ⌈n/2⌉, ⌈n/4⌉, …
     /// cells, down to [`COARSEST`]; none for the other kinds.
-    /// Below a generated mesh of size h, for nested iteration: the domain meshed with 2h, 4h, …
-    /// while the mesh keeps [`COARSEST_VERTICES`] vertices. They are not nested in it, which a
-    /// guess does not need (transfers locate each vertex; restricted loads are approximate).
-    fn coarser_generated(&self) -> Vec<Mesh> {
-        let MeshSpec::Domain { domain, h } = &self.mesh else {
-            return Vec::new();
+    /// Below a disk or polygon meshed with size h, or a file mesh: the domain (a file mesh's,
+    /// [`Domain::of_mesh`]) meshed with 2h, 4h, …, coarsened to each size ([`Domain::coarsened`]), while each
+    /// level has at most half the vertices of the one above, at least [`COARSEST_VERTICES`] and
+    /// boundary data that (3.4) accepts: at most log₂ of `given`'s vertices levels, whatever the
+    /// domain. They are not nested in it, which neither a guess nor multigrid needs (transfers
+    /// locate each vertex; restricted loads are approximate).
+    fn coarser_generated(&self, given: &Mesh) -> Vec<Mesh> {
+        let (domain, h) = match &self.mesh {
+            MeshSpec::Domain { domain, h } => (domain.clone(), *h),
+            MeshSpec::File { .. } => Domain::of_mesh(given),
+            _ => return Vec::new(),
         };
-        let mut meshes = Vec::new();
+        let mut meshes: Vec<Mesh> = Vec::new();
         let mut size = 2.0 * h;
-        while let Ok(mesh) = domain.mesh(size) {
-            if mesh.n_vertices() < COARSEST_VERTICES {
+        loop {
+            let above = meshes.last().unwrap_or(given).n_vertices();
+            let Some(mesh) = domain.coarsened(size).and_then(|d| d.mesh(size).ok()) else {
+                break;
+            };
+            let n = mesh.n_vertices();
+            if n < COARSEST_VERTICES || 2 * n > above || problem::boundary_values(&mesh, &self.data).is_err()
+            {
                 break;
             }
             meshes.push(mesh.renumbered());

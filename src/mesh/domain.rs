@@ -4,6 +4,7 @@
 
 use super::{boundary_is_simple, builtin::compact, orient, Mesh, MeshError};
 use spade::{AngleLimit, ConstrainedDelaunayTriangulation, Point2, RefinementParameters, Triangulation};
+use std::collections::HashMap;
 use std::f64::consts::PI;
 
 /// A domain ω given by its boundary.
@@ -26,6 +27,9 @@ pub enum Domain {
         inner_radius: Option<f64>,
     },
 }
+
+/// The units in the last place of the largest coordinate a mesh size must span at least.
+const RESOLUTION: f64 = 65536.0;
 
 /// The smallest angle spade's refinement keeps (above 30° it may not terminate).
 const ANGLE_LIMIT_DEG: f64 = 25.0;
@@ -78,9 +82,40 @@ impl Domain {
     }
 
     /// An estimate (from above) of the vertices of the mesh of size h, for the memory guard.
+    /// The boundary points are counted, not made: the estimate costs no memory.
     pub fn estimated_vertices(&self, h: f64) -> usize {
-        let rings: usize = self.rings(h).iter().map(Vec::len).sum();
-        (VERTICES_PER_AREA * self.area() / (h * h)).min(1e18) as usize + rings
+        let rings = match self {
+            Domain::Polygon { boundary, holes } => (std::iter::once(boundary).chain(holes))
+                .flat_map(|ring| (0..ring.len()).map(|k| pieces(ring[k], ring[(k + 1) % ring.len()], h)))
+                .fold(0usize, usize::saturating_add),
+            Domain::Disk {
+                radius, inner_radius, ..
+            } => (std::iter::once(*radius).chain(*inner_radius))
+                .map(|r| circle_points(r, h))
+                .fold(0usize, usize::saturating_add),
+        };
+        ((VERTICES_PER_AREA * self.area() / (h * h)).min(1e18) as usize).saturating_add(rings)
+    }
+
+    /// Whether coordinates of this domain resolve the mesh size h: h must span at least
+    /// [`RESOLUTION`] units in the last place of the largest coordinate, or the mesh's vertices
+    /// (rounded to what f64 can hold there) would be too coarse a lattice for its triangles.
+    pub fn check_size(&self, h: f64) -> Result<(), String> {
+        let largest = match self {
+            Domain::Polygon { boundary, .. } => {
+                boundary.iter().flatten().fold(0.0_f64, |m, c| m.max(c.abs()))
+            }
+            Domain::Disk { centre, radius, .. } => centre[0].abs().max(centre[1].abs()) + radius,
+        };
+        let unit = largest * f64::EPSILON;
+        if h < RESOLUTION * unit {
+            return Err(format!(
+                "h = {h:e} is too small for coordinates as large as {largest:e}: double precision \
+                 resolves them to {unit:.1e}, and h needs at least {RESOLUTION} times that \
+                 (move the domain nearer the origin)"
+            ));
+        }
+        Ok(())
     }
 
     /// The circles ∂ω lies on (none for a polygon).
@@ -115,7 +150,7 @@ impl Domain {
             } => std::iter::once(*radius)
                 .chain(*inner_radius)
                 .map(|r| {
-                    let m = ((2.0 * PI * r / h).ceil().min(1e9) as usize).max(6);
+                    let m = circle_points(r, h);
                     (0..m)
                         .map(|k| {
                             let t = 2.0 * PI * k as f64 / m as f64;
@@ -127,11 +162,115 @@ impl Domain {
         }
     }
 
+    /// The domain in coordinates (x − origin)/unit.
+    fn relative(&self, origin: [f64; 2], unit: f64) -> Domain {
+        let moved = |p: &[f64; 2]| [(p[0] - origin[0]) / unit, (p[1] - origin[1]) / unit];
+        match self {
+            Domain::Polygon { boundary, holes } => Domain::Polygon {
+                boundary: boundary.iter().map(moved).collect(),
+                holes: (holes.iter()).map(|h| h.iter().map(moved).collect()).collect(),
+            },
+            Domain::Disk {
+                centre,
+                radius,
+                inner_radius,
+            } => Domain::Disk {
+                centre: moved(centre),
+                radius: radius / unit,
+                inner_radius: inner_radius.map(|r| r / unit),
+            },
+        }
+    }
+
+    /// The domain of a triangulation, a polygon with holes (its rings of boundary edges, the one
+    /// of the largest area the outer boundary), and the size h that [`Domain::mesh`] would give
+    /// about as many triangles: the side of the equilateral triangle of their mean area.
+    pub fn of_mesh(mesh: &Mesh) -> (Domain, f64) {
+        // The boundary edges, directed as their counter-clockwise triangles traverse them: each
+        // boundary vertex starts one (the boundary of a valid mesh is simple).
+        let mut count: HashMap<(u32, u32), (u32, u32)> = HashMap::new();
+        for t in mesh.triangles() {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                if mesh.on_boundary[a] && mesh.on_boundary[b] {
+                    let key = (a.min(b) as u32, a.max(b) as u32);
+                    count.entry(key).or_insert((0, 0)).0 += 1;
+                    count.get_mut(&key).expect("inserted").1 = a as u32;
+                }
+            }
+        }
+        let mut next = vec![usize::MAX; mesh.n_vertices()];
+        for (&(a, b), &(uses, from)) in &count {
+            if uses == 1 {
+                let to = if from == a { b } else { a };
+                next[from as usize] = to as usize;
+            }
+        }
+        let mut rings: Vec<Vec<[f64; 2]>> = Vec::new();
+        let mut seen = vec![false; mesh.n_vertices()];
+        for start in (0..mesh.n_vertices()).filter(|&a| next[a] != usize::MAX) {
+            let mut ring = Vec::new();
+            let mut a = start;
+            while !seen[a] {
+                seen[a] = true;
+                ring.push(mesh.points[a]);
+                a = next[a];
+            }
+            if !ring.is_empty() {
+                rings.push(ring);
+            }
+        }
+        let outer = (0..rings.len())
+            .max_by(|&i, &j| ring_area(&rings[i]).abs().total_cmp(&ring_area(&rings[j]).abs()))
+            .expect("a mesh has a boundary");
+        let boundary = rings.swap_remove(outer);
+        let mean_area = mesh.measure() / mesh.n_triangles() as f64;
+        let domain = Domain::Polygon {
+            boundary,
+            holes: rings,
+        };
+        (domain, (mean_area / EQUILATERAL).sqrt())
+    }
+
+    /// The domain as the coarser levels of multigrid and nested iteration see it at mesh size
+    /// `size`: a polygon's rings simplified to within size/8 (Douglas–Peucker: boundary features
+    /// below a coarse cell do not hold its vertices), holes that vanish dropped; a disk as it is.
+    /// None when the simplified polygon is not simple.
+    pub fn coarsened(&self, size: f64) -> Option<Domain> {
+        let Domain::Polygon { boundary, holes } = self else {
+            return Some(self.clone());
+        };
+        let tolerance = size / 8.0;
+        let boundary = simplified(boundary, tolerance);
+        let holes = (holes.iter())
+            .map(|h| simplified(h, tolerance))
+            .filter(|h| h.len() >= 3)
+            .collect();
+        let coarse = Domain::Polygon { boundary, holes };
+        coarse.check().ok().map(|()| coarse)
+    }
+
     /// The mesh of size h: boundary vertices at most h apart (kept as they are), triangles of area
     /// at most that of the equilateral triangle of side h and angles of at least 25° where the
     /// boundary allows (spade's Delaunay refinement). The domain must have passed [`Domain::check`].
     pub fn mesh(&self, h: f64) -> Result<Mesh, MeshError> {
-        let rings = self.rings(h);
+        // The mesh is made relative to a point of the domain (a disk's centre, a polygon's first
+        // vertex) in units of a power of two near its extent, so that it is the same wherever
+        // the domain lies and whatever its size (the given vertices move exactly, Sterbenz, and
+        // scale exactly) and spade's predicates see numbers near 1.
+        let (origin, extent) = match self {
+            Domain::Disk { centre, radius, .. } => (*centre, *radius),
+            Domain::Polygon { boundary, .. } => {
+                let o = boundary[0];
+                let far = (boundary.iter()).fold(0.0_f64, |m, p| {
+                    m.max((p[0] - o[0]).abs()).max((p[1] - o[1]).abs())
+                });
+                (o, far)
+            }
+        };
+        let unit = 2f64.powi(extent.log2().round() as i32);
+        let (relative, h) = (self.relative(origin, unit), h / unit);
+        let rings = relative.rings(h);
         let mut points: Vec<Point2<f64>> = Vec::new();
         let mut edges = Vec::new();
         for ring in &rings {
@@ -146,7 +285,7 @@ impl Domain {
             .with_angle_limit(AngleLimit::from_deg(ANGLE_LIMIT_DEG))
             .exclude_outer_faces(true)
             .keep_constraint_edges()
-            .with_max_additional_vertices(4 * self.estimated_vertices(h) + 1000);
+            .with_max_additional_vertices(4 * relative.estimated_vertices(h) + 1000);
         let result = cdt.refine(parameters);
         if !result.refinement_complete {
             return Err(MeshError::Generation(
@@ -161,7 +300,14 @@ impl Domain {
             .filter(|f| !outer[f.fix().index()])
             .map(|f| f.vertices().map(|v| v.fix().index()))
             .collect();
-        let points = cdt.vertices().map(|v| [v.position().x, v.position().y]).collect();
+        let points = (cdt.vertices())
+            .map(|v| {
+                [
+                    v.position().x * unit + origin[0],
+                    v.position().y * unit + origin[1],
+                ]
+            })
+            .collect();
         let (points, triangles) = compact(points, triangles);
         Mesh::new(points, triangles)
     }
@@ -189,12 +335,63 @@ impl Curves {
     }
 }
 
-/// Twice the signed area of a closed polygon (shoelace).
+/// The signed area of a closed polygon (shoelace, about its first vertex: far from the origin,
+/// terms about the origin would cancel).
 fn ring_area(ring: &[[f64; 2]]) -> f64 {
-    (0..ring.len())
-        .map(|k| orient([0.0, 0.0], ring[k], ring[(k + 1) % ring.len()]))
+    (1..ring.len())
+        .map(|k| orient(ring[0], ring[k], ring[(k + 1) % ring.len()]))
         .sum::<f64>()
         * 0.5
+}
+
+/// The pieces of length at most h that the edge pq is split into (at least one).
+fn pieces(p: [f64; 2], q: [f64; 2], h: f64) -> usize {
+    ((super::dist(p, q) / h).ceil().min(1e9) as usize).max(1)
+}
+
+/// The points at most h apart evenly spaced on a circle of radius r (at least six).
+fn circle_points(r: f64, h: f64) -> usize {
+    ((2.0 * PI * r / h).ceil().min(1e9) as usize).max(6)
+}
+
+/// The closed ring simplified by Douglas–Peucker: the vertices kept are the first, the one
+/// farthest from it, and recursively the one farthest from the chord between two kept ones while
+/// more than `tolerance` from it.
+fn simplified(ring: &[[f64; 2]], tolerance: f64) -> Vec<[f64; 2]> {
+    let n = ring.len();
+    let at = |k: usize| ring[k % n];
+    let far = (0..n)
+        .max_by(|&i, &j| super::dist(ring[0], ring[i]).total_cmp(&super::dist(ring[0], ring[j])))
+        .unwrap_or(0);
+    let mut keep = vec![false; n];
+    keep[0] = true;
+    keep[far] = true;
+    let mut pieces = vec![(0, far), (far, n)];
+    while let Some((i, j)) = pieces.pop() {
+        let (p, q) = (at(i), at(j));
+        let farthest = (i + 1..j)
+            .map(|k| (k, distance_to_segment(at(k), p, q)))
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((k, d)) = farthest.filter(|&(_, d)| d > tolerance) {
+            debug_assert!(d.is_finite());
+            keep[k] = true;
+            pieces.push((i, k));
+            pieces.push((k, j));
+        }
+    }
+    (0..n).filter(|&k| keep[k]).map(|k| ring[k]).collect()
+}
+
+/// The distance from p to the segment qr.
+fn distance_to_segment(p: [f64; 2], q: [f64; 2], r: [f64; 2]) -> f64 {
+    let (d, e) = ([r[0] - q[0], r[1] - q[1]], [p[0] - q[0], p[1] - q[1]]);
+    let length2 = d[0] * d[0] + d[1] * d[1];
+    let t = if length2 > 0.0 {
+        ((e[0] * d[0] + e[1] * d[1]) / length2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    super::dist(p, [q[0] + t * d[0], q[1] + t * d[1]])
 }
 
 /// The ring with each edge split evenly into pieces of length at most h.
@@ -202,7 +399,7 @@ fn split_ring(ring: &[[f64; 2]], h: f64) -> Vec<[f64; 2]> {
     let mut out = Vec::new();
     for (k, &p) in ring.iter().enumerate() {
         let q = ring[(k + 1) % ring.len()];
-        let pieces = ((super::dist(p, q) / h).ceil().min(1e9) as usize).max(1);
+        let pieces = pieces(p, q, h);
         out.extend((0..pieces).map(|i| {
             let t = i as f64 / pieces as f64;
             [p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])]

@@ -327,7 +327,6 @@ impl Mesh {
     }
 
     /// |ω|.
-    #[cfg(test)]
     pub fn measure(&self) -> f64 {
         (0..self.n_triangles()).map(|t| self.area(t)).sum()
     }

@@ -1,0 +1,301 @@
+//! A user's own domains: polygons of any number of vertices, with holes, and file meshes get
+//! coarser levels for nested iteration and multigrid that end by construction, and they solve.
+
+use membrane_contact::case::Case;
+use membrane_contact::contact::Start;
+use membrane_contact::mesh::{Domain, Mesh};
+use membrane_contact::run::{self, Run};
+use std::f64::consts::PI;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// A small deterministic generator (xorshift), so that failures reproduce.
+struct Random(u64);
+
+impl Random {
+    fn next(&mut self) -> f64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// A star-shaped ring of `n` vertices about `centre`, radii in [0.5, 1] × `radius` at jittered
+/// angles: simple, and for n ≥ 16 it holds the disk of radius 0.47 × `radius`.
+fn star(random: &mut Random, n: usize, centre: [f64; 2], radius: f64) -> Vec<[f64; 2]> {
+    (0..n)
+        .map(|k| {
+            let t = 2.0 * PI * (k as f64 + 0.5 * random.next()) / n as f64;
+            let r = radius * (0.5 + 0.5 * random.next());
+            [centre[0] + r * t.cos(), centre[1] + r * t.sin()]
+        })
+        .collect()
+}
+
+fn toml_ring(ring: &[[f64; 2]]) -> String {
+    let points: Vec<String> = ring.iter().map(|p| format!("[{:e}, {:e}]", p[0], p[1])).collect();
+    format!("[{}]", points.join(", "))
+}
+
+fn polygon_case(boundary: &[[f64; 2]], holes: &[Vec<[f64; 2]>], h: f64) -> Case {
+    let holes: Vec<String> = holes.iter().map(|h| toml_ring(h)).collect();
+    let text = format!(
+        "mu1 = 1.0\nmu2 = 1.0\nf1 = -10\nf2 = 0\ng = 0.05\n[mesh]\nkind = \"polygon\"\n\
+         boundary = {}\nholes = [{}]\nh = {h}\n",
+        toml_ring(boundary),
+        holes.join(", ")
+    );
+    Case::parse(&text, "polygon case", PathBuf::new()).unwrap()
+}
+
+fn solve(case: &Case) -> Run<'_> {
+    let options = run::Options {
+        start: Start::Nested,
+        hminus1: false,
+        flux: false,
+        estimate: false,
+    };
+    run::run(case, &options).unwrap()
+}
+
+/// Each coarser level has at most half the vertices of the one above it.
+fn assert_halving(mesh: &Mesh, coarser: &[Mesh]) {
+    let mut above = mesh.n_vertices();
+    for level in coarser {
+        assert!(
+            2 * level.n_vertices() <= above,
+            "{} below {above}",
+            level.n_vertices()
+        );
+        above = level.n_vertices();
+    }
+}
+
+#[test]
+fn polygons_with_many_vertices_solve_on_coarser_levels() {
+    // The domains of the report: a regular 24-gon, an 18-vertex stadium, a rectangle with a
+    // 17-gon hole (each hung before: its vertices kept every coarser mesh above the minimum).
+    let ngon = |n: usize, c: [f64; 2], r: f64| -> Vec<[f64; 2]> {
+        (0..n)
+            .map(|k| {
+                let t = 2.0 * PI * k as f64 / n as f64;
+                [c[0] + r * t.cos(), c[1] + r * t.sin()]
+            })
+            .collect()
+    };
+    let mut stadium: Vec<[f64; 2]> = (0..9)
+        .map(|k| {
+            let t = -PI / 2.0 + PI * k as f64 / 8.0;
+            [1.0 + 0.5 * t.cos(), 0.5 * t.sin()]
+        })
+        .collect();
+    stadium.extend(stadium.clone().iter().map(|p| [-p[0], -p[1]]));
+    let rectangle = vec![[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.0, 1.0]];
+    for (boundary, holes, h) in [
+        (ngon(24, [0.0, 0.0], 1.0), vec![], 0.1),
+        (stadium, vec![], 0.05),
+        (rectangle, vec![ngon(17, [0.0, 0.0], 0.3)], 0.05),
+    ] {
+        let case = polygon_case(&boundary, &holes, h);
+        let (mesh, coarser) = case.hierarchy(true).unwrap();
+        assert!(
+            !coarser.is_empty(),
+            "no coarser levels below {} vertices",
+            mesh.n_vertices()
+        );
+        assert_halving(&mesh, &coarser);
+        // Membrane 1, pushed down, touches membrane 2.
+        let r = solve(&case);
+        assert!(r.action.total > 0.0 && r.action.contact_area > 0.0);
+        let s = &r.solution.obstacle.stats;
+        assert!(s.iterations <= 4, "{} active-set iterations", s.iterations);
+    }
+}
+
+#[test]
+fn random_polygons_with_holes_mesh_in_bounded_time() {
+    let mut random = Random(0x2545_f491_4f6c_dd1d);
+    for (k, n) in [3, 4, 7, 16, 17, 31, 64, 200, 700, 2000].into_iter().enumerate() {
+        let boundary = star(&mut random, n, [10.0 * k as f64, -3.0], 1.0);
+        // Holes on a ring inside the star's inner radius 1/2: apart and inside.
+        let holes: Vec<Vec<[f64; 2]>> = (0..if n >= 16 { k % 4 } else { 0 })
+            .map(|j| {
+                let t = 2.0 * PI * j as f64 / 3.0;
+                let c = [10.0 * k as f64 + 0.25 * t.cos(), -3.0 + 0.25 * t.sin()];
+                star(&mut random, 3 + (n / 3) % 40, c, 0.08)
+            })
+            .collect();
+        let h = 0.05;
+        let case = polygon_case(&boundary, &holes, h);
+        let clock = Instant::now();
+        let (mesh, coarser) = case.hierarchy(true).unwrap();
+        assert_halving(&mesh, &coarser);
+        // Far below a hang: the fine mesh has a few thousand vertices.
+        assert!(
+            clock.elapsed().as_secs_f64() < 20.0,
+            "{n} vertices: {:?}",
+            clock.elapsed()
+        );
+        let r = solve(&case);
+        assert!(r.solution.obstacle.stats.iterations <= 6, "{n} vertices");
+    }
+}
+
+#[test]
+fn a_file_mesh_gets_the_coarser_levels_of_its_boundary() {
+    // An annulus meshed fine, as from a file: its domain is its boundary polygon with a hole.
+    let annulus = Domain::Disk {
+        centre: [0.5, 0.5],
+        radius: 1.0,
+        inner_radius: Some(0.3),
+    };
+    let fine = annulus.mesh(0.02).unwrap();
+    let (domain, h) = Domain::of_mesh(&fine);
+    let Domain::Polygon { boundary, holes } = &domain else {
+        panic!("a polygon")
+    };
+    let boundary_vertices = fine.on_boundary.iter().filter(|&&b| b).count();
+    assert_eq!(holes.len(), 1);
+    assert_eq!(boundary.len() + holes[0].len(), boundary_vertices);
+    assert!((domain.area() - fine.measure()).abs() < 1e-12 * fine.measure());
+    assert!((0.015..0.03).contains(&h), "{h}");
+    // Coarsened, the rings keep their shape within a fraction of the size.
+    let Some(Domain::Polygon {
+        boundary: coarse,
+        holes: coarse_holes,
+    }) = domain.coarsened(0.32)
+    else {
+        panic!("a simple polygon")
+    };
+    assert!(
+        coarse.len() < boundary.len() / 4 && coarse.len() >= 6,
+        "{}",
+        coarse.len()
+    );
+    assert!(coarse
+        .iter()
+        .all(|p| ((p[0] - 0.5).hypot(p[1] - 0.5) - 1.0).abs() < 1e-12));
+    assert_eq!(coarse_holes.len(), 1);
+}
+
+#[test]
+fn an_unrefined_file_mesh_takes_few_global_iterations() {
+    // A disk of about 34 600 triangles (as the Gmsh disk of the report) written as a result, read back as a file mesh.
+    let dir = tempfile::tempdir().unwrap();
+    let disk = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"-10*if(x < 0.2, 1, 0.3)\"\nf2 = 0\ng = 0.05\n\
+                [mesh]\nkind = \"disk\"\nradius = 1.0\nh = 0.018\n";
+    let case = Case::parse(disk, "disk", PathBuf::new()).unwrap();
+    let options = run::Options {
+        start: Start::Cold,
+        hminus1: false,
+        flux: false,
+        estimate: false,
+    };
+    let written = run::solve(&case, &options, &dir.path().join("disk")).unwrap();
+    let triangles = written.problem.mesh.n_triangles();
+    assert!((30_000..40_000).contains(&triangles), "{triangles}");
+    let text = disk.replace(
+        "kind = \"disk\"\nradius = 1.0\nh = 0.018",
+        "kind = \"file\"\npath = \"disk/solution.h5\"",
+    );
+    let file = Case::parse(&text, "file", dir.path().to_path_buf()).unwrap();
+    let (mesh, coarser) = file.hierarchy(true).unwrap();
+    assert!(coarser.len() >= 3, "{} coarser levels", coarser.len());
+    assert_halving(&mesh, &coarser);
+    let r = solve(&file);
+    let s = &r.solution.obstacle.stats;
+    assert!(s.iterations <= 4, "{} global iterations", s.iterations);
+    assert_eq!(s.linear, membrane_contact::contact::LinearSolver::Multigrid);
+    // The same solution as from the disk's own hierarchy, to the solvers' tolerance.
+    let own = solve(&case);
+    let diff = (r.solution.u1.iter().zip(&own.solution.u1)).fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+    assert!(diff < 1e-10, "{diff}");
+}
+
+fn square_at(offset: f64, side: f64, h: f64) -> Case {
+    let s = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]
+        .map(|p| [offset + side * p[0], offset + side * p[1]]);
+    let text = format!(
+        "mu1 = 1.0\nmu2 = 1.0\nf1 = \"-10/{side:e}^2\"\nf2 = 0\ng = 0.05\n[mesh]\nkind = \"polygon\"\n\
+         boundary = {}\nh = {h:e}\n",
+        toml_ring(&s)
+    );
+    Case::parse(&text, "square", PathBuf::new()).unwrap()
+}
+
+#[test]
+fn a_domain_far_from_the_origin_or_scaled_solves_the_same_or_is_refused() {
+    let reference = square_at(0.0, 1.0, 0.1);
+    let r0 = solve(&reference);
+    // Moved (the mesh is made relative to the domain) or scaled by powers of two: the same mesh
+    // and solution.
+    for (offset, side) in [
+        (1.0, 1.0),
+        (1e3, 1.0),
+        (1e6, 1.0),
+        (1e9, 1.0),
+        (0.0, 2f64.powi(-333)),
+        (0.0, 2f64.powi(333)),
+    ] {
+        let case = square_at(offset * side, side, 0.1 * side);
+        let r = solve(&case);
+        let (m, m0) = (&r.problem.mesh, &r0.problem.mesh);
+        assert_eq!(
+            m.triangles().collect::<Vec<_>>(),
+            m0.triangles().collect::<Vec<_>>(),
+            "{offset:e}"
+        );
+        let far = m.points.iter().zip(&m0.points).fold(0.0_f64, |d, (p, q)| {
+            d.max(
+                (p[0] - offset * side - side * q[0])
+                    .abs()
+                    .max((p[1] - offset * side - side * q[1]).abs()),
+            )
+        });
+        assert!(far <= 1e-6 * side, "{offset:e} {side:e}: {far:e}");
+        assert_eq!(
+            r.solution.obstacle.contact, r0.solution.obstacle.contact,
+            "{offset:e} {side:e}"
+        );
+        let du = (r.solution.u1.iter().zip(&r0.solution.u1)).fold(0.0_f64, |d, (a, b)| d.max((a - b).abs()));
+        // Interior vertices far out are rounded to f64's resolution there, ε |offset|.
+        let resolution = f64::EPSILON * offset / 0.1;
+        assert!(du < 1e-10 + 10.0 * resolution, "{offset:e} {side:e}: {du:e}");
+    }
+    // Where double precision cannot resolve h (spade panicked at 1e15; 1e14 was refused with
+    // 4.4e14 vertices from a shoelace about the origin): a refusal that says why.
+    for offset in [1e12, 1e14, 1e15] {
+        let e = square_at(offset, 1.0, 0.1)
+            .hierarchy(true)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("too small for coordinates as large as"), "{e}");
+    }
+    let far = Domain::Polygon {
+        boundary: vec![
+            [1e14, 1e14],
+            [1e14 + 1.0, 1e14],
+            [1e14 + 1.0, 1e14 + 1.0],
+            [1e14, 1e14 + 1.0],
+        ],
+        holes: vec![],
+    };
+    assert_eq!(far.area(), 1.0);
+}
+
+#[test]
+fn the_memory_guard_of_domains_runs_before_any_allocation() {
+    // h = 1e-9 on a unit disk or a polygon: the boundary alone would hold about 6e9 points.
+    for kind in [
+        "kind = \"disk\"\nradius = 1.0",
+        "kind = \"polygon\"\nboundary = [[0, 0], [3, 0], [0, 2]]",
+    ] {
+        let text = format!("mu1 = 1.0\nmu2 = 1.0\nf1 = -1\nf2 = 0\ng = 0\n[mesh]\n{kind}\nh = 1e-9\n");
+        let case = Case::parse(&text, "tiny h", PathBuf::new()).unwrap();
+        let clock = Instant::now();
+        let e = case.hierarchy(true).unwrap_err().to_string();
+        assert!(e.contains("of memory"), "{e}");
+        assert!(clock.elapsed().as_secs_f64() < 1.0, "{:?}", clock.elapsed());
+    }
+}
