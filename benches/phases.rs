@@ -147,7 +147,7 @@ fn join(v: &[usize]) -> String {
 /// One Poisson solve by CG preconditioned by V-cycles: K u = 1 inside, from zero.
 fn poisson_mg(case: &Case, name: &str) {
     let t = Instant::now();
-    let (mesh, coarser) = case.hierarchy(true).expect("the meshes");
+    let (mesh, coarser) = case.hierarchy(true, Default::default()).expect("the meshes");
     let k = Stiffness::assemble(&mesh);
     let mesh_seconds = t.elapsed().as_secs_f64();
     let t = Instant::now();

@@ -4,7 +4,7 @@
 use crate::assembly::Quadrature;
 use crate::contact::{LinearSolver, SolverOptions};
 use crate::expr::{Expr, ExprError, Names};
-use crate::mesh::{self, Curves, Diagonal, Domain, Mesh};
+use crate::mesh::{self, Curves, Diagonal, Domain, Mesh, Postprocess};
 use crate::norms::Exact;
 use crate::problem::{self, Data};
 use crate::result::{Attr, Attribute, Describe};
@@ -460,7 +460,7 @@ impl Case {
 
     /// The mesh solved on: the given mesh refined `refine` times.
     pub fn mesh(&self) -> Result<Mesh, CaseError> {
-        Ok(self.hierarchy(false)?.0)
+        Ok(self.hierarchy(false, Postprocess::default())?.0)
     }
 
     /// The mesh solved on and, with `coarser`, the meshes of nested iteration below it, finest
@@ -470,8 +470,9 @@ impl Case {
     /// built-in mesh of n cells per side, and none below a file mesh. Generated and
     /// refined meshes are renumbered along a Z-order curve; built-in and file meshes keep theirs.
     /// Below a disk or polygon come, last, the domain meshed with 2h, 4h, … (not nested).
-    pub fn hierarchy(&self, coarser: bool) -> Result<(Mesh, Vec<Mesh>), CaseError> {
-        let given = self.given_mesh()?;
+    /// The memory guard prices the solve and what the run computes `after` it.
+    pub fn hierarchy(&self, coarser: bool, after: Postprocess) -> Result<(Mesh, Vec<Mesh>), CaseError> {
+        let given = self.given_mesh(after)?;
         let generated = if coarser {
             self.coarser_generated(&given)
         } else {
@@ -506,19 +507,19 @@ impl Case {
         }
     }
 
-    /// The memory guard's peak per vertex for the linear solver that will run: multigrid's when
-    /// asked for and the mesh has coarser levels (a file mesh has none unless refined).
-    fn bytes_per_vertex(&self) -> f64 {
-        let unrefined_file = matches!(self.mesh, MeshSpec::File { .. }) && self.refine == 0;
-        match self.solver.linear {
-            LinearSolver::Multigrid if !unrefined_file => mesh::MULTIGRID_BYTES_PER_VERTEX,
-            _ => mesh::DIRECT_BYTES_PER_VERTEX,
-        }
+    /// The memory guard's peak per vertex: the larger of the linear solver's (the one asked
+    /// for) and that of what the run computes after the solve.
+    fn bytes_per_vertex(&self, after: Postprocess) -> f64 {
+        let solver = match self.solver.linear {
+            LinearSolver::Multigrid => mesh::MULTIGRID_BYTES_PER_VERTEX,
+            LinearSolver::Direct => mesh::DIRECT_BYTES_PER_VERTEX,
+        };
+        solver.max(after.bytes_per_vertex())
     }
 
     /// Builds or reads the mesh before refinement, after checking that it fits in memory once
     /// refined (built-in meshes and domains before building them, files after reading them).
-    fn given_mesh(&self) -> Result<Mesh, CaseError> {
+    fn given_mesh(&self, after: Postprocess) -> Result<Mesh, CaseError> {
         let err = |m: String| CaseError(format!("{}: {m}", self.origin));
         let refine = match self.refine {
             0 => String::new(),
@@ -534,7 +535,7 @@ impl Case {
                 let mesh =
                     mesh::file::read(&self.base_dir.join(path)).map_err(|e| CaseError(e.to_string()))?;
                 let refined = mesh.n_vertices().saturating_mul(self.refinement_factor());
-                mesh::check_memory(refined, self.bytes_per_vertex())
+                mesh::check_memory(refined, self.bytes_per_vertex(after))
                     .map_err(|e| err(format!("{}{refine}: {e}", path.display())))?;
                 return Ok(mesh);
             }
@@ -542,7 +543,7 @@ impl Case {
         if let MeshSpec::Domain { domain, h } = &self.mesh {
             domain.check_size(*h).map_err(|e| err(format!("[mesh] h: {e}")))?;
         }
-        mesh::check_memory(self.estimated_vertices(), self.bytes_per_vertex())
+        mesh::check_memory(self.estimated_vertices(), self.bytes_per_vertex(after))
             .map_err(|e| err(format!("{keys}: {e}")))?;
         let built = match &self.mesh {
             MeshSpec::Rectangle { corners, n, diagonal } => {
@@ -919,26 +920,25 @@ mod tests {
     }
 
     #[test]
-    fn the_memory_guard_prices_the_solver_that_will_run() {
-        let case = |mesh: &str, linear: &str| {
+    fn the_memory_guard_prices_the_solver_and_the_postprocessing() {
+        let case = |linear: &str, after: Postprocess| {
             let text = format!(
-                "mu1 = 1.0\nmu2 = 1.0\nf1 = 0\nf2 = 0\ng = 0\n[mesh]\n{mesh}\n[solver]\nlinear = \"{linear}\"\n"
+                "mu1 = 1.0\nmu2 = 1.0\nf1 = 0\nf2 = 0\ng = 0\n[mesh]\nkind = \"rectangle\"\n\
+                 n = [4, 4]\n[solver]\nlinear = \"{linear}\"\n"
             );
             Case::parse(&text, "t", PathBuf::new())
                 .unwrap()
-                .bytes_per_vertex()
+                .bytes_per_vertex(after)
         };
-        let (rectangle, file) = (
-            "kind = \"rectangle\"\nn = [4, 4]",
-            "kind = \"file\"\npath = \"m.msh\"",
-        );
-        assert_eq!(case(rectangle, "multigrid"), mesh::MULTIGRID_BYTES_PER_VERTEX);
-        assert_eq!(case(rectangle, "direct"), mesh::DIRECT_BYTES_PER_VERTEX);
-        // A file mesh has coarser levels only when refined; without them Cholesky solves it.
-        assert_eq!(
-            case(&format!("{file}\nrefine = 1"), "multigrid"),
-            mesh::MULTIGRID_BYTES_PER_VERTEX
-        );
-        assert_eq!(case(file, "multigrid"), mesh::DIRECT_BYTES_PER_VERTEX);
+        let none = Postprocess::default();
+        assert_eq!(case("multigrid", none), mesh::MULTIGRID_BYTES_PER_VERTEX);
+        assert_eq!(case("direct", none), mesh::DIRECT_BYTES_PER_VERTEX);
+        // The estimate and the flux after a multigrid solve weigh more than the solve.
+        let both = Postprocess {
+            flux: true,
+            estimate: true,
+        };
+        assert_eq!(case("multigrid", both), both.bytes_per_vertex());
+        assert!(both.bytes_per_vertex() > 2.0 * mesh::MULTIGRID_BYTES_PER_VERTEX);
     }
 }

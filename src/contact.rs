@@ -263,7 +263,7 @@ impl Guess {
 /// ```
 /// use membrane_contact::{case::Case, contact, problem::DiscreteProblem};
 /// let case = Case::default_case();
-/// let (mesh, coarser) = case.hierarchy(true).unwrap();
+/// let (mesh, coarser) = case.hierarchy(true, Default::default()).unwrap();
 /// let problem = DiscreteProblem::new(mesh, &case.data).unwrap();
 /// let solution = contact::solve(&problem, contact::Start::Nested, coarser, case.solver).unwrap();
 /// // The membranes touch where the gap w = u1h − u2h vanishes, and nowhere cross.

@@ -1264,7 +1264,7 @@ mod tests {
     #[test]
     fn operators_recomputed_near_the_held_set_equal_the_full_ones() {
         let disk = crate::case::Case::read(std::path::Path::new("data/cases/disk_contact.toml")).unwrap();
-        let (mesh, coarser) = disk.hierarchy(true).unwrap();
+        let (mesh, coarser) = disk.hierarchy(true, Default::default()).unwrap();
         let meshes: Vec<Mesh> = std::iter::once(mesh).chain(coarser).collect();
         let disk = Levels {
             k: Stiffness::assemble(&meshes[0]),

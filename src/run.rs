@@ -8,7 +8,7 @@ use crate::case::{Case, CaseError};
 use crate::contact::{self, LinearSolver, Solution, SolveError, Start};
 use crate::estimator::Estimate;
 use crate::flux::Fluxes;
-use crate::mesh::{DualMesh, Edges, Mesh};
+use crate::mesh::{DualMesh, Edges, Mesh, Postprocess};
 use crate::norms::Errors;
 use crate::problem::DiscreteProblem;
 use crate::result::{self, Attribute, Describe, Field};
@@ -76,7 +76,11 @@ pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
     let clock = Instant::now();
     // The coarser meshes serve nested iteration and multigrid.
     let multigrid = case.solver.linear == LinearSolver::Multigrid;
-    let (mesh, coarser) = case.hierarchy(multigrid || matches!(options.start, Start::Nested))?;
+    let after = Postprocess {
+        flux: options.flux,
+        estimate: options.estimate,
+    };
+    let (mesh, coarser) = case.hierarchy(multigrid || matches!(options.start, Start::Nested), after)?;
     case.check_on(&mesh)?;
     on_mesh(case, mesh, coarser, options, clock.elapsed().as_secs_f64())
 }

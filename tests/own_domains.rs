@@ -98,7 +98,7 @@ fn polygons_with_many_vertices_solve_on_coarser_levels() {
         (rectangle, vec![ngon(17, [0.0, 0.0], 0.3)], 0.05),
     ] {
         let case = polygon_case(&boundary, &holes, h);
-        let (mesh, coarser) = case.hierarchy(true).unwrap();
+        let (mesh, coarser) = case.hierarchy(true, Default::default()).unwrap();
         assert!(
             !coarser.is_empty(),
             "no coarser levels below {} vertices",
@@ -129,7 +129,7 @@ fn random_polygons_with_holes_mesh_in_bounded_time() {
         let h = 0.05;
         let case = polygon_case(&boundary, &holes, h);
         let clock = Instant::now();
-        let (mesh, coarser) = case.hierarchy(true).unwrap();
+        let (mesh, coarser) = case.hierarchy(true, Default::default()).unwrap();
         assert_halving(&mesh, &coarser);
         // Far below a hang: the fine mesh has a few thousand vertices.
         assert!(
@@ -200,7 +200,7 @@ fn an_unrefined_file_mesh_takes_few_global_iterations() {
         "kind = \"file\"\npath = \"disk/solution.h5\"",
     );
     let file = Case::parse(&text, "file", dir.path().to_path_buf()).unwrap();
-    let (mesh, coarser) = file.hierarchy(true).unwrap();
+    let (mesh, coarser) = file.hierarchy(true, Default::default()).unwrap();
     assert!(coarser.len() >= 3, "{} coarser levels", coarser.len());
     assert_halving(&mesh, &coarser);
     let r = solve(&file);
@@ -267,7 +267,7 @@ fn a_domain_far_from_the_origin_or_scaled_solves_the_same_or_is_refused() {
     // 4.4e14 vertices from a shoelace about the origin): a refusal that says why.
     for offset in [1e12, 1e14, 1e15] {
         let e = square_at(offset, 1.0, 0.1)
-            .hierarchy(true)
+            .hierarchy(true, Default::default())
             .unwrap_err()
             .to_string();
         assert!(e.contains("too small for coordinates as large as"), "{e}");
@@ -294,7 +294,7 @@ fn the_memory_guard_of_domains_runs_before_any_allocation() {
         let text = format!("mu1 = 1.0\nmu2 = 1.0\nf1 = -1\nf2 = 0\ng = 0\n[mesh]\n{kind}\nh = 1e-9\n");
         let case = Case::parse(&text, "tiny h", PathBuf::new()).unwrap();
         let clock = Instant::now();
-        let e = case.hierarchy(true).unwrap_err().to_string();
+        let e = case.hierarchy(true, Default::default()).unwrap_err().to_string();
         assert!(e.contains("of memory"), "{e}");
         assert!(clock.elapsed().as_secs_f64() < 1.0, "{:?}", clock.elapsed());
     }

@@ -143,11 +143,35 @@ impl fmt::Display for MeshError {
 
 impl std::error::Error for MeshError {}
 
-/// Peak memory of a run per mesh vertex with the multigrid solver, with a margin for the flux and
-/// the estimator (the measured peaks are in the README's speed section).
+/// Peak memory of a solve per mesh vertex with the multigrid solver, with a margin (the measured
+/// peaks are in the README's speed section).
 pub const MULTIGRID_BYTES_PER_VERTEX: f64 = 800.0;
 /// The same with the direct solver (whose Cholesky factors grow like n log n).
 pub const DIRECT_BYTES_PER_VERTEX: f64 = 2700.0;
+
+/// What a run computes after the solve, whose peak the memory guard prices beside the solver's
+/// (the solver's memory is freed by then: the run's peak is the larger of the two).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Postprocess {
+    /// The fluxes t_ih (4.13) on the dual submesh.
+    pub flux: bool,
+    /// The a posteriori estimator.
+    pub estimate: bool,
+}
+
+impl Postprocess {
+    /// Peak bytes per vertex after the solve, with a margin over the peaks measured at 512² and
+    /// 1024² (default case, multigrid: 1.9 and 1.8 kB with the flux, 2.3 and 2.2 kB with the
+    /// estimate, 2.9 and 2.8 kB with both).
+    pub fn bytes_per_vertex(self) -> f64 {
+        match (self.flux, self.estimate) {
+            (false, false) => 0.0,
+            (true, false) => 2000.0,
+            (false, true) => 2500.0,
+            (true, true) => 3100.0,
+        }
+    }
+}
 
 /// Fails early, with an estimate, when a mesh of `vertices` vertices would not fit in the memory
 /// available now at `bytes_per_vertex` (`MemAvailable` of /proc/meminfo; no check where that

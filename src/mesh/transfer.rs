@@ -210,7 +210,7 @@ pub(crate) mod tests {
         // polygon: their weights (clamped) are still a partition of unity, as every row's.
         let mut disk = crate::case::Case::read(std::path::Path::new("data/cases/disk_contact.toml")).unwrap();
         disk.refine = 1;
-        let (fine, coarser) = disk.hierarchy(true).unwrap();
+        let (fine, coarser) = disk.hierarchy(true, Default::default()).unwrap();
         let p = Prolongation::new(&fine, &coarser[0]);
         let outside = (0..fine.n_vertices())
             .filter(|&a| {
