@@ -9,6 +9,7 @@ use crate::norms::Exact;
 use crate::problem::{self, Data};
 use crate::result::{Attr, Attribute, Describe};
 use serde::Deserialize;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// The built-in default case (`membrane-contact solve` without a case file).
@@ -284,16 +285,26 @@ impl Case {
     /// ```
     pub fn read(path: &Path) -> Result<Case, CaseError> {
         let err = |m: String| CaseError(format!("{}: {m}", path.display()));
-        let size = std::fs::metadata(path)
-            .map_err(|e| err(format!("cannot read the case file: {e}")))?
-            .len();
+        let cannot = |e: std::io::Error| err(format!("cannot read the case file: {e}"));
+        let file = std::fs::File::open(path).map_err(cannot)?;
+        let size = file.metadata().map_err(cannot)?.len();
         if size > MAX_CASE_BYTES {
             return Err(err(format!(
                 "the case file has {size} bytes; at most {MAX_CASE_BYTES} are read"
             )));
         }
-        let text =
-            std::fs::read_to_string(path).map_err(|e| err(format!("cannot read the case file: {e}")))?;
+        // The size of a device or a pipe (/dev/stdin, /dev/zero) says nothing: what arrives counts.
+        let mut bytes = Vec::new();
+        file.take(MAX_CASE_BYTES + 1)
+            .read_to_end(&mut bytes)
+            .map_err(cannot)?;
+        if bytes.len() as u64 > MAX_CASE_BYTES {
+            return Err(err(format!(
+                "the case file has more than {MAX_CASE_BYTES} bytes; at most {MAX_CASE_BYTES} are read"
+            )));
+        }
+        let text = String::from_utf8(bytes)
+            .map_err(|_| err("cannot read the case file: it is not UTF-8 text".into()))?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut case = Case::parse(&text, &path.display().to_string(), base)?;
         case.path = Some(path.to_path_buf());

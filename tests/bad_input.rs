@@ -839,3 +839,98 @@ fn adapt_settings_out_of_range() {
         "unknown field `bulk`",
     );
 }
+
+// Reproductions of issue 24.
+
+/// Runs `solve CASE -o out` in a fresh directory prepared by `setup` (`case` relative to it, or a
+/// path such as /dev/zero), with `stdin` piped in and at most 4 GiB of address space, so that a
+/// read without bound fails instead of filling the machine. Checks that the run is refused
+/// within seconds, with one line of error and exit status 1, leaving nothing behind; returns
+/// stderr.
+fn refused_quickly(case: &str, setup: impl Fn(&Path), stdin: &[u8]) -> String {
+    use std::io::Write;
+    use std::os::unix::process::CommandExt;
+    let dir = tempfile::tempdir().unwrap();
+    setup(dir.path());
+    let before = listing(dir.path());
+    let mut command = Command::new(env!("CARGO_BIN_EXE_membrane-contact"));
+    command
+        .arg("solve")
+        .arg(dir.path().join(case))
+        .arg("-o")
+        .arg(dir.path().join("out"))
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    // SAFETY: setrlimit is async-signal-safe.
+    unsafe {
+        command.pre_exec(|| {
+            let limit = libc::rlimit {
+                rlim_cur: 4 << 30,
+                rlim_max: 4 << 30,
+            };
+            match libc::setrlimit(libc::RLIMIT_AS, &limit) {
+                0 => Ok(()),
+                _ => Err(std::io::Error::last_os_error()),
+            }
+        });
+    }
+    let start = std::time::Instant::now();
+    let mut child = {
+        let _guard = FILES.lock().unwrap_or_else(|e| e.into_inner());
+        command.spawn().unwrap()
+    };
+    let (mut input, stdin) = (child.stdin.take().unwrap(), stdin.to_vec());
+    // The run may stop reading at any point: a broken pipe is expected.
+    let writer = std::thread::spawn(move || drop(input.write_all(&stdin)));
+    let run = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    let seconds = start.elapsed().as_secs_f64();
+    let stderr = String::from_utf8_lossy(&run.stderr).to_string();
+    assert_eq!(run.status.code(), Some(1), "exit status; stderr: {stderr}");
+    assert!(
+        stderr.starts_with("error: ") && stderr.lines().count() == 1,
+        "{stderr}"
+    );
+    assert!(seconds < 30.0, "refused after {seconds:.1} s: {stderr}");
+    assert_eq!(listing(dir.path()), before, "files were left behind or removed");
+    stderr
+}
+
+#[test]
+fn endless_case_files_are_refused() {
+    // A valid case followed by 2 MB of comments, through a pipe (whose size says nothing).
+    let mut text = format!("{GOOD}{SQUARE}");
+    while text.len() < 2_000_000 {
+        text.push_str("# a comment line, of which there are far too many in this case file\n");
+    }
+    contains(
+        &refused_quickly("/dev/stdin", |_| {}, text.as_bytes()),
+        "/dev/stdin: the case file has more than 1048576 bytes; at most 1048576 are read",
+    );
+    // A device without end.
+    contains(
+        &refused_quickly("/dev/zero", |_| {}, b""),
+        "/dev/zero: the case file has more than 1048576 bytes; at most 1048576 are read",
+    );
+}
+
+#[test]
+fn endless_mesh_files_are_refused() {
+    // The mesh file is /dev/zero under the name of each kind of mesh file.
+    for (name, error) in [
+        ("zero.msh", "zero.msh: not a Gmsh MSH file"),
+        (
+            "zero.xdmf",
+            "zero.xdmf: the file has more than 67108864 bytes; at most 67108864 are read",
+        ),
+        ("zero.h5", "zero.h5: not a readable HDF5 file"),
+    ] {
+        let setup = |dir: &Path| {
+            std::os::unix::fs::symlink("/dev/zero", dir.join(name)).unwrap();
+            let case = format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"{name}\"\n");
+            std::fs::write(dir.join("case.toml"), case).unwrap();
+        };
+        contains(&refused_quickly("case.toml", setup, b""), error);
+    }
+}

@@ -14,11 +14,11 @@ const VERSION: &str = "4.1";
 /// Reads the triangles of a MSH 4.1 file and the nodes they use (in the order of their tags).
 pub(super) fn read(path: &Path) -> Result<RawMesh, FileError> {
     let err = |m: String| FileError(format!("{}: {m}", path.display()));
-    let bytes = std::fs::read(path).map_err(|e| match e.kind() {
-        std::io::ErrorKind::NotFound => err("no such file".into()),
-        _ => err(format!("cannot read: {e}")),
-    })?;
-    check_version(&bytes).map_err(err)?;
+    // A file larger than the memory available could not be read, let alone solved on; the header
+    // is checked first, so that a file of another format is not read whole.
+    let cap = super::available_memory().map_or(u64::MAX, |bytes| bytes / 2);
+    let why = "half the memory available: a mesh from a larger file would not fit in memory";
+    let bytes = super::file::read_capped(path, cap, why, check_version).map_err(err)?;
     let msh = mshio::parse_msh_bytes(&bytes).map_err(|e| {
         let trace = e.filtered_backtrace();
         let kinds: Vec<String> = trace.iter().rev().map(|(_, k)| k.to_string()).collect();
@@ -78,9 +78,10 @@ pub(super) fn read(path: &Path) -> Result<RawMesh, FileError> {
     ))
 }
 
-/// Refuses files that are not MSH 4.1, naming their version.
+/// Refuses files that are not MSH 4.1, naming their version, by their first bytes.
 fn check_version(bytes: &[u8]) -> Result<(), String> {
-    let head = String::from_utf8_lossy(&bytes[..bytes.len().min(64)]).to_string();
+    let head =
+        String::from_utf8_lossy(&bytes[..bytes.len().min(super::file::HEAD_BYTES as usize)]).to_string();
     let mut lines = head.lines();
     if lines.next().map(str::trim) != Some("$MeshFormat") {
         return Err("not a Gmsh MSH file (it does not start with $MeshFormat)".into());
