@@ -88,13 +88,18 @@ impl Staging {
             .map_err(|e| err(format!("cannot create a directory beside it: {}", e)))?;
         list.push(temporary.clone());
         drop(list);
-        std::fs::write(temporary.join(MARKER), format!("membrane-contact {kind}\n"))
-            .map_err(|e| err(format!("cannot write: {}", e)))?;
-        Ok(Staging {
+        // From here on the staging exists: dropped on any error, it removes the temporary.
+        let staging = Staging {
             temporary,
             target: target.to_path_buf(),
             committed: false,
-        })
+        };
+        std::fs::write(
+            staging.temporary.join(MARKER),
+            format!("membrane-contact {kind}\n"),
+        )
+        .map_err(|e| err(format!("cannot write: {}", e)))?;
+        Ok(staging)
     }
 
     /// The directory to write the result's files into.

@@ -47,6 +47,18 @@ fn command_fails(
     extra: &[&str],
     output: Option<PathBuf>,
 ) -> String {
+    limited_command_fails(command, case_text, setup, extra, output, |_| {})
+}
+
+/// As [`command_fails`], with the command prepared by `prepare` before it runs.
+fn limited_command_fails(
+    command: &str,
+    case_text: &str,
+    setup: impl Fn(&Path),
+    extra: &[&str],
+    output: Option<PathBuf>,
+    prepare: impl FnOnce(&mut Command),
+) -> String {
     let dir = tempfile::tempdir().unwrap();
     setup(dir.path());
     let case = dir.path().join("case.toml");
@@ -54,12 +66,10 @@ fn command_fails(
     let earlier = earlier_result(dir.path());
     let out = output.unwrap_or_else(|| earlier.clone());
     let before = listing(dir.path());
-    let run = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
-        .arg(command)
-        .arg(&case)
-        .arg("-o")
-        .arg(&out)
-        .args(extra));
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_membrane-contact"));
+    cmd.arg(command).arg(&case).arg("-o").arg(&out).args(extra);
+    prepare(&mut cmd);
+    let run = run(&mut cmd);
     let stderr = String::from_utf8_lossy(&run.stderr).to_string();
     assert_eq!(run.status.code(), Some(1), "exit status; stderr: {stderr}");
     assert!(
@@ -933,4 +943,34 @@ fn endless_mesh_files_are_refused() {
         };
         contains(&refused_quickly("case.toml", setup, b""), error);
     }
+}
+
+/// Runs the good case with every file it writes limited to `bytes` (RLIMIT_FSIZE, with SIGXFSZ
+/// ignored): a write beyond the limit fails with EFBIG, as one on a full disk fails with ENOSPC.
+/// Checks the failure as [`fails`] does (one line, nothing left, the earlier result untouched).
+fn fails_writing_beyond(bytes: u64) -> String {
+    use std::os::unix::process::CommandExt;
+    let limit = move |cmd: &mut Command| {
+        // SAFETY: setrlimit and signal are async-signal-safe.
+        unsafe {
+            cmd.pre_exec(move || {
+                let limit = libc::rlimit {
+                    rlim_cur: bytes,
+                    rlim_max: bytes,
+                };
+                libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+                match libc::setrlimit(libc::RLIMIT_FSIZE, &limit) {
+                    0 => Ok(()),
+                    _ => Err(std::io::Error::last_os_error()),
+                }
+            });
+        }
+    };
+    limited_command_fails("solve", &format!("{GOOD}{SQUARE}"), |_| {}, &[], None, limit)
+}
+
+#[test]
+fn a_failed_write_leaves_no_temporary() {
+    // Not even the marker of the temporary directory can be written.
+    contains(&fails_writing_beyond(0), "cannot write: File too large");
 }
