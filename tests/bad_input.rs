@@ -974,3 +974,33 @@ fn a_failed_write_leaves_no_temporary() {
     // Not even the marker of the temporary directory can be written.
     contains(&fails_writing_beyond(0), "cannot write: File too large");
 }
+
+#[test]
+fn hdf5_failures_are_one_line() {
+    // HDF5's text for a failed read or write holds a ctime stamp and its line break.
+    let case = |path: &str| format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"{path}\"\n");
+    let directory = |d: &Path| std::fs::create_dir(d.join("mesh.h5")).unwrap();
+    let e = fails(&case("mesh.h5"), directory, &[], None);
+    contains(
+        &e,
+        "mesh.h5: not a readable HDF5 file (H5Fopen(): unable to open file: ",
+    );
+    contains(&e, "Is a directory); the mesh files read are");
+    // The heavy data of an XDMF mesh are a directory.
+    let xdmf = |d: &Path| {
+        directory(d);
+        let xdmf = "<Xdmf><Domain><Grid><Topology TopologyType=\"Triangle\"><DataItem Format=\"HDF\">mesh.h5:/mesh/topology</DataItem></Topology><Geometry GeometryType=\"XY\"><DataItem Format=\"HDF\">mesh.h5:/mesh/geometry</DataItem></Geometry></Grid></Domain></Xdmf>";
+        std::fs::write(d.join("mesh.xdmf"), xdmf).unwrap();
+    };
+    contains(
+        &fails(&case("mesh.xdmf"), xdmf, &[], None),
+        "mesh.h5: not a readable HDF5 file",
+    );
+    // The disk fills at stages of writing solution.h5 (about 33 kB for this case): creating the
+    // file, its datasets, closing it.
+    for bytes in [26, 100, 1000, 4096, 16384, 30000] {
+        let e = fails_writing_beyond(bytes);
+        contains(&e, "solution.h5: cannot write HDF5: ");
+        contains(&e, "File too large");
+    }
+}

@@ -5,6 +5,7 @@
 //! XDMF file declares equal to the data.
 
 use super::Mesh;
+use crate::result::hdf5_error;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
@@ -212,8 +213,9 @@ fn open_h5(path: &Path) -> Result<hdf5::File, FileError> {
     }
     hdf5::File::open(path).map_err(|e| {
         FileError(format!(
-            "{}: not a readable HDF5 file ({e}); the mesh files read are {ACCEPTED}",
-            path.display()
+            "{}: not a readable HDF5 file ({}); the mesh files read are {ACCEPTED}",
+            path.display(),
+            hdf5_error(&e)
         ))
     })
 }
@@ -228,14 +230,14 @@ fn read_table<T: hdf5::H5Type>(
     let file = open_h5(path)?;
     let data = file
         .dataset(dataset)
-        .map_err(|e| err(format!("no such dataset: {e}")))?;
+        .map_err(|e| err(format!("no such dataset: {}", hdf5_error(&e))))?;
     super::check_memory(
         data.shape().first().copied().unwrap_or(0),
         super::MULTIGRID_BYTES_PER_VERTEX,
     )
     .map_err(|e| err(e.to_string()))?;
     data.read_2d::<T>()
-        .map_err(|e| err(format!("cannot read {what}: {e}")))
+        .map_err(|e| err(format!("cannot read {what}: {}", hdf5_error(&e))))
 }
 
 fn read_points(path: &Path, dataset: &str) -> Result<Vec<[f64; 2]>, FileError> {
