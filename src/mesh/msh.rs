@@ -124,12 +124,27 @@ fn node_tags(bytes: &[u8]) -> Result<Vec<u64>, String> {
             .position(|w| w == what)
             .map(|i| from + i + what.len())
     };
-    let format = find(b"$MeshFormat\n", 0).ok_or("no $MeshFormat section")?;
+    // The end of the line `name` (LF or CRLF, as a file saved on Windows has) at or after `from`.
+    let section = |name: &[u8], from: usize| {
+        let mut at = from;
+        loop {
+            let end = find(name, at)?;
+            let start = end - name.len();
+            let line_start = start == 0 || bytes[start - 1] == b'\n';
+            let rest = &bytes[end..];
+            match (rest.first(), rest.get(1)) {
+                (Some(b'\n'), _) if line_start => return Some(end + 1),
+                (Some(b'\r'), Some(b'\n')) if line_start => return Some(end + 2),
+                _ => at = end,
+            }
+        }
+    };
+    let format = section(b"$MeshFormat", 0).ok_or("no $MeshFormat section")?;
     let line_end = find(b"\n", format).ok_or("no $MeshFormat line")?;
     let fields: Vec<String> = (String::from_utf8_lossy(&bytes[format..line_end]).split_whitespace())
         .map(String::from)
         .collect();
-    let start = find(b"\n$Nodes\n", line_end).ok_or("the file has no $Nodes section")?;
+    let start = section(b"$Nodes", line_end).ok_or("the file has no $Nodes section")?;
     let mut cursor = if fields.get(1).map(String::as_str) == Some("1") {
         let size_t = fields
             .get(2)
@@ -267,5 +282,22 @@ mod tests {
         }
         let old = read(Path::new("tests/data/square-v22.msh")).unwrap_err().0;
         assert!(old.contains("MSH format version 2.2 is not read"), "{old}");
+    }
+
+    #[test]
+    fn crlf_line_ends_give_the_same_mesh() {
+        // As a file saved on Windows, with and without a line end after $EndElements, and without
+        // one in Unix.
+        let lf = std::fs::read_to_string("data/meshes/square.msh").unwrap();
+        let crlf = lf.replace('\n', "\r\n");
+        let dir = tempfile::tempdir().unwrap();
+        for text in [crlf.as_str(), crlf.trim_end(), lf.trim_end()] {
+            let path = dir.path().join("square.msh");
+            std::fs::write(&path, text).unwrap();
+            assert_eq!(
+                read(&path).unwrap(),
+                read(Path::new("data/meshes/square.msh")).unwrap()
+            );
+        }
     }
 }
