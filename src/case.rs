@@ -85,6 +85,8 @@ struct MeshTable {
     boundary: Option<Vec<Vec<f64>>>,
     holes: Option<Vec<Vec<Vec<f64>>>>,
     centre: Option<Vec<f64>>,
+    /// The spelling of Gmsh, VTK and ParaView, accepted for `centre`.
+    center: Option<Vec<f64>>,
     radius: Option<f64>,
     inner_radius: Option<f64>,
     h: Option<f64>,
@@ -739,6 +741,7 @@ fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
         ("boundary", t.boundary.is_some()),
         ("holes", t.holes.is_some()),
         ("centre", t.centre.is_some()),
+        ("center", t.center.is_some()),
         ("radius", t.radius.is_some()),
         ("inner_radius", t.inner_radius.is_some()),
         ("h", t.h.is_some()),
@@ -747,7 +750,7 @@ fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
         "rectangle" => &["corners", "n", "diagonal", "refine"],
         "lshape" => &["n", "diagonal", "grading", "refine"],
         "polygon" => &["boundary", "holes", "h", "refine"],
-        "disk" => &["centre", "radius", "inner_radius", "h", "refine"],
+        "disk" => &["centre", "center", "radius", "inner_radius", "h", "refine"],
         "file" => &["path", "refine"],
         other => {
             return Err(format!(
@@ -778,9 +781,15 @@ fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
                         .collect::<Result<_, _>>()?,
                 },
                 _ => Domain::Disk {
-                    centre: match &t.centre {
-                        Some(c) => point(c, || "key 'mesh.centre'".into())?,
-                        None => [0.0, 0.0],
+                    centre: match (&t.centre, &t.center) {
+                        (Some(_), Some(_)) => {
+                            return Err("keys 'mesh.centre' and 'mesh.center' are two spellings of \
+                                        one key: give one"
+                                .into())
+                        }
+                        (Some(c), None) => point(c, || "key 'mesh.centre'".into())?,
+                        (None, Some(c)) => point(c, || "key 'mesh.center'".into())?,
+                        (None, None) => [0.0, 0.0],
                     },
                     radius: t.radius.ok_or_else(|| need("radius"))?,
                     inner_radius: t.inner_radius,
@@ -945,6 +954,42 @@ mod tests {
         };
         assert_eq!(boundary, [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]]);
         assert_eq!(holes[1], [[0.8, 0.5], [0.9, 0.5], [0.9, 0.6]]);
+    }
+
+    #[test]
+    fn center_is_centre() {
+        let disk = |keys: &str| {
+            let text = format!(
+                "mu1 = 1.0\nmu2 = 1.0\nf1 = 0\nf2 = 0\ng = 0\n[mesh]\nkind = \"disk\"\nradius = 1\nh = 0.3\n{keys}\n"
+            );
+            Case::parse(&text, "case.toml", PathBuf::new())
+        };
+        let (centre, center) = (
+            disk("centre = [0.5, -1]").unwrap(),
+            disk("center = [0.5, -1]").unwrap(),
+        );
+        assert!(matches!(
+            center.mesh,
+            MeshSpec::Domain {
+                domain: Domain::Disk {
+                    centre: [0.5, -1.0],
+                    ..
+                },
+                ..
+            }
+        ));
+        assert_eq!(centre.mesh, center.mesh);
+        let (a, b) = (centre.mesh().unwrap(), center.mesh().unwrap());
+        assert_eq!(a.points, b.points);
+        assert!(a.triangles().eq(b.triangles()));
+        assert_eq!(
+            disk("centre = [0.5, -1]\ncenter = [0.5, -1]").unwrap_err().0,
+            "case.toml: keys 'mesh.centre' and 'mesh.center' are two spellings of one key: give one"
+        );
+        assert!(disk("center = [0, 0, 1]")
+            .unwrap_err()
+            .0
+            .contains("key 'mesh.center' = [0.0, 0.0, 1.0]"));
     }
 
     #[test]
