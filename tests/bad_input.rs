@@ -1004,3 +1004,21 @@ fn hdf5_failures_are_one_line() {
         contains(&e, "File too large");
     }
 }
+
+#[test]
+fn numerical_failures_name_the_case_file() {
+    // Each message starts with the case file, as those about its keys do.
+    let named = |e: &str, message: &str| {
+        let first = e.strip_prefix("error: ").and_then(|e| e.split(": ").next());
+        assert!(first.is_some_and(|f| f.ends_with("/case.toml")), "{e}");
+        contains(e, &format!("/case.toml: {message}"));
+    };
+    // A check of the solution: λ_h below the round-off of (4.5).
+    let e = case_fails(&format!("{}{SQUARE}", GOOD.replace("mu1 = 1.0", "mu1 = 1e300")));
+    named(&e, "λ_h is not resolved in double precision");
+    // The solver: the active-set method's cap.
+    let text =
+        format!("mu1 = 1.0\nmu2 = 1.0\nf1 = -20\nf2 = 20\ng = 0.01\n{SQUARE}[solver]\nmax_iterations = 1\n");
+    let e = fails(&text, |_| {}, &["--cold"], None);
+    named(&e, "the active-set method did not converge in 1 iterations");
+}
