@@ -5,8 +5,9 @@
 //! there by one system call: `renameat2(RENAME_EXCHANGE)` swaps it with an earlier result, a plain
 //! `rename` puts it where there was none. Whatever instant the process is killed at, the path
 //! shows the complete earlier result or the complete new one, never a mix. SIGINT, SIGTERM and
-//! SIGHUP remove the temporaries of the run; after a SIGKILL, the next run for the same path
-//! recognises them by name and removes them.
+//! SIGHUP remove the temporaries of the run, which then exits with 128 + the signal's number (130,
+//! 143, 129), as a shell reports a process the signal killed; after a SIGKILL, the next run for
+//! the same path recognises them by name and removes them.
 //!
 //! An existing path is replaced only when it is a result of this program (it holds the marker
 //! file [`MARKER`]) and holds none of the run's inputs; anything else is left alone with an error.
@@ -14,6 +15,7 @@
 use std::ffi::CString;
 use std::os::unix::ffi::OsStrExt;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicI32, Ordering};
 use std::sync::{Mutex, MutexGuard, Once};
 
 /// The file that marks a directory as a result of this program.
@@ -67,34 +69,24 @@ impl Staging {
         let prefix = format!(".{:016x}.", fnv1a(name.as_bytes()));
         clear_stale(&parent, &prefix);
         let temporary = parent.join(format!("{prefix}{}.mc-partial", std::process::id()));
-        HANDLER.call_once(|| {
-            // Installed once per process; if another handler is there, signals keep their effect.
-            let _ = ctrlc::set_handler(|| {
-                // The writer goes on while this runs and may add a file after remove_dir_all has
-                // listed the directory (its last rmdir then fails): again until it is gone.
-                for dir in pending().iter() {
-                    for _ in 0..100 {
-                        if std::fs::remove_dir_all(dir).is_ok() || !dir.exists() {
-                            break;
-                        }
-                    }
-                }
-                // No exit handlers: another thread may be inside the HDF5 library.
-                unsafe { libc::_exit(130) }
-            });
-        });
+        HANDLER.call_once(install_handler);
         let mut list = pending();
         std::fs::create_dir(&temporary)
             .map_err(|e| err(format!("cannot create a directory beside it: {}", e)))?;
         list.push(temporary.clone());
         drop(list);
-        std::fs::write(temporary.join(MARKER), format!("membrane-contact {kind}\n"))
-            .map_err(|e| err(format!("cannot write: {}", e)))?;
-        Ok(Staging {
+        // From here on the staging exists: dropped on any error, it removes the temporary.
+        let staging = Staging {
             temporary,
             target: target.to_path_buf(),
             committed: false,
-        })
+        };
+        std::fs::write(
+            staging.temporary.join(MARKER),
+            format!("membrane-contact {kind}\n"),
+        )
+        .map_err(|e| err(format!("cannot write: {}", e)))?;
+        Ok(staging)
     }
 
     /// The directory to write the result's files into.
@@ -134,6 +126,66 @@ impl Drop for Staging {
             let mut list = pending();
             let _ = std::fs::remove_dir_all(&self.temporary);
             list.retain(|d| *d != self.temporary);
+        }
+    }
+}
+
+/// The write end of the pipe on which [`on_signal`] passes the signal's number to the thread that
+/// removes the temporaries: a signal handler may do little more than write(2).
+static SIGNAL_PIPE: AtomicI32 = AtomicI32::new(-1);
+
+/// The handler of SIGINT, SIGTERM and SIGHUP.
+extern "C" fn on_signal(signal: libc::c_int) {
+    let byte = signal as u8;
+    // SAFETY: write(2) is async-signal-safe; the pipe stays open for the life of the process.
+    unsafe { libc::write(SIGNAL_PIPE.load(Ordering::Relaxed), (&raw const byte).cast(), 1) };
+}
+
+/// On SIGINT, SIGTERM or SIGHUP, removes the temporaries of [`PENDING`] and exits with 128 + the
+/// signal's number. A signal ignored when the process started (`nohup`) stays ignored; without a
+/// pipe, signals keep their default effect.
+fn install_handler() {
+    let mut fds = [0; 2];
+    // SAFETY: an array of two descriptors to fill.
+    if unsafe { libc::pipe2(fds.as_mut_ptr(), libc::O_CLOEXEC) } != 0 {
+        return;
+    }
+    let [read_end, write_end] = fds;
+    SIGNAL_PIPE.store(write_end, Ordering::Relaxed);
+    std::thread::spawn(move || {
+        let mut signal = 0u8;
+        loop {
+            // SAFETY: reads one byte into `signal`.
+            match unsafe { libc::read(read_end, (&raw mut signal).cast(), 1) } {
+                1 => break,
+                -1 if std::io::Error::last_os_error().kind() == std::io::ErrorKind::Interrupted => {}
+                _ => return,
+            }
+        }
+        // The writer goes on while this runs and may add a file after remove_dir_all has listed
+        // the directory (its last rmdir then fails): again until it is gone.
+        for dir in pending().iter() {
+            for _ in 0..100 {
+                if std::fs::remove_dir_all(dir).is_ok() || !dir.exists() {
+                    break;
+                }
+            }
+        }
+        // No exit handlers: another thread may be inside the HDF5 library.
+        unsafe { libc::_exit(128 + i32::from(signal)) }
+    });
+    let handler = on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+    for signal in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+        // SAFETY: sigaction structures filled in full; the handler only writes to the pipe.
+        unsafe {
+            let mut action: libc::sigaction = std::mem::zeroed();
+            action.sa_sigaction = handler;
+            action.sa_flags = libc::SA_RESTART;
+            libc::sigemptyset(&mut action.sa_mask);
+            let mut old: libc::sigaction = std::mem::zeroed();
+            if libc::sigaction(signal, &action, &mut old) == 0 && old.sa_sigaction == libc::SIG_IGN {
+                libc::sigaction(signal, &old, std::ptr::null_mut());
+            }
         }
     }
 }

@@ -9,6 +9,7 @@ use crate::norms::Exact;
 use crate::problem::{self, Data};
 use crate::result::{Attr, Attribute, Describe};
 use serde::Deserialize;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// The built-in default case (`membrane-contact solve` without a case file).
@@ -76,14 +77,16 @@ struct ExactFile {
 #[serde(deny_unknown_fields)]
 struct MeshTable {
     kind: String,
-    corners: Option<[[f64; 2]; 2]>,
+    corners: Option<Vec<Vec<f64>>>,
     n: Option<Cells>,
     diagonal: Option<Diagonal>,
     grading: Option<f64>,
     path: Option<PathBuf>,
-    boundary: Option<Vec<[f64; 2]>>,
-    holes: Option<Vec<Vec<[f64; 2]>>>,
-    centre: Option<[f64; 2]>,
+    boundary: Option<Vec<Vec<f64>>>,
+    holes: Option<Vec<Vec<Vec<f64>>>>,
+    centre: Option<Vec<f64>>,
+    /// The spelling of Gmsh, VTK and ParaView, accepted for `centre`.
+    center: Option<Vec<f64>>,
     radius: Option<f64>,
     inner_radius: Option<f64>,
     h: Option<f64>,
@@ -284,16 +287,26 @@ impl Case {
     /// ```
     pub fn read(path: &Path) -> Result<Case, CaseError> {
         let err = |m: String| CaseError(format!("{}: {m}", path.display()));
-        let size = std::fs::metadata(path)
-            .map_err(|e| err(format!("cannot read the case file: {e}")))?
-            .len();
+        let cannot = |e: std::io::Error| err(format!("cannot read the case file: {e}"));
+        let file = std::fs::File::open(path).map_err(cannot)?;
+        let size = file.metadata().map_err(cannot)?.len();
         if size > MAX_CASE_BYTES {
             return Err(err(format!(
                 "the case file has {size} bytes; at most {MAX_CASE_BYTES} are read"
             )));
         }
-        let text =
-            std::fs::read_to_string(path).map_err(|e| err(format!("cannot read the case file: {e}")))?;
+        // The size of a device or a pipe (/dev/stdin, /dev/zero) says nothing: what arrives counts.
+        let mut bytes = Vec::new();
+        file.take(MAX_CASE_BYTES + 1)
+            .read_to_end(&mut bytes)
+            .map_err(cannot)?;
+        if bytes.len() as u64 > MAX_CASE_BYTES {
+            return Err(err(format!(
+                "the case file has more than {MAX_CASE_BYTES} bytes; at most {MAX_CASE_BYTES} are read"
+            )));
+        }
+        let text = String::from_utf8(bytes)
+            .map_err(|_| err("cannot read the case file: it is not UTF-8 text".into()))?;
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
         let mut case = Case::parse(&text, &path.display().to_string(), base)?;
         case.path = Some(path.to_path_buf());
@@ -744,6 +757,7 @@ fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
         ("boundary", t.boundary.is_some()),
         ("holes", t.holes.is_some()),
         ("centre", t.centre.is_some()),
+        ("center", t.center.is_some()),
         ("radius", t.radius.is_some()),
         ("inner_radius", t.inner_radius.is_some()),
         ("h", t.h.is_some()),
@@ -752,7 +766,7 @@ fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
         "rectangle" => &["corners", "n", "diagonal", "refine"],
         "lshape" => &["n", "diagonal", "grading", "refine"],
         "polygon" => &["boundary", "holes", "h", "refine"],
-        "disk" => &["centre", "radius", "inner_radius", "h", "refine"],
+        "disk" => &["centre", "center", "radius", "inner_radius", "h", "refine"],
         "file" => &["path", "refine"],
         other => {
             return Err(format!(
@@ -774,11 +788,25 @@ fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
         "polygon" | "disk" => {
             let domain = match t.kind.as_str() {
                 "polygon" => Domain::Polygon {
-                    boundary: t.boundary.clone().ok_or_else(|| need("boundary"))?,
-                    holes: t.holes.clone().unwrap_or_default(),
+                    boundary: ring(
+                        t.boundary.as_ref().ok_or_else(|| need("boundary"))?,
+                        "'mesh.boundary'",
+                    )?,
+                    holes: (t.holes.iter().flatten().enumerate())
+                        .map(|(k, h)| ring(h, &format!("'mesh.holes' (hole {})", k + 1)))
+                        .collect::<Result<_, _>>()?,
                 },
                 _ => Domain::Disk {
-                    centre: t.centre.unwrap_or([0.0, 0.0]),
+                    centre: match (&t.centre, &t.center) {
+                        (Some(_), Some(_)) => {
+                            return Err("keys 'mesh.centre' and 'mesh.center' are two spellings of \
+                                        one key: give one"
+                                .into())
+                        }
+                        (Some(c), None) => point(c, || "key 'mesh.centre'".into())?,
+                        (None, Some(c)) => point(c, || "key 'mesh.center'".into())?,
+                        (None, None) => [0.0, 0.0],
+                    },
                     radius: t.radius.ok_or_else(|| need("radius"))?,
                     inner_radius: t.inner_radius,
                 },
@@ -796,6 +824,27 @@ fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
     }
 }
 
+/// A point [x, y] of a `[mesh]` key (`what` names it): exactly two numbers. Read as `[f64; 2]`, a
+/// longer array would lose the rest silently and a shorter one be refused without saying which.
+fn point(v: &[f64], what: impl Fn() -> String) -> Result<[f64; 2], String> {
+    match *v {
+        [x, y] => Ok([x, y]),
+        [_] => Err(format!("{} = {v:?} has 1 number: a point is [x, y]", what())),
+        _ => Err(format!(
+            "{} = {v:?} has {} numbers: a point is [x, y]",
+            what(),
+            v.len()
+        )),
+    }
+}
+
+/// The vertices of a polygon's ring (`name`: the key, and the hole), each [x, y].
+fn ring(vertices: &[Vec<f64>], name: &str) -> Result<Vec<[f64; 2]>, String> {
+    (vertices.iter().enumerate())
+        .map(|(i, v)| point(v, || format!("key {name}, vertex {}", i + 1)))
+        .collect()
+}
+
 /// `kind = "rectangle"`: n, corners (default the unit square), diagonal.
 fn rectangle_spec(t: &MeshTable, need: impl Fn(&str) -> String) -> Result<MeshSpec, String> {
     let n = match t.n.ok_or_else(|| need("n"))? {
@@ -805,7 +854,19 @@ fn rectangle_spec(t: &MeshTable, need: impl Fn(&str) -> String) -> Result<MeshSp
     if n[0] == 0 || n[1] == 0 {
         return Err(format!("key 'mesh.n' = {n:?}: need at least one cell each way"));
     }
-    let corners = t.corners.unwrap_or([[0.0, 0.0], [1.0, 1.0]]);
+    let corners = match t.corners.as_deref() {
+        None => [[0.0, 0.0], [1.0, 1.0]],
+        Some([c0, c1]) => [
+            point(c0, || "key 'mesh.corners', corner 1".into())?,
+            point(c1, || "key 'mesh.corners', corner 2".into())?,
+        ],
+        Some(c) => {
+            return Err(format!(
+                "key 'mesh.corners' has {} points: need [[x0, y0], [x1, y1]]",
+                c.len()
+            ))
+        }
+    };
     let [c0, c1] = corners;
     let extent = [c1[0] - c0[0], c1[1] - c0[1]];
     if !(extent.iter().all(|e| *e > 0.0 && e.is_finite())) {
@@ -865,6 +926,86 @@ mod tests {
         let c = Case::default_case();
         assert!(c.exact.is_some());
         assert!(c.mesh().unwrap().n_vertices() > 100);
+    }
+
+    #[test]
+    fn points_are_two_numbers() {
+        let err = |mesh: &str| {
+            let text = format!("mu1 = 1.0\nmu2 = 1.0\nf1 = 0\nf2 = 0\ng = 0\n[mesh]\n{mesh}\n");
+            Case::parse(&text, "case.toml", PathBuf::new()).unwrap_err().0
+        };
+        let polygon = "kind = \"polygon\"\nh = 0.3\nboundary = [[0, 0], [1, 0], [1, 1]]";
+        assert_eq!(
+            err(&polygon.replace("[1, 0]", "[1, 0, 0]")),
+            "case.toml: key 'mesh.boundary', vertex 2 = [1.0, 0.0, 0.0] has 3 numbers: a point is [x, y]"
+        );
+        assert!(err(&polygon.replace("[1, 1]", "[1]"))
+            .contains("'mesh.boundary', vertex 3 = [1.0] has 1 number:"));
+        let holes = "holes = [[[0.5, 0.2], [0.6, 0.2], [0.6, 0.3]], [[0.8, 0.5], [0.9, 0.5, 7], [0.9, 0.6]]]";
+        assert!(err(&format!("{polygon}\n{holes}"))
+            .contains("key 'mesh.holes' (hole 2), vertex 2 = [0.9, 0.5, 7.0] has 3 numbers"));
+        let disk = "kind = \"disk\"\nradius = 1\nh = 0.3";
+        assert!(
+            err(&format!("{disk}\ncentre = [0, 0, 5]")).contains("key 'mesh.centre' = [0.0, 0.0, 5.0] has 3")
+        );
+        let rectangle = "kind = \"rectangle\"\nn = 4";
+        assert!(
+            err(&format!("{rectangle}\ncorners = [[0, 0, 0], [1, 1]]")).contains("'mesh.corners', corner 1")
+        );
+        assert!(err(&format!("{rectangle}\ncorners = [[0, 0], [1, 1], [2, 2]]"))
+            .contains("key 'mesh.corners' has 3 points: need [[x0, y0], [x1, y1]]"));
+        // Two numbers each: read as given.
+        let text = format!("mu1 = 1.0\nmu2 = 1.0\nf1 = 0\nf2 = 0\ng = 0\n[mesh]\n{polygon}\n{holes}\n")
+            .replace(", 7]", "]");
+        let Ok(Case {
+            mesh:
+                MeshSpec::Domain {
+                    domain: Domain::Polygon { boundary, holes },
+                    ..
+                },
+            ..
+        }) = Case::parse(&text, "t", PathBuf::new())
+        else {
+            panic!("a polygon")
+        };
+        assert_eq!(boundary, [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]]);
+        assert_eq!(holes[1], [[0.8, 0.5], [0.9, 0.5], [0.9, 0.6]]);
+    }
+
+    #[test]
+    fn center_is_centre() {
+        let disk = |keys: &str| {
+            let text = format!(
+                "mu1 = 1.0\nmu2 = 1.0\nf1 = 0\nf2 = 0\ng = 0\n[mesh]\nkind = \"disk\"\nradius = 1\nh = 0.3\n{keys}\n"
+            );
+            Case::parse(&text, "case.toml", PathBuf::new())
+        };
+        let (centre, center) = (
+            disk("centre = [0.5, -1]").unwrap(),
+            disk("center = [0.5, -1]").unwrap(),
+        );
+        assert!(matches!(
+            center.mesh,
+            MeshSpec::Domain {
+                domain: Domain::Disk {
+                    centre: [0.5, -1.0],
+                    ..
+                },
+                ..
+            }
+        ));
+        assert_eq!(centre.mesh, center.mesh);
+        let (a, b) = (centre.mesh().unwrap(), center.mesh().unwrap());
+        assert_eq!(a.points, b.points);
+        assert!(a.triangles().eq(b.triangles()));
+        assert_eq!(
+            disk("centre = [0.5, -1]\ncenter = [0.5, -1]").unwrap_err().0,
+            "case.toml: keys 'mesh.centre' and 'mesh.center' are two spellings of one key: give one"
+        );
+        assert!(disk("center = [0, 0, 1]")
+            .unwrap_err()
+            .0
+            .contains("key 'mesh.center' = [0.0, 0.0, 1.0]"));
     }
 
     #[test]

@@ -289,6 +289,29 @@ fn free_bytes(dir: &Path) -> Option<u64> {
     (unsafe { libc::statvfs(path.as_ptr(), &mut s) } == 0).then(|| s.f_bavail * s.f_frsize)
 }
 
+/// An HDF5 error on one line. The library's text for a failed read or write of the file goes on
+/// with a ctime stamp, which ends in a line break, and the call's descriptor, buffer address and
+/// sizes: it is cut before them, keeping the system's message (`file write failed: File too
+/// large`). The caller names the file.
+pub(crate) fn hdf5_error(e: &hdf5::Error) -> String {
+    let text = e.to_string();
+    let shown = match text.find(": time = ") {
+        Some(cut) => {
+            let (head, details) = text.split_at(cut);
+            let system = (details.split_once("error message = '"))
+                .and_then(|(_, m)| m.split_once('\''))
+                .map(|(m, _)| m)
+                .filter(|m| !head.contains(&format!("'{m}'")));
+            match system {
+                Some(m) => format!("{head}: {m}"),
+                None => head.to_string(),
+            }
+        }
+        None => text,
+    };
+    shown.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
 /// HDF5 reports a full disk as "file write failed": say what it is.
 fn no_space_hint(dir: &Path, e: String) -> String {
     match free_bytes(dir) {
@@ -306,7 +329,7 @@ fn write_hdf5(
     attrs: &[Attribute],
     chunk: usize,
 ) -> Result<(), String> {
-    let named = |e: hdf5::Error| format!("{SOLUTION_H5}: cannot write HDF5: {e}");
+    let named = |e: hdf5::Error| format!("{SOLUTION_H5}: cannot write HDF5: {}", hdf5_error(&e));
     let file = hdf5::File::create(path).map_err(named)?;
     for grid in grids {
         let group = file.create_group(grid.name).map_err(named)?;

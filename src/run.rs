@@ -98,10 +98,11 @@ pub fn on_mesh<'c>(
     let problem =
         DiscreteProblem::new(mesh, &case.data).map_err(|e| CaseError(format!("{}: {e}", case.origin)))?;
     let assembly = clock.lap();
-    let solution = contact::solve(&problem, options.start, coarser, case.solver)?;
+    let solution = (contact::solve(&problem, options.start, coarser, case.solver))
+        .map_err(|e| RunError::Solve(case.origin.clone(), e))?;
     clock.lap();
     let action = Action::compute(&problem, &solution);
-    action.checks.verify()?;
+    (action.checks.verify()).map_err(|e| RunError::Check(case.origin.clone(), e))?;
     let edges = Edges::new(&problem.mesh);
     let dual = DualMesh::new(&problem.mesh, &edges);
     let errors = (case.exact.as_ref())
@@ -334,15 +335,17 @@ impl Clock {
     }
 }
 
-/// Anything that stops a run, with a message naming the cause.
+/// Anything that stops a run, with a message naming the cause. The numerical failures know
+/// neither file nor key: they carry the case's origin (its file, or the built-in default case),
+/// and their messages start with it, as those of [`CaseError`] do.
 #[derive(Debug)]
 pub enum RunError {
     /// The case or its data.
     Case(CaseError),
-    /// The solver.
-    Solve(SolveError),
-    /// The solution's own checks.
-    Check(CheckError),
+    /// The solver, on the case of the origin given.
+    Solve(String, SolveError),
+    /// The solution's own checks, on the case of the origin given.
+    Check(String, CheckError),
     /// The result directory.
     Output(OutputError),
 }
@@ -351,8 +354,8 @@ impl fmt::Display for RunError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             RunError::Case(e) => write!(f, "{e}"),
-            RunError::Solve(e) => write!(f, "{e}"),
-            RunError::Check(e) => write!(f, "{e}"),
+            RunError::Solve(origin, e) => write!(f, "{origin}: {e}"),
+            RunError::Check(origin, e) => write!(f, "{origin}: {e}"),
             RunError::Output(e) => write!(f, "{e}"),
         }
     }
@@ -363,16 +366,6 @@ impl std::error::Error for RunError {}
 impl From<CaseError> for RunError {
     fn from(e: CaseError) -> Self {
         RunError::Case(e)
-    }
-}
-impl From<SolveError> for RunError {
-    fn from(e: SolveError) -> Self {
-        RunError::Solve(e)
-    }
-}
-impl From<CheckError> for RunError {
-    fn from(e: CheckError) -> Self {
-        RunError::Check(e)
     }
 }
 impl From<OutputError> for RunError {

@@ -47,6 +47,18 @@ fn command_fails(
     extra: &[&str],
     output: Option<PathBuf>,
 ) -> String {
+    limited_command_fails(command, case_text, setup, extra, output, |_| {})
+}
+
+/// As [`command_fails`], with the command prepared by `prepare` before it runs.
+fn limited_command_fails(
+    command: &str,
+    case_text: &str,
+    setup: impl Fn(&Path),
+    extra: &[&str],
+    output: Option<PathBuf>,
+    prepare: impl FnOnce(&mut Command),
+) -> String {
     let dir = tempfile::tempdir().unwrap();
     setup(dir.path());
     let case = dir.path().join("case.toml");
@@ -54,12 +66,10 @@ fn command_fails(
     let earlier = earlier_result(dir.path());
     let out = output.unwrap_or_else(|| earlier.clone());
     let before = listing(dir.path());
-    let run = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
-        .arg(command)
-        .arg(&case)
-        .arg("-o")
-        .arg(&out)
-        .args(extra));
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_membrane-contact"));
+    cmd.arg(command).arg(&case).arg("-o").arg(&out).args(extra);
+    prepare(&mut cmd);
+    let run = run(&mut cmd);
     let stderr = String::from_utf8_lossy(&run.stderr).to_string();
     assert_eq!(run.status.code(), Some(1), "exit status; stderr: {stderr}");
     assert!(
@@ -838,4 +848,177 @@ fn adapt_settings_out_of_range() {
         &adapt("[adapt]\ntheta = 0.5\nbulk = 1\n", &[]),
         "unknown field `bulk`",
     );
+}
+
+// Reproductions of issue 24.
+
+/// Runs `solve CASE -o out` in a fresh directory prepared by `setup` (`case` relative to it, or a
+/// path such as /dev/zero), with `stdin` piped in and at most 4 GiB of address space, so that a
+/// read without bound fails instead of filling the machine. Checks that the run is refused
+/// within seconds, with one line of error and exit status 1, leaving nothing behind; returns
+/// stderr.
+fn refused_quickly(case: &str, setup: impl Fn(&Path), stdin: &[u8]) -> String {
+    use std::io::Write;
+    use std::os::unix::process::CommandExt;
+    let dir = tempfile::tempdir().unwrap();
+    setup(dir.path());
+    let before = listing(dir.path());
+    let mut command = Command::new(env!("CARGO_BIN_EXE_membrane-contact"));
+    command
+        .arg("solve")
+        .arg(dir.path().join(case))
+        .arg("-o")
+        .arg(dir.path().join("out"))
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped());
+    // SAFETY: setrlimit is async-signal-safe.
+    unsafe {
+        command.pre_exec(|| {
+            let limit = libc::rlimit {
+                rlim_cur: 4 << 30,
+                rlim_max: 4 << 30,
+            };
+            match libc::setrlimit(libc::RLIMIT_AS, &limit) {
+                0 => Ok(()),
+                _ => Err(std::io::Error::last_os_error()),
+            }
+        });
+    }
+    let start = std::time::Instant::now();
+    let mut child = {
+        let _guard = FILES.lock().unwrap_or_else(|e| e.into_inner());
+        command.spawn().unwrap()
+    };
+    let (mut input, stdin) = (child.stdin.take().unwrap(), stdin.to_vec());
+    // The run may stop reading at any point: a broken pipe is expected.
+    let writer = std::thread::spawn(move || drop(input.write_all(&stdin)));
+    let run = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    let seconds = start.elapsed().as_secs_f64();
+    let stderr = String::from_utf8_lossy(&run.stderr).to_string();
+    assert_eq!(run.status.code(), Some(1), "exit status; stderr: {stderr}");
+    assert!(
+        stderr.starts_with("error: ") && stderr.lines().count() == 1,
+        "{stderr}"
+    );
+    assert!(seconds < 30.0, "refused after {seconds:.1} s: {stderr}");
+    assert_eq!(listing(dir.path()), before, "files were left behind or removed");
+    stderr
+}
+
+#[test]
+fn endless_case_files_are_refused() {
+    // A valid case followed by 2 MB of comments, through a pipe (whose size says nothing).
+    let mut text = format!("{GOOD}{SQUARE}");
+    while text.len() < 2_000_000 {
+        text.push_str("# a comment line, of which there are far too many in this case file\n");
+    }
+    contains(
+        &refused_quickly("/dev/stdin", |_| {}, text.as_bytes()),
+        "/dev/stdin: the case file has more than 1048576 bytes; at most 1048576 are read",
+    );
+    // A device without end.
+    contains(
+        &refused_quickly("/dev/zero", |_| {}, b""),
+        "/dev/zero: the case file has more than 1048576 bytes; at most 1048576 are read",
+    );
+}
+
+#[test]
+fn endless_mesh_files_are_refused() {
+    // The mesh file is /dev/zero under the name of each kind of mesh file.
+    for (name, error) in [
+        ("zero.msh", "zero.msh: not a Gmsh MSH file"),
+        (
+            "zero.xdmf",
+            "zero.xdmf: the file has more than 67108864 bytes; at most 67108864 are read",
+        ),
+        ("zero.h5", "zero.h5: not a readable HDF5 file"),
+    ] {
+        let setup = |dir: &Path| {
+            std::os::unix::fs::symlink("/dev/zero", dir.join(name)).unwrap();
+            let case = format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"{name}\"\n");
+            std::fs::write(dir.join("case.toml"), case).unwrap();
+        };
+        contains(&refused_quickly("case.toml", setup, b""), error);
+    }
+}
+
+/// Runs the good case with every file it writes limited to `bytes` (RLIMIT_FSIZE, with SIGXFSZ
+/// ignored): a write beyond the limit fails with EFBIG, as one on a full disk fails with ENOSPC.
+/// Checks the failure as [`fails`] does (one line, nothing left, the earlier result untouched).
+fn fails_writing_beyond(bytes: u64) -> String {
+    use std::os::unix::process::CommandExt;
+    let limit = move |cmd: &mut Command| {
+        // SAFETY: setrlimit and signal are async-signal-safe.
+        unsafe {
+            cmd.pre_exec(move || {
+                let limit = libc::rlimit {
+                    rlim_cur: bytes,
+                    rlim_max: bytes,
+                };
+                libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+                match libc::setrlimit(libc::RLIMIT_FSIZE, &limit) {
+                    0 => Ok(()),
+                    _ => Err(std::io::Error::last_os_error()),
+                }
+            });
+        }
+    };
+    limited_command_fails("solve", &format!("{GOOD}{SQUARE}"), |_| {}, &[], None, limit)
+}
+
+#[test]
+fn a_failed_write_leaves_no_temporary() {
+    // Not even the marker of the temporary directory can be written.
+    contains(&fails_writing_beyond(0), "cannot write: File too large");
+}
+
+#[test]
+fn hdf5_failures_are_one_line() {
+    // HDF5's text for a failed read or write holds a ctime stamp and its line break.
+    let case = |path: &str| format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"{path}\"\n");
+    let directory = |d: &Path| std::fs::create_dir(d.join("mesh.h5")).unwrap();
+    let e = fails(&case("mesh.h5"), directory, &[], None);
+    contains(
+        &e,
+        "mesh.h5: not a readable HDF5 file (H5Fopen(): unable to open file: ",
+    );
+    contains(&e, "Is a directory); the mesh files read are");
+    // The heavy data of an XDMF mesh are a directory.
+    let xdmf = |d: &Path| {
+        directory(d);
+        let xdmf = "<Xdmf><Domain><Grid><Topology TopologyType=\"Triangle\"><DataItem Format=\"HDF\">mesh.h5:/mesh/topology</DataItem></Topology><Geometry GeometryType=\"XY\"><DataItem Format=\"HDF\">mesh.h5:/mesh/geometry</DataItem></Geometry></Grid></Domain></Xdmf>";
+        std::fs::write(d.join("mesh.xdmf"), xdmf).unwrap();
+    };
+    contains(
+        &fails(&case("mesh.xdmf"), xdmf, &[], None),
+        "mesh.h5: not a readable HDF5 file",
+    );
+    // The disk fills at stages of writing solution.h5 (about 33 kB for this case): creating the
+    // file, its datasets, closing it.
+    for bytes in [26, 100, 1000, 4096, 16384, 30000] {
+        let e = fails_writing_beyond(bytes);
+        contains(&e, "solution.h5: cannot write HDF5: ");
+        contains(&e, "File too large");
+    }
+}
+
+#[test]
+fn numerical_failures_name_the_case_file() {
+    // Each message starts with the case file, as those about its keys do.
+    let named = |e: &str, message: &str| {
+        let first = e.strip_prefix("error: ").and_then(|e| e.split(": ").next());
+        assert!(first.is_some_and(|f| f.ends_with("/case.toml")), "{e}");
+        contains(e, &format!("/case.toml: {message}"));
+    };
+    // A check of the solution: λ_h below the round-off of (4.5).
+    let e = case_fails(&format!("{}{SQUARE}", GOOD.replace("mu1 = 1.0", "mu1 = 1e300")));
+    named(&e, "λ_h is not resolved in double precision");
+    // The solver: the active-set method's cap.
+    let text =
+        format!("mu1 = 1.0\nmu2 = 1.0\nf1 = -20\nf2 = 20\ng = 0.01\n{SQUARE}[solver]\nmax_iterations = 1\n");
+    let e = fails(&text, |_| {}, &["--cold"], None);
+    named(&e, "the active-set method did not converge in 1 iterations");
 }

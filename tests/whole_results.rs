@@ -141,9 +141,9 @@ fn studies_are_whole_or_absent() {
 }
 
 /// The fault test: a run writing a large result is killed at several instants spread over its
-/// course (SIGKILL, SIGINT and SIGTERM in turn). After each, the output is the earlier result or
-/// the new one, read back whole; SIGINT and SIGTERM leave no temporary, and the next run clears
-/// what SIGKILL left.
+/// course (SIGINT, SIGKILL, SIGTERM and SIGHUP in turn). After each, the output is the earlier
+/// result or the new one, read back whole; SIGINT, SIGTERM and SIGHUP leave no temporary and exit
+/// with 128 + the signal's number, and the next run clears what SIGKILL left.
 #[test]
 fn killed_runs_leave_the_earlier_result_or_the_new_one() {
     let dir = tempfile::tempdir().unwrap();
@@ -156,7 +156,8 @@ fn killed_runs_leave_the_earlier_result_or_the_new_one() {
     let new = read_whole(&out);
     assert_ne!(old, new);
     assert!(solve(&out, 16).status.success());
-    let signals = [libc::SIGKILL, libc::SIGINT, libc::SIGTERM];
+    // The last of the nine is not SIGKILL, whose temporary only a next run clears.
+    let signals = [libc::SIGINT, libc::SIGKILL, libc::SIGTERM, libc::SIGHUP];
     let mut seen = [0, 0];
     for k in 0..9 {
         let mut child = Command::new(BIN)
@@ -168,7 +169,7 @@ fn killed_runs_leave_the_earlier_result_or_the_new_one() {
             .unwrap();
         // Instants from a tenth of the run to past its end.
         std::thread::sleep(full.mul_f64(0.1 + 0.125 * k as f64));
-        let signal = signals[k % 3];
+        let signal = signals[k % signals.len()];
         unsafe { libc::kill(child.id() as i32, signal) };
         let status = child.wait().unwrap();
         let vertices = read_whole(&out);
@@ -180,6 +181,12 @@ fn killed_runs_leave_the_earlier_result_or_the_new_one() {
         let stray: Vec<String> = listing(dir.path()).into_iter().filter(|f| f != "out").collect();
         if signal != libc::SIGKILL && status.code() != Some(0) {
             assert!(stray.is_empty(), "after signal {signal}: {stray:?}");
+            // Before the run installs its handler (at its first temporary), the signal kills it.
+            use std::os::unix::process::ExitStatusExt;
+            assert!(
+                status.code() == Some(128 + signal) || status.signal() == Some(signal),
+                "after signal {signal}: {status:?}"
+            );
         }
         if vertices == new {
             assert!(solve(&out, 16).status.success());
@@ -191,4 +198,38 @@ fn killed_runs_leave_the_earlier_result_or_the_new_one() {
         "the next runs cleared every temporary"
     );
     assert!(seen[0] > 0, "some kills hit the run before its end: {seen:?}");
+}
+
+/// SIGINT, SIGTERM and SIGHUP in the middle of a run: its temporary is removed and it exits with
+/// 128 + the signal's number (130, 143, 129), as a shell reports a process the signal killed.
+#[test]
+fn signals_exit_with_128_plus_their_number() {
+    for (signal, code) in [(libc::SIGINT, 130), (libc::SIGTERM, 143), (libc::SIGHUP, 129)] {
+        let dir = tempfile::tempdir().unwrap();
+        let mut child = Command::new(BIN)
+            .args(["solve", "--n", "256", "-o"])
+            .arg(dir.path().join("out"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        // The handler is in place once the run has made its temporary.
+        let partial = || listing(dir.path()).iter().any(|f| f.ends_with(".mc-partial"));
+        let t = Instant::now();
+        while !partial() {
+            assert!(
+                child.try_wait().unwrap().is_none() && t.elapsed() < Duration::from_secs(60),
+                "the run ended before it was signalled"
+            );
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        unsafe { libc::kill(child.id() as i32, signal) };
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(code), "signal {signal}: {status:?}");
+        assert!(
+            listing(dir.path()).is_empty(),
+            "signal {signal}: {:?}",
+            listing(dir.path())
+        );
+    }
 }

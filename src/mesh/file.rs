@@ -5,6 +5,8 @@
 //! XDMF file declares equal to the data.
 
 use super::Mesh;
+use crate::result::hdf5_error;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 message_error!(
@@ -15,6 +17,57 @@ message_error!(
 /// The mesh file extensions read, for messages.
 const ACCEPTED: &str = ".xdmf (with HDF5 heavy data, as meshio or dolfinx write it), .h5 \
                         (a result of this program or a dolfinx mesh file) and .msh (Gmsh, format 4.1)";
+
+/// The most bytes of an XDMF file read: it is light XML (the heavy data are in HDF5).
+const MAX_XDMF_BYTES: u64 = 64 << 20;
+
+/// The bytes that [`read_capped`] reads before the rest: enough for a file's header.
+pub(super) const HEAD_BYTES: u64 = 64;
+
+/// The bytes of `path`, at most `cap` of them: a larger file is refused by its size, and a device
+/// or a pipe (whose size says nothing: `/dev/zero`, `/dev/stdin`) once more than `cap` bytes have
+/// arrived, for it is read through `take`. `head` checks the first [`HEAD_BYTES`] before the rest
+/// is read, so that a file in another format is refused without reading it whole; `why` says
+/// where the cap comes from. The error does not name the file: the caller does.
+pub(super) fn read_capped(
+    path: &Path,
+    cap: u64,
+    why: &str,
+    head: impl FnOnce(&[u8]) -> Result<(), String>,
+) -> Result<Vec<u8>, String> {
+    let cannot = |e: std::io::Error| match e.kind() {
+        std::io::ErrorKind::NotFound => "no such file".to_string(),
+        _ => format!("cannot read: {e}"),
+    };
+    let mut file = std::fs::File::open(path).map_err(cannot)?;
+    let size = file.metadata().map_err(cannot)?.len();
+    if size > cap {
+        return Err(format!(
+            "the file has {size} bytes; at most {cap} are read ({why})"
+        ));
+    }
+    let mut bytes = Vec::with_capacity(usize::try_from(size).unwrap_or(0).saturating_add(1));
+    (&mut file)
+        .take(HEAD_BYTES)
+        .read_to_end(&mut bytes)
+        .map_err(cannot)?;
+    head(&bytes)?;
+    let rest = cap.saturating_add(1).saturating_sub(bytes.len() as u64);
+    file.take(rest).read_to_end(&mut bytes).map_err(cannot)?;
+    if bytes.len() as u64 > cap {
+        return Err(format!(
+            "the file has more than {cap} bytes; at most {cap} are read ({why})"
+        ));
+    }
+    Ok(bytes)
+}
+
+/// The text of the XDMF file `path`, at most [`MAX_XDMF_BYTES`] of it.
+fn read_xdmf_text(path: &Path) -> Result<String, String> {
+    let why = "an XDMF file is light XML: its heavy data are in HDF5 files";
+    let bytes = read_capped(path, MAX_XDMF_BYTES, why, |_| Ok(()))?;
+    String::from_utf8(bytes).map_err(|_| "not valid XDMF (XML): the file is not UTF-8 text".into())
+}
 
 /// Reads and checks the mesh in `path`, by its extension.
 ///
@@ -42,7 +95,7 @@ pub fn read(path: &Path) -> Result<Mesh, FileError> {
 pub fn inputs(path: &Path) -> Vec<PathBuf> {
     let mut files = vec![path.to_path_buf()];
     if path.extension().is_some_and(|e| e == "xdmf") {
-        let text = std::fs::read_to_string(path).unwrap_or_default();
+        let text = read_xdmf_text(path).unwrap_or_default();
         let options = roxmltree::ParsingOptions {
             allow_dtd: true,
             ..Default::default()
@@ -68,7 +121,7 @@ struct Heavy {
 
 fn read_xdmf(path: &Path) -> Result<RawMesh, FileError> {
     let err = |m: String| FileError(format!("{}: {m}", path.display()));
-    let text = std::fs::read_to_string(path).map_err(|e| err(format!("cannot read: {e}")))?;
+    let text = read_xdmf_text(path).map_err(err)?;
     let options = roxmltree::ParsingOptions {
         allow_dtd: true,
         ..Default::default()
@@ -160,8 +213,9 @@ fn open_h5(path: &Path) -> Result<hdf5::File, FileError> {
     }
     hdf5::File::open(path).map_err(|e| {
         FileError(format!(
-            "{}: not a readable HDF5 file ({e}); the mesh files read are {ACCEPTED}",
-            path.display()
+            "{}: not a readable HDF5 file ({}); the mesh files read are {ACCEPTED}",
+            path.display(),
+            hdf5_error(&e)
         ))
     })
 }
@@ -176,14 +230,14 @@ fn read_table<T: hdf5::H5Type>(
     let file = open_h5(path)?;
     let data = file
         .dataset(dataset)
-        .map_err(|e| err(format!("no such dataset: {e}")))?;
+        .map_err(|e| err(format!("no such dataset: {}", hdf5_error(&e))))?;
     super::check_memory(
         data.shape().first().copied().unwrap_or(0),
         super::MULTIGRID_BYTES_PER_VERTEX,
     )
     .map_err(|e| err(e.to_string()))?;
     data.read_2d::<T>()
-        .map_err(|e| err(format!("cannot read {what}: {e}")))
+        .map_err(|e| err(format!("cannot read {what}: {}", hdf5_error(&e))))
 }
 
 fn read_points(path: &Path, dataset: &str) -> Result<Vec<[f64; 2]>, FileError> {
@@ -238,4 +292,39 @@ fn read_cells(path: &Path, dataset: &str) -> Result<Vec<[usize; 3]>, FileError> 
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_stop_at_the_cap() {
+        let none = |_: &[u8]| Ok(());
+        // A device without end, and a file larger than the cap: refused, naming the cap.
+        let e = read_capped(Path::new("/dev/zero"), 1000, "a test", none).unwrap_err();
+        assert_eq!(
+            e,
+            "the file has more than 1000 bytes; at most 1000 are read (a test)"
+        );
+        let square = Path::new("data/meshes/square.msh");
+        let size = std::fs::metadata(square).unwrap().len();
+        let e = read_capped(square, 1000, "a test", none).unwrap_err();
+        assert_eq!(
+            e,
+            format!("the file has {size} bytes; at most 1000 are read (a test)")
+        );
+        // At the cap, the file is read whole; the header is checked on its first bytes.
+        let whole = read_capped(square, size, "a test", |head| {
+            assert_eq!(head.len() as u64, HEAD_BYTES);
+            Ok(())
+        });
+        assert_eq!(whole.unwrap(), std::fs::read(square).unwrap());
+        let refused = read_capped(Path::new("/dev/zero"), u64::MAX, "", |_| Err("no header".into()));
+        assert_eq!(refused.unwrap_err(), "no header");
+        assert_eq!(
+            read_capped(Path::new("absent.msh"), 1000, "", none).unwrap_err(),
+            "no such file"
+        );
+    }
 }

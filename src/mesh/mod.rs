@@ -196,6 +196,14 @@ pub fn check_memory(vertices: usize, bytes_per_vertex: f64) -> Result<(), MeshEr
     }
 }
 
+/// The memory available now, in bytes (`MemAvailable` of /proc/meminfo), when it can be read.
+pub fn available_memory() -> Option<u64> {
+    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb.saturating_mul(1024))
+}
+
 /// Twice the signed area of the triangle (p, q, r).
 #[inline]
 pub fn orient(p: [f64; 2], q: [f64; 2], r: [f64; 2]) -> f64 {

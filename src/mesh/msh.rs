@@ -14,11 +14,11 @@ const VERSION: &str = "4.1";
 /// Reads the triangles of a MSH 4.1 file and the nodes they use (in the order of their tags).
 pub(super) fn read(path: &Path) -> Result<RawMesh, FileError> {
     let err = |m: String| FileError(format!("{}: {m}", path.display()));
-    let bytes = std::fs::read(path).map_err(|e| match e.kind() {
-        std::io::ErrorKind::NotFound => err("no such file".into()),
-        _ => err(format!("cannot read: {e}")),
-    })?;
-    check_version(&bytes).map_err(err)?;
+    // A file larger than the memory available could not be read, let alone solved on; the header
+    // is checked first, so that a file of another format is not read whole.
+    let cap = super::available_memory().map_or(u64::MAX, |bytes| bytes / 2);
+    let why = "half the memory available: a mesh from a larger file would not fit in memory";
+    let bytes = super::file::read_capped(path, cap, why, check_version).map_err(err)?;
     let msh = mshio::parse_msh_bytes(&bytes).map_err(|e| {
         let trace = e.filtered_backtrace();
         let kinds: Vec<String> = trace.iter().rev().map(|(_, k)| k.to_string()).collect();
@@ -78,9 +78,10 @@ pub(super) fn read(path: &Path) -> Result<RawMesh, FileError> {
     ))
 }
 
-/// Refuses files that are not MSH 4.1, naming their version.
+/// Refuses files that are not MSH 4.1, naming their version, by their first bytes.
 fn check_version(bytes: &[u8]) -> Result<(), String> {
-    let head = String::from_utf8_lossy(&bytes[..bytes.len().min(64)]).to_string();
+    let head =
+        String::from_utf8_lossy(&bytes[..bytes.len().min(super::file::HEAD_BYTES as usize)]).to_string();
     let mut lines = head.lines();
     if lines.next().map(str::trim) != Some("$MeshFormat") {
         return Err("not a Gmsh MSH file (it does not start with $MeshFormat)".into());
@@ -123,12 +124,27 @@ fn node_tags(bytes: &[u8]) -> Result<Vec<u64>, String> {
             .position(|w| w == what)
             .map(|i| from + i + what.len())
     };
-    let format = find(b"$MeshFormat\n", 0).ok_or("no $MeshFormat section")?;
+    // The end of the line `name` (LF or CRLF, as a file saved on Windows has) at or after `from`.
+    let section = |name: &[u8], from: usize| {
+        let mut at = from;
+        loop {
+            let end = find(name, at)?;
+            let start = end - name.len();
+            let line_start = start == 0 || bytes[start - 1] == b'\n';
+            let rest = &bytes[end..];
+            match (rest.first(), rest.get(1)) {
+                (Some(b'\n'), _) if line_start => return Some(end + 1),
+                (Some(b'\r'), Some(b'\n')) if line_start => return Some(end + 2),
+                _ => at = end,
+            }
+        }
+    };
+    let format = section(b"$MeshFormat", 0).ok_or("no $MeshFormat section")?;
     let line_end = find(b"\n", format).ok_or("no $MeshFormat line")?;
     let fields: Vec<String> = (String::from_utf8_lossy(&bytes[format..line_end]).split_whitespace())
         .map(String::from)
         .collect();
-    let start = find(b"\n$Nodes\n", line_end).ok_or("the file has no $Nodes section")?;
+    let start = section(b"$Nodes", line_end).ok_or("the file has no $Nodes section")?;
     let mut cursor = if fields.get(1).map(String::as_str) == Some("1") {
         let size_t = fields
             .get(2)
@@ -266,5 +282,22 @@ mod tests {
         }
         let old = read(Path::new("tests/data/square-v22.msh")).unwrap_err().0;
         assert!(old.contains("MSH format version 2.2 is not read"), "{old}");
+    }
+
+    #[test]
+    fn crlf_line_ends_give_the_same_mesh() {
+        // As a file saved on Windows, with and without a line end after $EndElements, and without
+        // one in Unix.
+        let lf = std::fs::read_to_string("data/meshes/square.msh").unwrap();
+        let crlf = lf.replace('\n', "\r\n");
+        let dir = tempfile::tempdir().unwrap();
+        for text in [crlf.as_str(), crlf.trim_end(), lf.trim_end()] {
+            let path = dir.path().join("square.msh");
+            std::fs::write(&path, text).unwrap();
+            assert_eq!(
+                read(&path).unwrap(),
+                read(Path::new("data/meshes/square.msh")).unwrap()
+            );
+        }
     }
 }
