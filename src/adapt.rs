@@ -12,8 +12,9 @@
 //! and `adapt.png` plots η and the error against N for both.
 
 use crate::atomic::{OutputError, Staging};
-use crate::case::{Adaptivity, Case};
+use crate::case::{Adaptivity, Case, CaseError};
 use crate::contact::Start;
+use crate::mesh::{self, Postprocess};
 use crate::result::{self, Describe};
 use crate::run::{self, Run, RunError};
 use crate::study::plot;
@@ -91,6 +92,19 @@ pub fn dorfler(indicator: &[f64], theta: f64) -> Vec<bool> {
 /// Runs the adaptive loop on `case` with `settings` and writes everything into the directory
 /// `target`, whole or not at all.
 pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapted, RunError> {
+    // The adapted meshes have no coarser levels (Cholesky solves them) and are estimated: the
+    // largest one allowed must fit, before anything is built.
+    let after = Postprocess {
+        flux: false,
+        estimate: true,
+    };
+    let price = mesh::DIRECT_BYTES_PER_VERTEX.max(after.bytes_per_vertex());
+    mesh::check_memory(settings.max_vertices, price).map_err(|e| {
+        CaseError(format!(
+            "{}: [adapt] max_vertices = {}: {e}",
+            case.origin, settings.max_vertices
+        ))
+    })?;
     let inputs = case.inputs();
     let staging = Staging::new(target, &inputs, "adapt")?;
     let curves = case.curves();

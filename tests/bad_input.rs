@@ -828,6 +828,12 @@ fn adapt_settings_out_of_range() {
         &adapt("", &["--theta=-0.2"]),
         "--theta = -0.2: θ must lie in (0, 1]",
     );
+    // A largest mesh that could not be solved and estimated in the memory there is: refused
+    // before the first solve.
+    contains(
+        &adapt("", &["--max-vertices=1000000000000"]),
+        "[adapt] max_vertices = 1000000000000: 1000000000000 vertices need about",
+    );
     contains(
         &adapt("[adapt]\ntarget = -1.0\n", &[]),
         "key 'adapt.target' = -1: the target estimate must be a positive number",
