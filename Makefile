@@ -1,32 +1,38 @@
 # membrane-contact: `make run` solves the built-in default case, `make test` runs every test
-# (cargo test + make validate). Missing Debian packages are installed on first use.
+# (cargo test + make validate). Missing Debian packages are installed on first use: the solver's
+# own for `make build` and `make run`, the dolfinx reference stack too for the tests.
 
 SHELL := /bin/bash
 PY := /usr/bin/python3
 BIN := target/release/membrane-contact
 # Link Debian's serial libhdf5 (its default pkg-config entry is the OpenMPI build).
 export HDF5_DIR := /usr/lib/x86_64-linux-gnu/hdf5/serial
-DEBIAN_PACKAGES := libhdf5-dev pkg-config python3-dolfinx python3-petsc4py python3-meshio \
-	python3-h5py python3-paraview python3-matplotlib python3-sympy fonts-dejavu-core
+# What the solver needs to build and run (HDF5, and a font for the plots of study and adapt).
+SOLVER_PACKAGES := libhdf5-dev pkg-config fonts-dejavu-core
+# What the tests and the reference need beside it.
+REFERENCE_PACKAGES := python3-dolfinx python3-petsc4py python3-meshio python3-h5py python3-paraview \
+	python3-matplotlib python3-sympy
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 BENCH_SIZES ?= 256 512 1024 disk-6
 # Multigrid only (Cholesky would not fit): 16.8M vertices, about 6 GB.
 BENCH_LARGE ?= 4096
 BENCH_REPEAT ?= 3
 
-.PHONY: all deps build run test cargo-test validate bench bench-reference study fuzz lint mutants expr-property clean
+.PHONY: all deps solver-deps build run test cargo-test validate bench bench-reference study fuzz lint mutants expr-property clean
 
 all: build
 
-deps:
-	@missing=$$(for p in $(DEBIAN_PACKAGES); do \
+deps: PACKAGES = $(SOLVER_PACKAGES) $(REFERENCE_PACKAGES)
+solver-deps: PACKAGES = $(SOLVER_PACKAGES)
+deps solver-deps:
+	@missing=$$(for p in $(PACKAGES); do \
 		dpkg-query -W -f='$${Status}\n' $$p 2>/dev/null | grep -q '^install ok installed' || echo $$p; done); \
 	if [ -n "$$missing" ]; then \
 		echo "installing Debian packages:" $$missing; \
 		$(SUDO) apt-get update && DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y $$missing; \
 	fi
 
-build: deps
+build: solver-deps
 	cargo build --release
 
 run: build
@@ -37,7 +43,7 @@ test: cargo-test validate
 cargo-test: deps
 	cargo test --release
 
-validate: build
+validate: deps build
 	$(PY) -m reference.validate --bin $(BIN) --out validation
 
 bench: deps
@@ -51,7 +57,7 @@ bench: deps
 		cargo bench -q --bench phases -- contact-mg $$n | grep '^contact' ; \
 	done; done; } | tee target/bench.log | $(PY) -m reference.bench_table
 
-bench-reference: build
+bench-reference: deps build
 	$(PY) -m reference.bench_reference --bin $(BIN)
 
 # Convergence studies of the shipped exact cases (tables and plots under study/).
