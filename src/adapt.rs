@@ -97,6 +97,7 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
     let after = Postprocess {
         flux: false,
         estimate: true,
+        hminus1: false,
     };
     let price = mesh::DIRECT_BYTES_PER_VERTEX.max(after.bytes_per_vertex());
     mesh::check_memory(settings.max_vertices, price).map_err(|e| {

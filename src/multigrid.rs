@@ -538,8 +538,9 @@ impl Coarsest {
 }
 
 /// Where CG stops: |r_a| ≤ min(density m_a, backward (σ_a + floor(a))) at every free unknown
-/// a, with m_a = ∫φ_a and σ = |K_FF| |x| + |b| (the backward error only once the density is
-/// met, from that iterate: σ needs an x near the solution).
+/// a, with m_a = ∫φ_a and σ = |K_FF| |x| + |b| of the iterate x (renewed every
+/// [`SIGMA_EVERY`] iterations and whenever the bound seems met), but never below the round-off
+/// [`ROUNDOFF`] σ_a of r_a itself.
 ///
 /// The density bounds r as a load density, in the units of λ_h = r_a/m_a (4.5) (a relative
 /// ‖r‖₂ would leave up to √n times the tolerance at a vertex). The backward tolerance bounds the
@@ -761,7 +762,15 @@ impl Multigrid<'_> {
                 return Ok(iterations);
             }
             let left = max_iterations - iterations;
-            iterations += (self.iterate(r, x, &mut bound, left)).map_err(failed)?;
+            iterations += match self.iterate(r, x, &mut bound, left) {
+                Ok(more) => more,
+                Err(e) => {
+                    return Err(failed(NotConverged {
+                        iterations: iterations + e.iterations,
+                        ..e
+                    }))
+                }
+            };
         }
         let mut r = b;
         self.residual(&mut r, x);
@@ -856,9 +865,11 @@ impl Multigrid<'_> {
         let mut rz = self.cycle::<true>(0, &r, &mut z, &mut kz, self.parallel());
         let (mut p, mut q) = (z.clone(), kz.clone());
         let mut pq = dot(&p, &q);
+        let mut done = max_iterations;
         for iteration in 1..=max_iterations {
             let alpha = rz / pq;
             if !alpha.is_finite() {
+                done = iteration - 1;
                 break;
             }
             let parallel = self.parallel();
@@ -907,7 +918,7 @@ impl Multigrid<'_> {
         for r in &mut r {
             *r *= unscale;
         }
-        Err(self.not_converged(max_iterations, &r, f64::NAN))
+        Err(self.not_converged(done, &r, f64::NAN))
     }
 }
 

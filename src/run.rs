@@ -5,7 +5,7 @@
 use crate::action::{Action, CheckError};
 use crate::atomic::{OutputError, Staging};
 use crate::case::{Case, CaseError};
-use crate::contact::{self, LinearSolver, Solution, SolveError, Start};
+use crate::contact::{self, LinearSolver, Solution, SolveError, SolverOptions, Start};
 use crate::estimator::Estimate;
 use crate::flux::Fluxes;
 use crate::mesh::{DualMesh, Edges, Mesh, Postprocess};
@@ -79,6 +79,7 @@ pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
     let after = Postprocess {
         flux: options.flux,
         estimate: options.estimate,
+        hminus1: options.hminus1 && case.exact.is_some(),
     };
     let (mesh, coarser) = case.hierarchy(multigrid || matches!(options.start, Start::Nested), after)?;
     case.check_on(&mesh)?;
@@ -98,7 +99,11 @@ pub fn on_mesh<'c>(
     let problem =
         DiscreteProblem::new(mesh, &case.data).map_err(|e| CaseError(format!("{}: {e}", case.origin)))?;
     let assembly = clock.lap();
-    let solution = (contact::solve(&problem, options.start, coarser, case.solver))
+    let solver = SolverOptions {
+        linear: case.linear_solver(),
+        ..case.solver
+    };
+    let solution = (contact::solve(&problem, options.start, coarser, solver))
         .map_err(|e| RunError::Solve(case.origin.clone(), e))?;
     clock.lap();
     let action = Action::compute(&problem, &solution);
@@ -182,7 +187,11 @@ impl Run<'_> {
             s.local_iterations,
             s.coarse_iterations,
             if s.linear == LinearSolver::Direct && self.case.solver.linear == LinearSolver::Multigrid {
-                format!("{} (multigrid asked for, but this mesh has no coarser levels)", s.linear_work())
+                let why = match self.case.linear_solver() {
+                    LinearSolver::Direct => "its coarser levels, meshed from a file mesh's boundary, give the guess only",
+                    LinearSolver::Multigrid => "this mesh has no coarser levels",
+                };
+                format!("{} (multigrid asked for, but {why})", s.linear_work())
             } else {
                 s.linear_work()
             },

@@ -151,7 +151,7 @@ fn a_file_mesh_gets_the_coarser_levels_of_its_boundary() {
         inner_radius: Some(0.3),
     };
     let fine = annulus.mesh(0.02).unwrap();
-    let (domain, h) = Domain::of_mesh(&fine);
+    let (domain, h) = Domain::of_mesh(&fine).unwrap();
     let Domain::Polygon { boundary, holes } = &domain else {
         panic!("a polygon")
     };
@@ -161,12 +161,12 @@ fn a_file_mesh_gets_the_coarser_levels_of_its_boundary() {
     assert!((domain.area() - fine.measure()).abs() < 1e-12 * fine.measure());
     assert!((0.015..0.03).contains(&h), "{h}");
     // Coarsened, the rings keep their shape within a fraction of the size.
-    let Some(Domain::Polygon {
+    let Domain::Polygon {
         boundary: coarse,
         holes: coarse_holes,
-    }) = domain.coarsened(0.32)
+    } = domain.coarsened(0.32)
     else {
-        panic!("a simple polygon")
+        panic!("a polygon")
     };
     assert!(
         coarse.len() < boundary.len() / 4 && coarse.len() >= 6,
@@ -181,7 +181,8 @@ fn a_file_mesh_gets_the_coarser_levels_of_its_boundary() {
 
 #[test]
 fn an_unrefined_file_mesh_takes_few_global_iterations() {
-    // A disk of about 34 600 triangles (as the Gmsh disk of the report) written as a result, read back as a file mesh.
+    // A disk of about 34 600 triangles (as the Gmsh disk of the report) written as a result, read
+    // back as a file mesh.
     let dir = tempfile::tempdir().unwrap();
     let disk = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"-10*if(x < 0.2, 1, 0.3)\"\nf2 = 0\ng = 0.05\n\
                 [mesh]\nkind = \"disk\"\nradius = 1.0\nh = 0.018\n";
@@ -206,7 +207,9 @@ fn an_unrefined_file_mesh_takes_few_global_iterations() {
     let r = solve(&file);
     let s = &r.solution.obstacle.stats;
     assert!(s.iterations <= 4, "{} global iterations", s.iterations);
-    assert_eq!(s.linear, membrane_contact::contact::LinearSolver::Multigrid);
+    // Cholesky solves it: the levels, not nested in it, give the guess.
+    assert_eq!(s.linear, membrane_contact::contact::LinearSolver::Direct);
+    assert_eq!(s.coarse_iterations.len(), coarser.len());
     // The same solution as from the disk's own hierarchy, to the solvers' tolerance.
     let own = solve(&case);
     let diff = (r.solution.u1.iter().zip(&own.solution.u1)).fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
@@ -298,4 +301,69 @@ fn the_memory_guard_of_domains_runs_before_any_allocation() {
         assert!(e.contains("of memory"), "{e}");
         assert!(clock.elapsed().as_secs_f64() < 1.0, "{:?}", clock.elapsed());
     }
+}
+
+#[test]
+fn a_file_mesh_whose_boundary_touches_itself_has_no_domain() {
+    // A grid with two cells cut out that meet at a corner: its boundary passes twice through that
+    // vertex (two rings could be read from it in either order).
+    let n = 8;
+    let index = |i: usize, j: usize| j * (n + 1) + i;
+    let points = (0..=n)
+        .flat_map(|j| (0..=n).map(move |i| [i as f64, j as f64]))
+        .collect();
+    let mut triangles = Vec::new();
+    for j in 0..n {
+        for i in 0..n {
+            if (i, j) == (3, 3) || (i, j) == (4, 4) {
+                continue;
+            }
+            let (a, b, c, d) = (index(i, j), index(i + 1, j), index(i + 1, j + 1), index(i, j + 1));
+            triangles.extend([[a, b, c], [a, c, d]]);
+        }
+    }
+    let mesh = Mesh::new(points, triangles).unwrap();
+    assert!(Domain::of_mesh(&mesh).is_none());
+}
+
+#[test]
+fn a_hole_the_simplification_would_cut_keeps_the_coarser_levels() {
+    // A boundary bump narrower than the tolerance beside a hole that reaches into it: simplified,
+    // the hole would cross the boundary, so the level is meshed from the polygon as it is.
+    let boundary = [
+        [0.0, 0.0],
+        [2.0, 0.0],
+        [2.0, 1.0],
+        [1.2, 1.0],
+        [1.2, 1.0009],
+        [0.8, 1.0009],
+        [0.8, 1.0],
+        [0.0, 1.0],
+    ];
+    let hole = vec![[0.9, 0.99], [1.1, 0.99], [1.1, 1.0005], [0.9, 1.0005]];
+    let case = polygon_case(&boundary, &[hole], 0.02);
+    let (mesh, coarser) = case.hierarchy(true, Default::default()).unwrap();
+    assert!(coarser.len() >= 2, "{} coarser levels", coarser.len());
+    assert_halving(&mesh, &coarser);
+}
+
+#[test]
+fn given_vertices_stay_as_given_and_refined_circles_stay_round_far_out() {
+    // A polygon whose coordinates span more than a factor 2: meshed without moving it.
+    let corners = [[0.12, 0.12], [1.2, 0.12], [1.2, 1.3], [0.12, 1.3]];
+    let (mesh, _) = polygon_case(&corners, &[], 0.1)
+        .hierarchy(false, Default::default())
+        .unwrap();
+    assert!(corners.iter().all(|c| mesh.points.contains(c)), "corners moved");
+    // A disk at (1e7, 1e7), refined twice: new boundary vertices go onto the circle (its points
+    // are rounded there by about 2e-9, more than the 1e-9 r tolerance of a point on it).
+    let text = "mu1 = 1.0\nmu2 = 1.0\nf1 = -1\nf2 = 0\ng = 0\n[mesh]\nkind = \"disk\"\n\
+                centre = [1e7, 1e7]\nradius = 1.0\nh = 0.05\nrefine = 2\n";
+    let case = Case::parse(text, "far disk", PathBuf::new()).unwrap();
+    let mesh = case.mesh().unwrap();
+    let off = (0..mesh.n_vertices())
+        .filter(|&a| mesh.on_boundary[a])
+        .map(|a| ((mesh.points[a][0] - 1e7).hypot(mesh.points[a][1] - 1e7) - 1.0).abs())
+        .fold(0.0_f64, f64::max);
+    assert!(off < 1e-8, "{off:e}");
 }

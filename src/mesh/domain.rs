@@ -4,7 +4,6 @@
 
 use super::{boundary_is_simple, builtin::compact, orient, Mesh, MeshError};
 use spade::{AngleLimit, ConstrainedDelaunayTriangulation, Point2, RefinementParameters, Triangulation};
-use std::collections::HashMap;
 use std::f64::consts::PI;
 
 /// A domain ω given by its boundary.
@@ -40,6 +39,9 @@ const EQUILATERAL: f64 = 0.433_012_701_892_219_3;
 /// Vertices per area/h² of the meshes built here, from above (measured: 1.79–1.83 on disks and
 /// polygons from 7k to 3.6M vertices, `examples/mesh_timing.rs`): the memory guard's estimate.
 const VERTICES_PER_AREA: f64 = 2.0;
+
+/// The same, as measured.
+const VERTICES_MEASURED: f64 = 1.8;
 
 impl Domain {
     /// Checks the geometry; errors name the key: at least three vertices per ring, finite
@@ -183,28 +185,29 @@ impl Domain {
     }
 
     /// The domain of a triangulation, a polygon with holes (its rings of boundary edges, the one
-    /// of the largest area the outer boundary), and the size h that [`Domain::mesh`] would give
-    /// about as many triangles: the side of the equilateral triangle of their mean area.
-    pub fn of_mesh(mesh: &Mesh) -> (Domain, f64) {
-        // The boundary edges, directed as their counter-clockwise triangles traverse them: each
-        // boundary vertex starts one (the boundary of a valid mesh is simple).
-        let mut count: HashMap<(u32, u32), (u32, u32)> = HashMap::new();
+    /// of the largest area the outer boundary), and the size h at which [`Domain::mesh`] gives
+    /// about as many vertices ([`VERTICES_MEASURED`] per area/h²). None where the boundary
+    /// touches itself at a vertex (two rings through it: no polygon with holes).
+    pub fn of_mesh(mesh: &Mesh) -> Option<(Domain, f64)> {
+        // The boundary edges, directed as their counter-clockwise triangles traverse them.
+        let mut edges: Vec<(usize, usize)> = Vec::new();
         for t in mesh.triangles() {
             for k in 0..3 {
                 let (a, b) = (t[k], t[(k + 1) % 3]);
                 if mesh.on_boundary[a] && mesh.on_boundary[b] {
-                    let key = (a.min(b) as u32, a.max(b) as u32);
-                    count.entry(key).or_insert((0, 0)).0 += 1;
-                    count.get_mut(&key).expect("inserted").1 = a as u32;
+                    edges.push((a, b));
                 }
             }
         }
+        // An edge traversed once: (a, b) without (b, a).
+        edges.sort_unstable();
+        let has = |e: (usize, usize)| edges.binary_search(&e).is_ok();
         let mut next = vec![usize::MAX; mesh.n_vertices()];
-        for (&(a, b), &(uses, from)) in &count {
-            if uses == 1 {
-                let to = if from == a { b } else { a };
-                next[from as usize] = to as usize;
+        for &(a, b) in edges.iter().filter(|&&(a, b)| !has((b, a))) {
+            if next[a] != usize::MAX {
+                return None;
             }
+            next[a] = b;
         }
         let mut rings: Vec<Vec<[f64; 2]>> = Vec::new();
         let mut seen = vec![false; mesh.n_vertices()];
@@ -221,24 +224,26 @@ impl Domain {
             }
         }
         let outer = (0..rings.len())
-            .max_by(|&i, &j| ring_area(&rings[i]).abs().total_cmp(&ring_area(&rings[j]).abs()))
-            .expect("a mesh has a boundary");
+            .max_by(|&i, &j| ring_area(&rings[i]).abs().total_cmp(&ring_area(&rings[j]).abs()))?;
         let boundary = rings.swap_remove(outer);
-        let mean_area = mesh.measure() / mesh.n_triangles() as f64;
-        let domain = Domain::Polygon {
-            boundary,
-            holes: rings,
-        };
-        (domain, (mean_area / EQUILATERAL).sqrt())
+        let h = (VERTICES_MEASURED * mesh.measure() / mesh.n_vertices() as f64).sqrt();
+        Some((
+            Domain::Polygon {
+                boundary,
+                holes: rings,
+            },
+            h,
+        ))
     }
 
     /// The domain as the coarser levels of multigrid and nested iteration see it at mesh size
     /// `size`: a polygon's rings simplified to within size/8 (Douglas–Peucker: boundary features
     /// below a coarse cell do not hold its vertices), holes that vanish dropped; a disk as it is.
-    /// None when the simplified polygon is not simple.
-    pub fn coarsened(&self, size: f64) -> Option<Domain> {
+    /// Where the simplified polygon is not simple (a hole near a narrow boundary feature), the
+    /// polygon as it is.
+    pub fn coarsened(&self, size: f64) -> Domain {
         let Domain::Polygon { boundary, holes } = self else {
-            return Some(self.clone());
+            return self.clone();
         };
         let tolerance = size / 8.0;
         let boundary = simplified(boundary, tolerance);
@@ -247,7 +252,10 @@ impl Domain {
             .filter(|h| h.len() >= 3)
             .collect();
         let coarse = Domain::Polygon { boundary, holes };
-        coarse.check().ok().map(|()| coarse)
+        match coarse.check() {
+            Ok(()) => coarse,
+            Err(_) => self.clone(),
+        }
     }
 
     /// The mesh of size h: boundary vertices at most h apart (kept as they are), triangles of area
@@ -255,14 +263,26 @@ impl Domain {
     /// boundary allows (spade's Delaunay refinement). The domain must have passed [`Domain::check`].
     pub fn mesh(&self, h: f64) -> Result<Mesh, MeshError> {
         // The mesh is made relative to a point of the domain (a disk's centre, a polygon's first
-        // vertex) in units of a power of two near its extent, so that it is the same wherever
-        // the domain lies and whatever its size (the given vertices move exactly, Sterbenz, and
-        // scale exactly) and spade's predicates see numbers near 1.
+        // vertex where that moves every vertex exactly, Sterbenz) in units of a power of two
+        // near its extent, so that it is the same wherever the domain lies and whatever its size,
+        // and spade's predicates see numbers near 1.
         let (origin, extent) = match self {
             Domain::Disk { centre, radius, .. } => (*centre, *radius),
-            Domain::Polygon { boundary, .. } => {
-                let o = boundary[0];
-                let far = (boundary.iter()).fold(0.0_f64, |m, p| {
+            Domain::Polygon { boundary, holes } => {
+                let points = || std::iter::once(boundary).chain(holes).flatten();
+                // Per axis, the first vertex's coordinate where every other is within a factor
+                // 2 of it (then each difference is exact), else 0: the vertices stay as given.
+                let o = [0, 1].map(|k| {
+                    let c = boundary[0][k];
+                    let (lo, hi) = (c.abs() / 2.0, c.abs() * 2.0);
+                    let near = |x: f64| x.signum() == c.signum() && (lo..=hi).contains(&x.abs());
+                    if c != 0.0 && points().all(|p| near(p[k])) {
+                        c
+                    } else {
+                        0.0
+                    }
+                });
+                let far = points().fold(0.0_f64, |m, p| {
                     m.max((p[0] - o[0]).abs()).max((p[1] - o[1]).abs())
                 });
                 (o, far)
@@ -324,7 +344,11 @@ impl Curves {
     /// p and q lie on, if any — so that refined meshes converge to the curved domain.
     pub fn boundary_midpoint(&self, p: [f64; 2], q: [f64; 2]) -> [f64; 2] {
         let m = [0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])];
-        let on = |x: [f64; 2], c: [f64; 2], r: f64| ((x[0] - c[0]).hypot(x[1] - c[1]) - r).abs() <= 1e-9 * r;
+        // Within 1e-9 r, or the round-off of coordinates as large as |c| + r.
+        let on = |x: [f64; 2], c: [f64; 2], r: f64| {
+            let roundoff = 8.0 * f64::EPSILON * (c[0].abs().max(c[1].abs()) + r);
+            ((x[0] - c[0]).hypot(x[1] - c[1]) - r).abs() <= (1e-9 * r).max(roundoff)
+        };
         match self.circles.iter().find(|&&(c, r)| on(p, c, r) && on(q, c, r)) {
             Some(&(c, r)) => {
                 let d = (m[0] - c[0]).hypot(m[1] - c[1]);
