@@ -321,7 +321,7 @@ pub fn solve(
         let load = |a: usize| problem.load1[a] + problem.load2[a];
         let rhs = system.lifted_rhs(&problem.stiffness, load, mu1 + mu2, bc);
         let mut stats = SolverStats::default();
-        let multigrid = hierarchy.as_ref().map(|h| (h, FINAL_STOP, Some(&v_free)));
+        let multigrid = hierarchy.as_ref().map(|h| (h, RESULT_STOP, Some(&v_free)));
         let loads = Loads {
             density: 0.0,
             problem,
@@ -600,6 +600,16 @@ fn obstacle(
             continue;
         }
         if same_set || proposal {
+            // The confirmed set's w to the backward error of the checks (not counted as a step).
+            let step = if proposal || !solver.refines() {
+                step
+            } else {
+                solver.loosen(RESULT_STOP);
+                let _turn = turn.map(take_turn);
+                let result = w_problem.step(system, &mut solver, &rhs, &problem.g_h, &mut stats)?;
+                solver.tighten();
+                result
+            };
             stats.analyses = solver.analyses();
             let nv = problem.mesh.n_vertices();
             let (mut lambda, mut contact) = (vec![0.0; nv], vec![false; nv]);
@@ -927,6 +937,11 @@ impl<'s> Inner<'s> {
         }
     }
 
+    /// Whether another solve with the same operators can refine the last one (CG from its x).
+    fn refines(&self) -> bool {
+        matches!(self, Inner::Multigrid { .. })
+    }
+
     /// Back to its own stop; whether the solves stopped elsewhere.
     fn tighten(&mut self) -> bool {
         match self {
@@ -1015,6 +1030,9 @@ enum Stop {
     /// of K x (like a Cholesky solve's). Next to ∂ω with g ≠ 0, b holds the lift of g, about g/h²:
     /// an error of λ_h growing as h⁻² relative to the loads, but so does its round-off.
     Residual(f64),
+    /// As [`Stop::Residual`], and to a componentwise backward error of [`RESULT_BACKWARD`]: the
+    /// solves whose result is returned.
+    Result(f64),
     /// Times the density of the loads ([`load_density`]; the right-hand side's when they vanish):
     /// the same accuracy of λ_h relative to the loads on every mesh, which is what the active
     /// set a solve proposes depends on.
@@ -1022,8 +1040,8 @@ enum Stop {
 }
 
 impl Stop {
-    /// CG's tolerance for loads of density `loads` and a right-hand side of density `rhs()`.
-    /// Results are also solved to a componentwise backward error of [`RESULT_BACKWARD`].
+    /// CG's tolerance for loads of density `loads` and a right-hand side of density `rhs()`, with
+    /// the sizes of the loads at each vertex `floor` for a result's backward error.
     fn tolerance<'f>(
         self,
         loads: f64,
@@ -1041,6 +1059,10 @@ impl Stop {
             },
             Stop::Residual(tolerance) => Tolerance {
                 density: tolerance * rhs(),
+                backward: None,
+            },
+            Stop::Result(tolerance) => Tolerance {
+                density: tolerance * rhs(),
                 backward: Some((RESULT_BACKWARD, floor)),
             },
         }
@@ -1055,9 +1077,13 @@ impl Stop {
 /// rest.
 const RESULT_BACKWARD: f64 = crate::action::TOLERANCE / 8.0;
 
-/// The solves whose result is returned: to the round-off of K x, as the direct solve (how closely
-/// the two agree, and why λ_h's agreement widens on fine meshes with g ≠ 0: README).
+/// The steps that confirm an active set on the final mesh: to the round-off of K x, as the direct
+/// solve (how closely the two agree, and why λ_h's agreement widens on fine meshes with g ≠ 0:
+/// README).
 const FINAL_STOP: Stop = Stop::Residual(1e-13);
+/// The solves whose result is returned (v's, and w's once its set is confirmed, from the last
+/// step's w with the same operators): also to the backward error of the checks.
+const RESULT_STOP: Stop = Stop::Result(1e-13);
 /// The coarser levels of nested iteration and the first step from their guess only propose an
 /// active set: λ_h to this part of the loads, far below its discretisation error on those meshes.
 const GUESS_STOP: Stop = Stop::Loads(1e-4);
@@ -1381,7 +1407,7 @@ mod tests {
         let mut iterations = Vec::new();
         for (stop, loads) in [
             (Stop::Loads(1e-6), loads),
-            (Stop::Residual(1e-6), loads),
+            (Stop::Result(1e-6), loads),
             (Stop::Loads(1e-6), 0.0),
         ] {
             let loads = Loads {
@@ -1403,7 +1429,7 @@ mod tests {
             });
             let target = match stop {
                 Stop::Loads(t) if loads.density > 0.0 => t * loads.density,
-                Stop::Residual(t) | Stop::Loads(t) => t * lifted,
+                Stop::Residual(t) | Stop::Result(t) | Stop::Loads(t) => t * lifted,
             };
             assert!(residual <= 1.001 * target, "{stop:?}: {residual:e} > {target:e}");
             iterations.push(stats.cg_iterations[0]);
