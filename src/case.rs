@@ -599,10 +599,10 @@ impl Case {
     }
 
     /// Below a disk or polygon meshed with size h, or a file mesh: the domain (a file mesh's,
-    /// [`Domain::of_mesh`]) meshed with 2h, 4h, …, coarsened to each size ([`Domain::coarsened`]), while each
-    /// level has at most half the vertices of the one above, at least [`COARSEST_VERTICES`] and
-    /// boundary data that (3.4) accepts: at most log₂ of `given`'s vertices levels, whatever the
-    /// domain. They are not nested in it, which neither a guess nor multigrid needs (transfers
+    /// [`Domain::of_mesh`]) meshed with 2h, 4h, …, coarsened to each size
+    /// ([`Domain::coarsened`]), while each level has at most half the vertices of the one above,
+    /// at least [`COARSEST_VERTICES`] and boundary data that (3.4) accepts: at most log₂ of
+    /// `given`'s vertices levels, whatever the domain. They are not nested in it, which neither a guess nor multigrid needs (transfers
     /// locate each vertex; restricted loads are approximate).
     fn coarser_generated(&self, given: &Mesh) -> Vec<Mesh> {
         let (domain, h) = match &self.mesh {

@@ -539,8 +539,8 @@ impl Coarsest {
 
 /// Where CG stops: |r_a| ≤ min(density m_a, backward (σ_a + floor(a))) at every free unknown
 /// a, with m_a = ∫φ_a and σ = |K_FF| |x| + |b| of the iterate x (renewed every
-/// [`SIGMA_EVERY`] iterations and whenever the bound seems met), but never below the round-off
-/// [`ROUNDOFF`] σ_a of r_a itself.
+/// 4 iterations and whenever the bound seems met), but never below the round-off
+/// 16 ε σ_a of r_a itself.
 ///
 /// The density bounds r as a load density, in the units of λ_h = r_a/m_a (4.5) (a relative
 /// ‖r‖₂ would leave up to √n times the tolerance at a vertex). The backward tolerance bounds the
@@ -719,9 +719,9 @@ impl Multigrid<'_> {
     /// Solves K_FF x = b (b taken) on the free unknowns by CG preconditioned by the V-cycle, from
     /// the guess `x` (its held entries are set to 0), until the residual r = b − K_FF x meets
     /// `tolerance` at every free unknown (see [`Tolerance`]). With a backward tolerance the
-    /// residual is recomputed from b once the density is met, and CG goes on from x while that
-    /// true residual misses the backward error, at most [`RESTARTS`] times. With a density of 0, x = 0 when b = 0 on
-    /// the free unknowns. Returns the iterations.
+    /// residual is recomputed from b before CG and whenever CG's recursive one meets the bound,
+    /// and CG goes on from x while that true residual misses it, at most 4 times. With
+    /// a density of 0, x = 0 when b = 0 on the free unknowns. Returns the iterations.
     pub fn solve_to(
         &mut self,
         b: Vec<f64>,
@@ -834,8 +834,8 @@ impl Multigrid<'_> {
     }
 
     /// CG iterations from x with its residual r until |r_a| ≤ bound(a) at every free unknown, r
-    /// the recursively updated residual, the bound's σ from the x that meets it. CG works on r scaled by a power of two that
-    /// brings its largest entry near 1, so that no product of two residual-sized numbers
+    /// the recursively updated residual, the bound's σ from the x that meets it. CG works on r
+    /// scaled by a power of two that brings its largest entry near 1, so that no product of two residual-sized numbers
     /// overflows or underflows whatever the units of the data (the scaling is exact: the iterates
     /// are those of CG on r itself). Returns the iterations.
     ///

@@ -100,7 +100,7 @@ impl Domain {
     }
 
     /// Whether coordinates of this domain resolve the mesh size h: h must span at least
-    /// [`RESOLUTION`] units in the last place of the largest coordinate, or the mesh's vertices
+    /// 65 536 units in the last place of the largest coordinate, or the mesh's vertices
     /// (rounded to what f64 can hold there) would be too coarse a lattice for its triangles.
     pub fn check_size(&self, h: f64) -> Result<(), String> {
         let largest = match self {
@@ -186,7 +186,7 @@ impl Domain {
 
     /// The domain of a triangulation, a polygon with holes (its rings of boundary edges, the one
     /// of the largest area the outer boundary), and the size h at which [`Domain::mesh`] gives
-    /// about as many vertices ([`VERTICES_MEASURED`] per area/h²). None where the boundary
+    /// about as many vertices (1.8 per area/h², as measured). None where the boundary
     /// touches itself at a vertex (two rings through it: no polygon with holes).
     pub fn of_mesh(mesh: &Mesh) -> Option<(Domain, f64)> {
         // The boundary edges, directed as their counter-clockwise triangles traverse them.
