@@ -66,6 +66,7 @@ pub mod mesh;
 pub mod multigrid;
 pub mod norms;
 pub mod pages;
+pub mod parallel;
 pub mod problem;
 mod quadrature_tables;
 pub mod result;

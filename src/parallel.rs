@@ -1,0 +1,144 @@
+//! Data parallelism on rayon's thread pool, with results that do not depend on the number of
+//! threads: the work is cut into pieces fixed by the size of the data, never by the thread
+//! count, and a reduction combines the pieces' partial results in their order. So every number
+//! the program computes is the same bit for bit on 1 thread or 64; only the time changes.
+//!
+//! The pool is rayon's global one: as many threads as the machine has cores, or
+//! `RAYON_NUM_THREADS`, or what [`use_threads`] sets (the `--threads` option).
+
+use rayon::prelude::*;
+use std::ops::Range;
+
+/// Items per piece of the loops over vertices, rows or cells: large enough that a piece costs
+/// far more than handing it to a thread (a few microseconds of work), small enough that a mesh
+/// of 10⁵ vertices gives every core of a large machine some.
+pub const PIECE: usize = 1 << 12;
+
+/// The pieces of 0..n of `size` items each (the last one shorter).
+fn pieces(n: usize, size: usize) -> impl IndexedParallelIterator<Item = Range<usize>> {
+    let size = size.max(1);
+    (0..n.div_ceil(size))
+        .into_par_iter()
+        .map(move |k| k * size..((k + 1) * size).min(n))
+}
+
+/// `part` of each piece of 0..n (of `size` items), in parallel; the results in the pieces' order.
+/// One piece runs on the calling thread.
+pub fn map<T: Send>(n: usize, size: usize, part: impl Fn(Range<usize>) -> T + Sync + Send) -> Vec<T> {
+    if n <= size {
+        return vec![part(0..n)];
+    }
+    pieces(n, size).map(part).collect()
+}
+
+/// Σ `part`(piece) over the pieces of 0..n (of `size` items), added in the pieces' order.
+pub fn sum(n: usize, size: usize, part: impl Fn(Range<usize>) -> f64 + Sync + Send) -> f64 {
+    map(n, size, part).into_iter().sum()
+}
+
+/// `part`(first index, chunk) on the chunks of `x` of `size` items, in parallel; the results in
+/// the chunks' order.
+pub fn map_mut<T: Send, R: Send>(
+    x: &mut [T],
+    size: usize,
+    part: impl Fn(usize, &mut [T]) -> R + Sync + Send,
+) -> Vec<R> {
+    let size = size.max(1);
+    if x.len() <= size {
+        return vec![part(0, x)];
+    }
+    (x.par_chunks_mut(size).enumerate())
+        .map(|(k, chunk)| part(k * size, chunk))
+        .collect()
+}
+
+/// `part`(first index, chunk of x, chunk of y) on the chunks of `size` items of two slices of
+/// one length, in parallel; the results in the chunks' order.
+pub fn map_mut2<T: Send, U: Send, R: Send>(
+    x: &mut [T],
+    y: &mut [U],
+    size: usize,
+    part: impl Fn(usize, &mut [T], &mut [U]) -> R + Sync + Send,
+) -> Vec<R> {
+    assert_eq!(x.len(), y.len(), "two slices of one length");
+    let size = size.max(1);
+    if x.len() <= size {
+        return vec![part(0, x, y)];
+    }
+    (x.par_chunks_mut(size).zip(y.par_chunks_mut(size)).enumerate())
+        .map(|(k, (x, y))| part(k * size, x, y))
+        .collect()
+}
+
+/// The entries `value(i)` for i in 0..n, computed in parallel.
+pub fn collect<T: Send + Default + Clone>(n: usize, value: impl Fn(usize) -> T + Sync + Send) -> Vec<T> {
+    let mut out = vec![T::default(); n];
+    map_mut(&mut out, PIECE, |base, chunk| {
+        for (k, out) in chunk.iter_mut().enumerate() {
+            *out = value(base + k);
+        }
+    });
+    out
+}
+
+/// `a` and `b` side by side when a thread is free (rayon's `join`).
+pub fn join<A: Send, B: Send>(a: impl FnOnce() -> A + Send, b: impl FnOnce() -> B + Send) -> (A, B) {
+    rayon::join(a, b)
+}
+
+/// Sets the number of threads of the pool, before its first use (the `--threads` option);
+/// without it, rayon's default: `RAYON_NUM_THREADS`, or else one per core.
+pub fn use_threads(threads: usize) -> Result<(), String> {
+    (rayon::ThreadPoolBuilder::new().num_threads(threads).build_global())
+        .map_err(|e| format!("--threads {threads}: {e}"))
+}
+
+/// The number of threads the pool has.
+pub fn threads() -> usize {
+    rayon::current_num_threads()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn on_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        pool.install(f)
+    }
+
+    #[test]
+    fn sums_are_the_same_on_any_number_of_threads() {
+        // Terms of many magnitudes, so that another order of addition gives another sum.
+        let terms: Vec<f64> = (0..100_003).map(|i| ((i * 7919) % 1000) as f64 * 10f64.powi((i % 31) as i32 - 15)).collect();
+        let total = |threads| on_threads(threads, || sum(terms.len(), 1000, |r| terms[r].iter().sum()));
+        let one = total(1);
+        for threads in [2, 3, 8] {
+            assert_eq!(total(threads).to_bits(), one.to_bits());
+        }
+        // The pieces' partial sums in order, not a sum in one pass.
+        let by_pieces: f64 = terms.chunks(1000).map(|c| c.iter().sum::<f64>()).sum();
+        assert_eq!(one.to_bits(), by_pieces.to_bits());
+    }
+
+    #[test]
+    fn pieces_cover_the_items_once_in_order() {
+        for n in [0, 1, 999, 1000, 1001, 5432] {
+            let parts = map(n, 1000, |r| r);
+            let flat: Vec<usize> = parts.into_iter().flatten().collect();
+            assert_eq!(flat, (0..n).collect::<Vec<_>>());
+        }
+        let mut x = vec![0usize; 2500];
+        let mut y = vec![0usize; 2500];
+        let firsts = map_mut2(&mut x, &mut y, 1000, |base, x, y| {
+            for (k, (x, y)) in x.iter_mut().zip(y).enumerate() {
+                *x = base + k;
+                *y = 2 * (base + k);
+            }
+            base
+        });
+        assert_eq!(firsts, [0, 1000, 2000]);
+        assert!(x.iter().enumerate().all(|(i, &v)| v == i) && y.iter().enumerate().all(|(i, &v)| v == 2 * i));
+        assert_eq!(collect(5000, |i| i * i)[4321], 4321 * 4321);
+    }
+}
