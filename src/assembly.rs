@@ -4,7 +4,7 @@
 use crate::expr::Expr;
 use crate::mesh::{Mesh, Stars};
 use crate::quadrature_tables::TRIANGLE_RULES;
-use crate::sparse::{part_room, Csr, NEGLIGIBLE};
+use crate::sparse::{Csr, NEGLIGIBLE};
 
 /// K_ab = ∫∇φ_b·∇φ_a on all vertices (no boundary condition applied): symmetric, by rows, with
 /// the couplings that vanish left out — on right-angled triangles the two vertices facing the
@@ -21,11 +21,10 @@ impl Stiffness {
     pub fn assemble(mesh: &Mesh) -> Self {
         let n = mesh.n_vertices();
         let stars = Stars::new(mesh);
-        // Row by row from the triangles around each vertex, the two halves of the rows on two
-        // threads (a triangle's local matrix is computed for each of its three rows, so the
-        // threads share nothing); each entry summed in the order of the triangles.
-        let halves = in_two_halves(n, |rows| {
-            let (mut ends, mut col, mut val) = part_room(&rows, n, 7);
+        // Row by row from the triangles around each vertex, in parallel (a triangle's local
+        // matrix is computed for each of its three rows, so the rows share nothing); each entry
+        // summed in the order of the triangles.
+        let matrix = Csr::by_rows(n, n, 7, |rows, (ends, col, val)| {
             let mut entries: Vec<(u32, f64)> = Vec::new();
             for a in rows {
                 entries.clear();
@@ -52,10 +51,9 @@ impl Stiffness {
                 val.truncate(kept);
                 ends.push(col.len() as u32);
             }
-            (ends, col, val)
         });
         Stiffness {
-            matrix: Csr::joined(halves, n).with_diagonal(),
+            matrix: matrix.with_diagonal(),
         }
     }
 
@@ -219,35 +217,9 @@ pub struct NotFinite {
     pub value: f64,
 }
 
-/// Below this many items the two halves of [`in_two_halves`] run on one thread: a thread costs
-/// more than the work.
-pub(crate) const SMALL: usize = 1 << 14;
-
-/// `part` of 0..n over its two halves, the first on a second thread when n is at least 2¹⁴:
-/// always two, so that sums do not depend on the machine.
-pub fn in_two_halves<T: Send>(n: usize, part: impl Fn(std::ops::Range<usize>) -> T + Sync) -> [T; 2] {
-    let (first, second) = both(n >= SMALL, || part(0..n / 2), || part(n / 2..n));
-    [first, second]
-}
-
-/// `first` and `second`, on two threads when `parallel`.
-pub fn both<A: Send, B: Send>(
-    parallel: bool,
-    first: impl FnOnce() -> A + Send,
-    second: impl FnOnce() -> B + Send,
-) -> (A, B) {
-    if parallel {
-        std::thread::scope(|s| {
-            let first = s.spawn(first);
-            let second = second();
-            (first.join().expect("a worker thread does not panic"), second)
-        })
-    } else {
-        (first(), second())
-    }
-}
-
-/// The load vector F_a = (f, φ_a) over all vertices, by the quadrature rule, on two threads.
+/// The load vector F_a = (f, φ_a) over all vertices, by the quadrature rule: each triangle's
+/// three contributions in parallel, then each vertex's sum over the triangles around it, in
+/// their order.
 pub fn load(mesh: &Mesh, f: &Expr, quad: Quadrature) -> Result<Vec<f64>, NotFinite> {
     if let Some(c) = f.constant() {
         if !c.is_finite() {
@@ -259,34 +231,40 @@ pub fn load(mesh: &Mesh, f: &Expr, quad: Quadrature) -> Result<Vec<f64>, NotFini
         // Exact for constants: (c, φ_a) = c m_a.
         return Ok(lumped_mass(mesh).into_iter().map(|m| c * m).collect());
     }
-    let [first, second] = in_two_halves(mesh.n_triangles(), |range| load_part(mesh, f, quad, range));
-    let mut out = first?;
-    for (o, s) in out.iter_mut().zip(second?) {
-        *o += s;
+    let parts = crate::parallel::map(mesh.n_triangles(), crate::parallel::PIECE, |range| {
+        load_part(mesh, f, quad, range)
+    });
+    let mut local = Vec::with_capacity(mesh.n_triangles());
+    for part in parts {
+        local.extend(part?);
     }
-    Ok(out)
+    let stars = Stars::new(mesh);
+    Ok(crate::parallel::collect(mesh.n_vertices(), |a| {
+        stars.around(a).map(|(t, k): (usize, usize)| local[t][k]).sum()
+    }))
 }
 
+/// The contributions (f, φ_k)_T of the `triangles` T to their corners k.
 fn load_part(
     mesh: &Mesh,
     f: &Expr,
     quad: Quadrature,
     triangles: std::ops::Range<usize>,
-) -> Result<Vec<f64>, NotFinite> {
-    let mut out = vec![0.0; mesh.n_vertices()];
+) -> Result<Vec<[f64; 3]>, NotFinite> {
+    let first = triangles.start;
+    let mut out = vec![[0.0; 3]; triangles.len()];
     let mut bad = None;
     quad.visit(
         |t| mesh.corners(t),
         triangles,
         [f],
         |t, points, [values]| {
-            let tri = mesh.triangle(t);
             for (p, &v) in points.iter().zip(values) {
                 if !v.is_finite() && bad.is_none() {
                     bad = Some(NotFinite { point: p.x, value: v });
                 }
-                for k in 0..3 {
-                    out[tri[k]] += p.weight * v * p.barycentric[k];
+                for (out, b) in out[t - first].iter_mut().zip(p.barycentric) {
+                    *out += p.weight * v * b;
                 }
             }
         },

@@ -57,6 +57,7 @@ pub mod adapt;
 pub mod assembly;
 pub mod atomic;
 pub mod case;
+pub mod cg;
 pub mod contact;
 pub mod estimator;
 pub mod expr;

@@ -24,10 +24,34 @@ use faer::{Conj, MatMut, Par, Side};
 pub struct InteriorSystem {
     /// The vertex of each unknown, increasing.
     pub(crate) vertices: Vec<usize>,
-    /// Unknown of each vertex (`usize::MAX` where the value is fixed).
-    pub(crate) unknown: Vec<usize>,
+    /// The unknown of each vertex ([`Unknown::HELD`] where the value is fixed).
+    pub(crate) unknown: Vec<Unknown>,
     /// K_II and its analysis; `None` for the numbering alone ([`InteriorSystem::numbering`]).
     direct: Option<Direct>,
+}
+
+/// The number of an unknown, or [`Unknown::HELD`]: a vertex whose value is not an unknown (on ∂ω,
+/// or off a band of vertices).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Unknown(u32);
+
+impl Unknown {
+    /// Not an unknown.
+    pub const HELD: Unknown = Unknown(u32::MAX);
+
+    /// Unknown number i.
+    pub fn new(i: usize) -> Self {
+        match u32::try_from(i) {
+            Ok(i) if i != u32::MAX => Unknown(i),
+            _ => panic!("unknown {i} exceeds 2³² − 1 (the memory guard stops such meshes)"),
+        }
+    }
+
+    /// Its number, `None` when held.
+    #[inline]
+    pub fn index(self) -> Option<usize> {
+        (self != Self::HELD).then_some(self.0 as usize)
+    }
 }
 
 /// K_II (lower triangle, CSC) and its symbolic Cholesky analysis.
@@ -51,12 +75,12 @@ impl InteriorSystem {
     }
 
     /// The unknowns `vertices` (increasing) of K, every other vertex fixed, with K_II and its
-    /// analysis; numbered in `unknown`, one entry per vertex, all `usize::MAX` on entry: room that
+    /// analysis; numbered in `unknown`, one entry per vertex, all [`Unknown::HELD`] on entry: room that
     /// the caller keeps for the next such system ([`InteriorSystem::into_scratch`]), so that
     /// making one costs O(unknowns), not O(vertices).
-    pub fn on_vertices(k: &Stiffness, vertices: Vec<usize>, mut unknown: Vec<usize>) -> Self {
+    pub fn on_vertices(k: &Stiffness, vertices: Vec<usize>, mut unknown: Vec<Unknown>) -> Self {
         for (i, &a) in vertices.iter().enumerate() {
-            unknown[a] = i;
+            unknown[a] = Unknown::new(i);
         }
         let direct = Some(Direct::new(k, &vertices, &unknown));
         InteriorSystem {
@@ -66,11 +90,11 @@ impl InteriorSystem {
         }
     }
 
-    /// The room of the numbering, all `usize::MAX` again.
-    pub fn into_scratch(self) -> Vec<usize> {
+    /// The room of the numbering, all [`Unknown::HELD`] again.
+    pub fn into_scratch(self) -> Vec<Unknown> {
         let mut unknown = self.unknown;
         for &a in &self.vertices {
-            unknown[a] = usize::MAX;
+            unknown[a] = Unknown::HELD;
         }
         unknown
     }
@@ -78,11 +102,11 @@ impl InteriorSystem {
     /// The interior unknowns alone, without K_II and its analysis (for iterative solvers:
     /// [`Factorization`]s of it cannot be made).
     pub fn numbering(on_boundary: &[bool]) -> Self {
-        let mut unknown = vec![usize::MAX; on_boundary.len()];
+        let mut unknown = vec![Unknown::HELD; on_boundary.len()];
         let mut vertices = Vec::with_capacity(on_boundary.iter().filter(|&&b| !b).count());
         for (a, &b) in on_boundary.iter().enumerate() {
             if !b {
-                unknown[a] = vertices.len();
+                unknown[a] = Unknown::new(vertices.len());
                 vertices.push(a);
             }
         }
@@ -101,17 +125,16 @@ impl InteriorSystem {
 
 impl Direct {
     /// K_II of K on the `vertices` (with `unknown` their numbers), and its analysis.
-    fn new(k: &Stiffness, vertices: &[usize], unknown: &[usize]) -> Self {
+    fn new(k: &Stiffness, vertices: &[usize], unknown: &[Unknown]) -> Self {
         let n = vertices.len();
         let mut col_ptr = Vec::with_capacity(n + 1);
         let mut row_idx = Vec::new();
         let mut k_val = Vec::new();
         col_ptr.push(0);
         for &a in vertices {
-            let j = unknown[a];
+            let j = unknown[a].index().expect("an unknown");
             for (b, v) in k.row(a) {
-                let i = unknown[b];
-                if i != usize::MAX && i >= j {
+                if let Some(i) = unknown[b].index().filter(|&i| i >= j) {
                     row_idx.push(i);
                     k_val.push(v);
                 }
@@ -153,7 +176,7 @@ impl InteriorSystem {
         (self.vertices.iter())
             .map(|&a| {
                 let lift: f64 = (k.row(a))
-                    .filter(|(b, _)| self.unknown[*b] == usize::MAX)
+                    .filter(|(b, _)| self.unknown[*b] == Unknown::HELD)
                     .map(|(b, v)| v * bc(b))
                     .sum();
                 load(a) / scale - lift
@@ -244,19 +267,18 @@ impl InteriorSystem {
         }
         let d = self.direct();
         let n = self.n();
-        let mut index = vec![usize::MAX; n];
+        let mut index = vec![Unknown::HELD; n];
         let mut free = Vec::new();
         for (i, &h) in left_out.iter().enumerate() {
             if !h {
-                index[i] = free.len();
+                index[i] = Unknown::new(free.len());
                 free.push(i);
             }
         }
         let (mut col_ptr, mut row_idx, mut val) = (vec![0], Vec::new(), Vec::new());
         for &j in &free {
             for p in d.col_ptr[j]..d.col_ptr[j + 1] {
-                let i = index[d.row_idx[p]];
-                if i != usize::MAX {
+                if let Some(i) = index[d.row_idx[p]].index() {
                     row_idx.push(i);
                     val.push(d.k_val[p]);
                 }
@@ -265,11 +287,7 @@ impl InteriorSystem {
         }
         let m = free.len();
         let order = d.symbolic.perm().expect("AMD gives an ordering").arrays().0;
-        let forward: Vec<usize> = order
-            .iter()
-            .map(|&i| index[i])
-            .filter(|&i| i != usize::MAX)
-            .collect();
+        let forward: Vec<usize> = order.iter().filter_map(|&i| index[i].index()).collect();
         let mut inverse = vec![0; m];
         for (k, &i) in forward.iter().enumerate() {
             inverse[i] = k;

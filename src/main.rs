@@ -21,6 +21,10 @@ static ALLOCATOR: membrane_contact::pages::HugePages = membrane_contact::pages::
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Threads to compute on (default: RAYON_NUM_THREADS, else one per core). The results are
+    /// the same bit for bit on any number.
+    #[arg(long, global = true)]
+    threads: Option<std::num::NonZeroUsize>,
 }
 
 #[derive(Subcommand)]
@@ -119,7 +123,14 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let result = match Cli::parse().command {
+    let cli = Cli::parse();
+    if let Some(threads) = cli.threads {
+        if let Err(e) = membrane_contact::parallel::use_threads(threads.get()) {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
+    }
+    let result = match cli.command {
         Command::Solve {
             print_default: true, ..
         } => {

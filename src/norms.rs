@@ -3,11 +3,12 @@
 //! computable approximation of ‖λ − λ_h‖_H⁻¹ (Theorem 21).
 
 use crate::action::Action;
-use crate::assembly::{gradients, in_two_halves, Quadrature, Stiffness};
+use crate::assembly::{gradients, Quadrature, Stiffness};
 use crate::contact::Solution;
 use crate::expr::Expr;
 use crate::linear::dirichlet_solve;
 use crate::mesh::{DualMesh, Mesh};
+use crate::parallel::{self, PIECE};
 use crate::problem::DiscreteProblem;
 use crate::result::{Attribute, Describe, Field, Place};
 
@@ -74,7 +75,7 @@ impl Errors {
         let (l2_u1, h1_u1) = p1_errors(mesh, &solution.u1, &exact.u1, exact.grad_u1.as_ref());
         let (l2_u2, h1_u2) = p1_errors(mesh, &solution.u2, &exact.u2, exact.grad_u2.as_ref());
         let lambda_h = |s: usize| action.lambda[dual.owner(s)];
-        let l2_lambda: f64 = in_two_halves(dual.n_cells(), |range| {
+        let l2_lambda: f64 = parallel::sum(dual.n_cells(), PIECE, |range| {
             let mut sum = 0.0;
             let corners = |s: usize| dual.corners(s);
             ERROR_QUADRATURE.visit(corners, range, [&exact.lambda], |s, points, [lambda]| {
@@ -86,9 +87,7 @@ impl Errors {
                     .sum::<f64>();
             });
             sum
-        })
-        .iter()
-        .sum();
+        });
         let energy = h1_u1
             .zip(h1_u2)
             .map(|(e1, e2)| (problem.data.mu1 * e1 * e1 + problem.data.mu2 * e2 * e2).sqrt());
@@ -139,10 +138,10 @@ impl Describe for Errors {
 
 /// (‖u − u_h‖_L², |u − u_h|_H¹) for a P1 field u_h.
 fn p1_errors(mesh: &Mesh, uh: &[f64], u: &Expr, grad: Option<&[Expr; 2]>) -> (f64, Option<f64>) {
-    let [first, second] = in_two_halves(mesh.n_triangles(), |range| {
+    let parts = parallel::map(mesh.n_triangles(), PIECE, |range| {
         p1_error_sums(mesh, uh, u, grad, range)
     });
-    let (l2, h1) = (first.0 + second.0, first.1 + second.1);
+    let (l2, h1) = parts.iter().fold((0.0, 0.0), |(l2, h1), p| (l2 + p.0, h1 + p.1));
     (l2.sqrt(), grad.map(|_| h1.sqrt()))
 }
 

@@ -70,6 +70,41 @@ pub fn map_mut2<T: Send, U: Send, R: Send>(
         .collect()
 }
 
+/// The parts of `x` that begin at `starts` (increasing, the first 0; the last part ends at the
+/// end of `x`).
+fn split<'a, T>(mut x: &'a mut [T], starts: &[usize]) -> Vec<&'a mut [T]> {
+    let mut parts = Vec::with_capacity(starts.len());
+    for k in 0..starts.len() {
+        let len = starts.get(k + 1).map_or(x.len(), |&next| next - starts[k]);
+        let (part, rest) = std::mem::take(&mut x).split_at_mut(len);
+        parts.push(part);
+        x = rest;
+    }
+    parts
+}
+
+/// `part`(k, part k of x, part k of y) on the parts of two slices that begin at `starts`
+/// (increasing, the first 0), in parallel; the results in the parts' order. `y` may be empty:
+/// then its parts are.
+pub fn map_parts2<T: Send, U: Send, R: Send>(
+    x: &mut [T],
+    y: &mut [U],
+    starts: &[usize],
+    part: impl Fn(usize, &mut [T], &mut [U]) -> R + Sync + Send,
+) -> Vec<R> {
+    let xs = split(x, starts);
+    let ys = match y.is_empty() {
+        true => (0..starts.len()).map(|_| &mut [][..]).collect(),
+        false => split(y, starts),
+    };
+    if starts.len() == 1 {
+        return xs.into_iter().zip(ys).map(|(x, y)| part(0, x, y)).collect();
+    }
+    (xs.into_par_iter().zip(ys).enumerate())
+        .map(|(k, (x, y))| part(k, x, y))
+        .collect()
+}
+
 /// The entries `value(i)` for i in 0..n, computed in parallel.
 pub fn collect<T: Send + Default + Clone>(n: usize, value: impl Fn(usize) -> T + Sync + Send) -> Vec<T> {
     let mut out = vec![T::default(); n];
@@ -89,8 +124,10 @@ pub fn join<A: Send, B: Send>(a: impl FnOnce() -> A + Send, b: impl FnOnce() -> 
 /// Sets the number of threads of the pool, before its first use (the `--threads` option);
 /// without it, rayon's default: `RAYON_NUM_THREADS`, or else one per core.
 pub fn use_threads(threads: usize) -> Result<(), String> {
-    (rayon::ThreadPoolBuilder::new().num_threads(threads).build_global())
-        .map_err(|e| format!("--threads {threads}: {e}"))
+    (rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build_global())
+    .map_err(|e| format!("--threads {threads}: {e}"))
 }
 
 /// The number of threads the pool has.
@@ -103,14 +140,19 @@ mod tests {
     use super::*;
 
     fn on_threads<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
         pool.install(f)
     }
 
     #[test]
     fn sums_are_the_same_on_any_number_of_threads() {
         // Terms of many magnitudes, so that another order of addition gives another sum.
-        let terms: Vec<f64> = (0..100_003).map(|i| ((i * 7919) % 1000) as f64 * 10f64.powi((i % 31) as i32 - 15)).collect();
+        let terms: Vec<f64> = (0..100_003i32)
+            .map(|i| ((i * 7919) % 1000) as f64 * 10f64.powi(i % 31 - 15))
+            .collect();
         let total = |threads| on_threads(threads, || sum(terms.len(), 1000, |r| terms[r].iter().sum()));
         let one = total(1);
         for threads in [2, 3, 8] {

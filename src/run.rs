@@ -236,7 +236,7 @@ impl Run<'_> {
         }
         out += &format!(
             "seconds     mesh {:.3}, assembly {:.3}, contact solve {:.3} (coarser levels {:.3}, {} {:.3}, \
-             {} {:.3} + {} {:.3} summed over v and w), postprocess {:.3}{}, write {:.3}\n",
+             {} {:.3} + {} {:.3} summed over v and w), postprocess {:.3}{}, write {:.3}; on {} threads\n",
             t.mesh,
             t.assembly,
             s.wall_seconds,
@@ -249,7 +249,8 @@ impl Run<'_> {
             s.solve_seconds,
             t.postprocess,
             (self.estimate.as_ref()).map_or(String::new(), |_| format!(", estimate {:.3}", t.estimate)),
-            t.write
+            t.write,
+            crate::parallel::threads()
         );
         out
     }

@@ -28,8 +28,8 @@ pub struct Csr {
 pub(crate) type RowsPart = (Vec<u32>, Vec<u32>, Vec<f64>);
 
 /// Empty room for the part `rows` of a matrix of `n` rows with up to `per_row` entries each, to
-/// be [joined](Csr::joined) to the other part: the first part's room holds the entries of
-/// both, so that joining copies the second part once and moves nothing (growing a vector of
+/// be [joined](Csr::joined) to the other parts: the first part's room holds the entries of
+/// all, so that joining copies each other part once and moves nothing (growing a vector of
 /// hundreds of megabytes moves its pages, which cost more than the rows took to compute). Room
 /// not written is never touched, so it takes no memory.
 pub(crate) fn part_room(rows: &Range<usize>, n: usize, per_row: usize) -> RowsPart {
@@ -47,20 +47,38 @@ fn fits(n: usize, what: &str) -> u32 {
 }
 
 impl Csr {
-    /// The matrix of the rows of two parts (made e.g. on two threads, in the room of
-    /// [`part_room`]), the first part's rows first, with `cols` columns.
-    pub(crate) fn joined(
-        [(first, mut col, mut val), (second, col2, val2)]: [RowsPart; 2],
+    /// The matrix of `n` rows and `cols` columns made by rows: `rows`(range, part) pushes the rows
+    /// of each range to its part (made in the room of [`part_room`] for up to `per_row` entries
+    /// per row), the ranges in parallel.
+    pub(crate) fn by_rows(
+        n: usize,
         cols: usize,
+        per_row: usize,
+        rows: impl Fn(Range<usize>, &mut RowsPart) + Sync + Send,
     ) -> Self {
-        let mut row_ptr = Vec::with_capacity(first.len() + second.len() + 1);
+        let parts = crate::parallel::map(n, crate::parallel::PIECE, |range| {
+            let mut part = part_room(&range, n, per_row);
+            rows(range, &mut part);
+            part
+        });
+        Csr::joined(parts, cols)
+    }
+
+    /// The matrix of the rows of consecutive parts (made in the room of [`part_room`]), the
+    /// first part's rows first, with `cols` columns.
+    pub(crate) fn joined(parts: Vec<RowsPart>, cols: usize) -> Self {
+        let mut parts = parts.into_iter();
+        let (first, mut col, mut val) = parts.next().unwrap_or_default();
+        let mut row_ptr = Vec::with_capacity(first.len() + 1);
         row_ptr.push(0);
         row_ptr.extend(&first);
-        fits(col.len() + col2.len(), "entries");
-        let start = col.len() as u32;
-        row_ptr.extend(second.iter().map(|&end| start + end));
-        col.extend(col2);
-        val.extend(val2);
+        for (ends, col2, val2) in parts {
+            fits(col.len() + col2.len(), "entries");
+            let start = col.len() as u32;
+            row_ptr.extend(ends.iter().map(|&end| start + end));
+            col.extend(col2);
+            val.extend(val2);
+        }
         Csr {
             row_ptr,
             col,
@@ -233,9 +251,11 @@ impl Csr {
         self
     }
 
-    /// The transpose: its two halves of rows filled on two threads, each into its own part of
-    /// the entries (both read all of this matrix, each writes half of the transpose).
+    /// The transpose. Its rows are filled in parallel, in pieces: each piece of rows of the
+    /// transpose (columns of this matrix) reads only the pieces of this matrix's rows whose
+    /// columns reach it (few, on a mesh numbered along a curve), and writes its own entries.
     pub fn transpose(&self) -> Csr {
+        let piece = crate::parallel::PIECE;
         let mut count = vec![0u32; self.cols + 1];
         for &j in &self.col {
             count[j as usize + 1] += 1;
@@ -243,31 +263,37 @@ impl Csr {
         for j in 0..self.cols {
             count[j + 1] += count[j];
         }
+        // The columns each piece of rows reaches.
+        let reach = crate::parallel::map(self.rows(), piece, |rows| {
+            let entries = &self.col[self.row_ptr[rows.start] as usize..self.row_ptr[rows.end] as usize];
+            let least = entries.iter().min().map_or(u32::MAX, |&j| j);
+            (least, entries.iter().max().map_or(0, |&j| j + 1))
+        });
         let (mut col, mut val) = (vec![0u32; self.nnz()], vec![0.0; self.nnz()]);
-        // Rows `rows` of the transpose into their entries `col` and `val`.
-        let fill = |rows: Range<usize>, col: &mut [u32], val: &mut [f64]| {
-            let first = count[rows.start];
-            let mut next: Vec<u32> = count[rows.clone()].iter().map(|&c| c - first).collect();
-            for i in 0..self.rows() {
-                let (cols, vals) = self.row(i);
-                for (&j, &v) in cols.iter().zip(vals) {
-                    let slot = (j as usize).checked_sub(rows.start).and_then(|k| next.get_mut(k));
-                    if let Some(p) = slot {
-                        col[*p as usize] = i as u32;
-                        val[*p as usize] = v;
-                        *p += 1;
+        let starts: Vec<usize> = (0..self.cols.div_ceil(piece).max(1))
+            .map(|k| count[(k * piece).min(self.cols)] as usize)
+            .collect();
+        crate::parallel::map_parts2(&mut col, &mut val, &starts, |k, col, val| {
+            let columns = k * piece..((k + 1) * piece).min(self.cols);
+            let first = count[columns.start];
+            let mut next: Vec<u32> = count[columns.clone()].iter().map(|&c| c - first).collect();
+            let touching = (reach.iter().enumerate())
+                .filter(|(_, &(lo, hi))| (lo as usize) < columns.end && hi as usize > columns.start);
+            for (p, _) in touching {
+                for i in p * piece..((p + 1) * piece).min(self.rows()) {
+                    let (cols, vals) = self.row(i);
+                    for (&j, &v) in cols.iter().zip(vals) {
+                        if let Some(slot) = (j as usize)
+                            .checked_sub(columns.start)
+                            .and_then(|k| next.get_mut(k))
+                        {
+                            (col[*slot as usize], val[*slot as usize]) = (i as u32, v);
+                            *slot += 1;
+                        }
                     }
                 }
             }
-        };
-        let mid = self.cols / 2;
-        let split = count[mid] as usize;
-        let ((col0, col1), (val0, val1)) = (col.split_at_mut(split), val.split_at_mut(split));
-        crate::assembly::both(
-            self.nnz() >= crate::assembly::SMALL,
-            || fill(0..mid, col0, val0),
-            || fill(mid..self.cols, col1, val1),
-        );
+        });
         Csr {
             row_ptr: count,
             col,
@@ -287,7 +313,7 @@ mod tests {
     fn parts_made_in_their_room_join_without_growing() {
         // The tridiagonal matrix (−1, 2, −1) of 9 rows, made in two parts.
         let n = 9;
-        let parts = crate::assembly::in_two_halves(n, |rows| {
+        let parts = crate::parallel::map(n, 4, |rows| {
             let (mut ends, mut col, mut val) = part_room(&rows, n, 3);
             for i in rows {
                 for j in i.saturating_sub(1)..(i + 2).min(n) {
@@ -298,7 +324,8 @@ mod tests {
             }
             (ends, col, val)
         });
-        let entries = parts[0].1.len() + parts[1].1.len();
+        assert_eq!(parts.len(), 3);
+        let entries: usize = parts.iter().map(|p| p.1.len()).sum();
         assert!(parts[0].1.capacity() >= entries && parts[0].2.capacity() >= entries);
         let a = Csr::joined(parts, n);
         assert_eq!((a.rows(), a.cols(), a.nnz()), (n, n, 3 * n - 2));
@@ -315,24 +342,32 @@ mod tests {
     }
 
     #[test]
-    fn the_transpose_on_two_threads_is_the_transpose() {
-        // 300 × 200 with about 60 entries per row (above the size that splits the work).
-        let (rows, cols) = (300, 200);
+    fn the_transpose_in_pieces_is_the_transpose() {
+        // Rows near their columns, as on a mesh numbered along a curve, and a few far ones, over
+        // several pieces of rows and columns.
+        let piece = crate::parallel::PIECE;
+        let (rows, cols) = (3 * piece + 17, 2 * piece + 5);
         let mut part = (Vec::new(), Vec::new(), Vec::new());
         for i in 0..rows {
-            for j in (0..cols).filter(|j| (i * 7 + j * 13) % 10 < 3) {
+            let near = i * cols / rows;
+            let mut row: Vec<usize> = vec![near.saturating_sub(1), near, (near + 1).min(cols - 1)];
+            if i % 97 == 0 {
+                row.push((i * 7919) % cols);
+            }
+            row.sort_unstable();
+            row.dedup();
+            for j in row {
                 part.1.push(j as u32);
                 part.2.push((i * cols + j) as f64 + 0.5);
             }
             part.0.push(part.1.len() as u32);
         }
-        let a = Csr::joined([part, (Vec::new(), Vec::new(), Vec::new())], cols);
-        assert!(a.nnz() >= crate::assembly::SMALL);
+        let a = Csr::joined(vec![part], cols);
         let t = a.transpose();
         assert_eq!((t.rows(), t.cols(), t.nnz()), (cols, rows, a.nnz()));
         for i in 0..rows {
-            for j in 0..cols {
-                assert_eq!(t.get(j, i), a.get(i, j), "({j}, {i})");
+            for (&j, &v) in a.row(i).0.iter().zip(a.row(i).1) {
+                assert_eq!(t.get(j as usize, i), v, "({j}, {i})");
             }
         }
         for j in 0..cols {

@@ -20,7 +20,7 @@
 //! with k triangles (a, the k midpoints of its edges, the k barycentres), 2k + 2 at a boundary one.
 //! The system depends on the geometry only: one factorization serves both membranes.
 
-use crate::assembly::{gradients, in_two_halves};
+use crate::assembly::gradients;
 use crate::flux::Flux;
 use crate::mesh::{orient, DualMesh, Mesh, Stars};
 
@@ -86,9 +86,10 @@ pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: [
             membranes.map(|m| [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()))
         })
         .collect();
-    // The patches of each half of the vertices on a thread of its own, each adding into its own
-    // fluxes (a cell belongs to the patches of its triangle's three vertices).
-    let [mut tau, other] = in_two_halves(mesh.n_vertices(), |vertices| {
+    // The patches of each half of the vertices side by side, each adding into its own fluxes (a
+    // cell belongs to the patches of its triangle's three vertices); two halves, not more
+    // pieces, as each holds fluxes on every cell.
+    let half = |vertices: std::ops::Range<usize>| {
         let mut tau = [0, 1].map(|_| Flux {
             edge_flux: vec![[0.0; 3]; dual.n_cells()],
         });
@@ -100,7 +101,9 @@ pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: [
             }
         }
         tau
-    });
+    };
+    let n = mesh.n_vertices();
+    let (mut tau, other) = crate::parallel::join(|| half(0..n / 2), || half(n / 2..n));
     for (mine, theirs) in tau.iter_mut().zip(other) {
         for (f, g) in mine.edge_flux.iter_mut().zip(theirs.edge_flux) {
             *f = [f[0] + g[0], f[1] + g[1], f[2] + g[2]];

@@ -19,10 +19,11 @@ pub mod boundary;
 pub mod equilibration;
 
 use crate::action::Action;
-use crate::assembly::{gradients, in_two_halves};
+use crate::assembly::gradients;
 use crate::contact::Solution;
 use crate::flux::Flux;
 use crate::mesh::{DualMesh, Mesh};
+use crate::parallel::{self, PIECE};
 use crate::problem::DiscreteProblem;
 use crate::result::{Attribute, Describe, Field, Place};
 use equilibration::{equilibrate, Membrane, Patches};
@@ -175,12 +176,12 @@ fn quadrature_defects(problem: &DiscreteProblem, loads: &[CellLoads]) -> [Vec<f6
     })
 }
 
-/// The loads on every cell of S_h by the case's rule (on the cell, not on its triangle), on two
-/// threads.
+/// The loads on every cell of S_h by the case's rule (on the cell, not on its triangle), in
+/// parallel.
 fn cell_loads(problem: &DiscreteProblem, dual: &DualMesh, alpha: f64) -> Vec<CellLoads> {
     let data = &problem.data;
     let corners = |s: usize| dual.corners(s);
-    let parts = in_two_halves(dual.n_cells(), |range| {
+    let parts = parallel::map(dual.n_cells(), PIECE, |range| {
         let mut out = Vec::with_capacity(range.len());
         data.quadrature
             .visit(corners, range, [&data.f1, &data.f2], |s, points, [f1, f2]| {
@@ -238,7 +239,7 @@ struct TriangleTerms {
     contact: f64,
 }
 
-/// The terms of every triangle, on two threads.
+/// The terms of every triangle, in parallel.
 fn triangle_terms(
     problem: &DiscreteProblem,
     dual: &DualMesh,
@@ -300,7 +301,7 @@ fn triangle_terms(
             })
             .collect::<Vec<_>>()
     };
-    in_two_halves(mesh.n_triangles(), part)
+    parallel::map(mesh.n_triangles(), PIECE, part)
         .into_iter()
         .flatten()
         .collect()

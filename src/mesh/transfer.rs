@@ -2,7 +2,7 @@
 //! fine one, and its transpose, which restricts nodal loads.
 
 use super::{max2, min2, orient, Buckets, Mesh, Stars};
-use crate::sparse::{part_room, Csr};
+use crate::sparse::Csr;
 use std::sync::OnceLock;
 
 /// P1 interpolation from a coarse mesh onto the vertices of a fine one: each fine vertex is
@@ -13,6 +13,8 @@ use std::sync::OnceLock;
 /// combination of fine ones. Multigrid interpolates its corrections with the same P.
 pub struct Prolongation {
     matrix: Csr,
+    /// Pᵀ, made when first asked for (multigrid's restriction and Galerkin products).
+    transposed: OnceLock<Csr>,
 }
 
 /// Barycentric weights below this are left out of P (round-off of coordinates that are 0 on
@@ -23,32 +25,41 @@ impl Prolongation {
     /// The interpolation from `coarse` onto the vertices of `fine`.
     pub fn new(fine: &Mesh, coarse: &Mesh) -> Self {
         let locator = Locator::new(coarse);
-        // The two halves of the fine vertices on two threads; consecutive vertices are mostly
-        // near each other, so the last one's triangle is tried first.
-        let halves = crate::assembly::in_two_halves(fine.n_vertices(), |range| {
-            let mut hint = 0;
-            let (mut ends, mut col, mut val) = part_room(&range, fine.n_vertices(), 3);
-            for &p in &fine.points[range] {
-                let (t, bary) = locator.locate(p, hint);
-                hint = t;
-                let mut row = [0, 1, 2].map(|k| (coarse.triangle(t)[k], bary[k]));
-                row.sort_unstable_by_key(|e| e.0);
-                for (j, w) in row.into_iter().filter(|e| e.1.abs() > WEIGHT_EPS) {
-                    col.push(j as u32);
-                    val.push(w);
+        // The fine vertices in pieces, in parallel; consecutive vertices are mostly near each
+        // other, so the last one's triangle is tried first.
+        let matrix = Csr::by_rows(
+            fine.n_vertices(),
+            coarse.n_vertices(),
+            3,
+            |range, (ends, col, val)| {
+                let mut hint = 0;
+                for &p in &fine.points[range] {
+                    let (t, bary) = locator.locate(p, hint);
+                    hint = t;
+                    let mut row = [0, 1, 2].map(|k| (coarse.triangle(t)[k], bary[k]));
+                    row.sort_unstable_by_key(|e| e.0);
+                    for (j, w) in row.into_iter().filter(|e| e.1.abs() > WEIGHT_EPS) {
+                        col.push(j as u32);
+                        val.push(w);
+                    }
+                    ends.push(col.len() as u32);
                 }
-                ends.push(col.len() as u32);
-            }
-            (ends, col, val)
-        });
+            },
+        );
         Prolongation {
-            matrix: Csr::joined(halves, coarse.n_vertices()),
+            matrix,
+            transposed: OnceLock::new(),
         }
     }
 
     /// P.
     pub fn matrix(&self) -> &Csr {
         &self.matrix
+    }
+
+    /// Pᵀ, made once.
+    pub fn transposed(&self) -> &Csr {
+        self.transposed.get_or_init(|| self.matrix.transpose())
     }
 
     /// The number of coarse vertices (the columns of P).
@@ -91,8 +102,7 @@ struct Locator<'m> {
 
 impl<'m> Locator<'m> {
     fn new(mesh: &'m Mesh) -> Self {
-        let (vertices, stars) = crate::assembly::both(
-            true,
+        let (vertices, stars) = crate::parallel::join(
             || Buckets::new(mesh.points.iter().copied(), mesh.n_vertices()),
             || Stars::new(mesh),
         );

@@ -1,0 +1,672 @@
+//! The reduced discrete variational inequality (3.4) on K_gh = {v1h − v2h ≥ 0 at the vertices}.
+//!
+//! For constant μ1, μ2 the discrete energy Σ_i μ_i/2 |∇u_ih|² − (f_i, u_ih) separates exactly in
+//!   v = (μ1 u1 + μ2 u2)/(μ1 + μ2)   and   w = u1 − u2:
+//!   (μ1+μ2)/2 |∇v|² − (f1 + f2, v)  +  μ*/2 |∇w|² − (f_w, w),
+//! with μ* = μ1μ2/(μ1+μ2), f_w = (μ2 f1 − μ1 f2)/(μ1+μ2), v = μ1 g_h/(μ1+μ2) and w = g_h on ∂ω,
+//! and the only constraint w(a) ≥ 0 at the interior vertices. So (3.4) is one Poisson solve for v
+//! and one scalar obstacle problem for w. Multiplying the two equations of (4.5) by μ2 and μ1 and
+//! subtracting shows that the obstacle problem's residual is the action: μ*(K w)_a − (f_w, φ_a)
+//! = λ_a m_a, with m_a = ∫φ_a.
+//!
+//! The obstacle problem is solved by the primal–dual active-set method (a semismooth Newton method
+//! for min(w_a, λ_a) = 0): A = {a : λ_a − c_a w_a > 0}, w = 0 on A, the equation off A, repeated
+//! until A no longer changes, which is then the exact solution of (3.4) up to round-off.
+
+mod active_set;
+mod backend;
+mod local;
+mod nested;
+mod stats;
+
+pub use stats::SolverStats;
+
+use crate::linear::InteriorSystem;
+use crate::mesh::{Mesh, Prolongation};
+use crate::multigrid::{Hierarchy, NotConverged};
+use crate::parallel;
+use crate::problem::{DataError, DiscreteProblem};
+use crate::result::{Attr, Attribute, Describe, Field, Place};
+use active_set::{obstacle, Role};
+use backend::{LinearSolve, Loads, FINAL_STOP, RESULT_STOP};
+use nested::{chain, initial_guess, Started};
+use std::borrow::Cow;
+use std::fmt;
+use std::time::Instant;
+
+/// Why the discrete problem could not be solved.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SolveError {
+    /// The active-set method did not converge within the cap.
+    IterationCap {
+        /// Iterations done.
+        iterations: usize,
+        /// Vertices that changed in the last one.
+        changed: usize,
+    },
+    /// A factorization failed (cannot happen for a valid mesh; reported, not panicked).
+    NotPositiveDefinite,
+    /// The data fail on a coarser mesh of nested iteration.
+    CoarseData(DataError),
+    /// Multigrid-preconditioned CG did not converge (cannot happen for a valid mesh).
+    NotConverged(NotConverged),
+}
+
+impl fmt::Display for SolveError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SolveError::IterationCap { iterations, changed } => write!(
+                f,
+                "the active-set method did not converge in {iterations} iterations \
+                 ({changed} vertices changed in the last one); raise solver.max_iterations"
+            ),
+            SolveError::NotPositiveDefinite => {
+                write!(f, "the stiffness matrix is not positive definite")
+            }
+            SolveError::CoarseData(e) => write!(f, "on a coarser mesh of nested iteration: {e}"),
+            SolveError::NotConverged(e) => write!(
+                f,
+                "conjugate gradients did not converge in {} iterations (residual density {:.1e}, \
+                 {:.1e} wanted); try [solver] linear = \"direct\"",
+                e.iterations, e.residual, e.target
+            ),
+        }
+    }
+}
+
+impl std::error::Error for SolveError {}
+
+/// How the active-set method starts.
+#[derive(Debug, Clone, Copy)]
+pub enum Start<'a> {
+    /// From no contact.
+    Cold,
+    /// Nested iteration (grid sequencing): the obstacle problem on the coarser meshes passed to
+    /// [`solve`] first, each warm-starting the next, the last one prolonged onto this mesh.
+    Nested,
+    /// From the solution on another mesh of the same domain, interpolated (e.g. the previous
+    /// level of a study).
+    From {
+        /// The other mesh.
+        mesh: &'a Mesh,
+        /// Its obstacle solution.
+        obstacle: &'a Obstacle,
+    },
+}
+
+/// Options of the active-set method.
+#[derive(Debug, Clone, Copy)]
+pub struct SolverOptions {
+    /// Active-set iterations before giving up.
+    pub max_iterations: usize,
+    /// The linear solver of v and of the active-set steps.
+    pub linear: LinearSolver,
+}
+
+impl Default for SolverOptions {
+    fn default() -> Self {
+        SolverOptions {
+            max_iterations: 200,
+            linear: LinearSolver::Multigrid,
+        }
+    }
+}
+
+/// The linear solver of the Poisson problem for v and of every active-set step (`[solver] linear`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum LinearSolver {
+    /// Sparse Cholesky ([`crate::linear`]).
+    Direct,
+    /// CG preconditioned by multigrid V-cycles on the hierarchy of meshes, truncated on the held
+    /// unknowns ([`crate::multigrid`]): O(n) time and memory, the default.
+    #[default]
+    Multigrid,
+}
+
+impl LinearSolver {
+    /// The names of the case file, in order.
+    pub const NAMES: [&'static str; 2] = ["direct", "multigrid"];
+
+    /// The name in the case file.
+    pub fn name(self) -> &'static str {
+        match self {
+            LinearSolver::Direct => Self::NAMES[0],
+            LinearSolver::Multigrid => Self::NAMES[1],
+        }
+    }
+
+    /// The solver of a name, `None` for an unknown one.
+    pub fn from_name(name: &str) -> Option<Self> {
+        [LinearSolver::Direct, LinearSolver::Multigrid]
+            .into_iter()
+            .find(|s| s.name() == name)
+    }
+}
+
+/// The solution w of the obstacle problem, with its λ and contact set.
+#[derive(Debug, Clone)]
+pub struct Obstacle {
+    /// w = u1h − u2h at every vertex.
+    pub gap: Vec<f64>,
+    /// λ_a = r_a / m_a at interior vertices (0 on ∂ω).
+    pub lambda: Vec<f64>,
+    /// Interior vertices where the membranes touch (the final active set).
+    pub contact: Vec<bool>,
+    /// What the solver did.
+    pub stats: SolverStats,
+}
+
+/// The solution (u1h, u2h) of (3.4), with the obstacle problem's w = u1h − u2h, its λ,
+/// the contact set and the solver statistics.
+#[derive(Debug, Clone)]
+pub struct Solution {
+    /// u1h at every vertex.
+    pub u1: Vec<f64>,
+    /// u2h at every vertex.
+    pub u2: Vec<f64>,
+    /// The obstacle problem's solution w = u1h − u2h, with its λ and contact set.
+    pub obstacle: Obstacle,
+}
+
+/// Solves (3.4): the Poisson problem for v beside the guess of `start` (for [`Start::Nested`],
+/// nested iteration on the `coarser` meshes, from fine to coarse), then the obstacle problem for w
+/// from the guess; u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w. A mesh without coarser ones (an
+/// adapted mesh, a file mesh not refined) is solved by Cholesky.
+///
+/// ```
+/// use membrane_contact::{case::Case, contact, problem::DiscreteProblem};
+/// let case = Case::default_case();
+/// let (mesh, coarser) = case.hierarchy(true, Default::default()).unwrap();
+/// let problem = DiscreteProblem::new(mesh, &case.data).unwrap();
+/// let solution = contact::solve(&problem, contact::Start::Nested, coarser, case.solver).unwrap();
+/// // The membranes touch where the gap w = u1h − u2h vanishes, and nowhere cross.
+/// assert!(solution.obstacle.contact.iter().any(|&c| c));
+/// assert!(solution.obstacle.gap.iter().all(|&w| w >= 0.0));
+/// ```
+pub fn solve(
+    problem: &DiscreteProblem,
+    start: Start,
+    coarser: Vec<Mesh>,
+    options: SolverOptions,
+) -> Result<Solution, SolveError> {
+    let clock = Instant::now();
+    let multigrid = options.linear == LinearSolver::Multigrid && !coarser.is_empty();
+    let linear = if multigrid {
+        LinearSolver::Multigrid
+    } else {
+        LinearSolver::Direct
+    };
+    let options = SolverOptions { linear, ..options };
+    let nested = matches!(start, Start::Nested);
+    let prolongations = if multigrid || nested {
+        chain(&problem.mesh, &coarser)
+    } else {
+        Vec::new()
+    };
+    let transfer_seconds = clock.elapsed().as_secs_f64();
+    let ((analysis, v), started) = parallel::join(
+        || {
+            let analysis = Analysis::new(problem, multigrid.then_some(&prolongations[..]));
+            let v = solve_v(problem, &analysis);
+            (analysis, v)
+        },
+        || initial_guess(problem, start, coarser, &prolongations, options),
+    );
+    let (v, mut v_stats) = v?;
+    let mut obstacle = solve_w(problem, &analysis, started?, options)?;
+    // The symbolic analysis (and multigrid's transfers) counts with the v solve.
+    v_stats.symbolic_seconds += analysis.seconds + transfer_seconds;
+    let stats = &mut obstacle.stats;
+    stats.add_work(&v_stats);
+    stats.v_cg_iterations = v_stats.cg_iterations.first().copied().unwrap_or(0);
+    stats.linear = options.linear;
+    stats.multigrid_levels = analysis.hierarchy.as_ref().map_or(0, Hierarchy::levels);
+    stats.wall_seconds = clock.elapsed().as_secs_f64();
+    Ok(Solution::of(problem, v, obstacle))
+}
+
+/// The interior unknowns of `problem` with, for the direct solver (no `prolongations`), the
+/// Cholesky analysis of K_II, or else its multigrid hierarchy on the `prolongations` below it.
+fn analysed<'t>(
+    problem: &'t DiscreteProblem,
+    prolongations: Option<&'t [Prolongation]>,
+) -> (InteriorSystem, Option<Hierarchy<'t>>) {
+    let (k, on_boundary) = (&problem.stiffness, &problem.mesh.on_boundary);
+    match prolongations {
+        None => (InteriorSystem::new(k, on_boundary), None),
+        Some(p) => (
+            InteriorSystem::numbering(on_boundary),
+            Some(Hierarchy::new(k, &problem.mass, p)),
+        ),
+    }
+}
+
+/// What the v and w solves on the final mesh share: the unknowns with the Cholesky analysis of
+/// K_II or the multigrid hierarchy, whose coarse operators with the boundary alone skipped (v's)
+/// are kept (w's steps recompute theirs only near the held set), and the seconds it took.
+struct Analysis<'t> {
+    system: InteriorSystem,
+    hierarchy: Option<Hierarchy<'t>>,
+    seconds: f64,
+}
+
+impl<'t> Analysis<'t> {
+    fn new(problem: &'t DiscreteProblem, prolongations: Option<&'t [Prolongation]>) -> Self {
+        let t = Instant::now();
+        let (system, hierarchy) = analysed(problem, prolongations);
+        let hierarchy = hierarchy.map(|h| h.with_base(problem.mesh.on_boundary.clone()));
+        Analysis {
+            system,
+            hierarchy,
+            seconds: t.elapsed().as_secs_f64(),
+        }
+    }
+}
+
+/// v: (μ1+μ2) K v = F1 + F2 inside, v = μ1 g_h/(μ1+μ2) on ∂ω; at every vertex, with the work.
+fn solve_v(problem: &DiscreteProblem, analysis: &Analysis) -> Result<(Vec<f64>, SolverStats), SolveError> {
+    let (mu1, mu2) = (problem.data.mu1, problem.data.mu2);
+    let system = &analysis.system;
+    let bc: Vec<f64> = problem.g_h.iter().map(|g| mu1 * g / (mu1 + mu2)).collect();
+    let load = |a: usize| problem.load1[a] + problem.load2[a];
+    let rhs = system.lifted_rhs(&problem.stiffness, load, mu1 + mu2, |a| bc[a]);
+    let loads = Loads {
+        density: 0.0,
+        problem,
+        scale: mu1 + mu2,
+    };
+    let multigrid = analysis.hierarchy.as_ref().map(|h| (h, RESULT_STOP));
+    let mut solver = stats::Timed::new(backend::solver(system, multigrid, None, loads));
+    solver.prepare(&vec![false; system.n()])?;
+    let x = solver.solve(Cow::Owned(rhs))?;
+    let mut stats = SolverStats::default();
+    solver.record(&mut stats);
+    Ok((system.scatter(&x, &bc), stats))
+}
+
+/// w: the obstacle problem on the final mesh from the guess `started`, with the coarser levels'
+/// counts.
+fn solve_w(
+    problem: &DiscreteProblem,
+    analysis: &Analysis,
+    started: Started,
+    options: SolverOptions,
+) -> Result<Obstacle, SolveError> {
+    let multigrid = analysis.hierarchy.as_ref().map(|h| (h, FINAL_STOP));
+    let mut w = obstacle(
+        problem,
+        &analysis.system,
+        multigrid,
+        started.guess,
+        options,
+        Role::Solution,
+    )?;
+    w.stats.coarse_iterations = started.iterations;
+    w.stats.coarse_cg_iterations = started.cg_iterations;
+    w.stats.coarse_seconds = started.seconds;
+    Ok(w)
+}
+
+impl Solution {
+    /// u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w.
+    fn of(problem: &DiscreteProblem, v: Vec<f64>, obstacle: Obstacle) -> Self {
+        let (mu1, mu2) = (problem.data.mu1, problem.data.mu2);
+        let (c1, c2) = (mu2 / (mu1 + mu2), mu1 / (mu1 + mu2));
+        let w = &obstacle.gap;
+        let u1 = v.iter().zip(w).map(|(v, w)| v + c1 * w).collect();
+        let u2 = v.iter().zip(w).map(|(v, w)| v - c2 * w).collect();
+        Solution { u1, u2, obstacle }
+    }
+}
+
+impl Describe for Solution {
+    fn fields(&self) -> Vec<Field<'_>> {
+        let contact = self
+            .obstacle
+            .contact
+            .iter()
+            .map(|&c| f64::from(u8::from(c)))
+            .collect();
+        vec![
+            Field::new("u1", Place::Vertices, &self.u1),
+            Field::new("u2", Place::Vertices, &self.u2),
+            Field::new("gap", Place::Vertices, &self.obstacle.gap),
+            Field::owned("contact", Place::Vertices, contact),
+        ]
+    }
+
+    fn attributes(&self) -> Vec<Attribute> {
+        let st = &self.obstacle.stats;
+        let floats = |v: &[usize]| Attr::Floats(v.iter().map(|&i| i as f64).collect());
+        let most = |v: &[Vec<usize>]| {
+            Attr::Floats(
+                v.iter()
+                    .map(|l| l.iter().copied().max().unwrap_or(0) as f64)
+                    .collect(),
+            )
+        };
+        vec![
+            ("linear_solver", Attr::Text(st.linear.name().into())),
+            ("multigrid_levels", st.multigrid_levels.into()),
+            ("cg_iterations", floats(&st.cg_iterations)),
+            ("cg_iterations_v", st.v_cg_iterations.into()),
+            ("coarse_cg_iterations_max", most(&st.coarse_cg_iterations)),
+            ("iterations", st.iterations.into()),
+            ("coarse_iterations", floats(&st.coarse_iterations)),
+            ("active_set_sizes", floats(&st.active_sizes)),
+            ("factorizations", st.factorizations.into()),
+            ("local_iterations", st.local_iterations.into()),
+            ("symbolic_analyses", st.analyses.into()),
+            ("factor_nnz", st.factor_nnz.into()),
+            ("seconds_local", st.local_seconds.into()),
+            ("seconds_coarse_levels", st.coarse_seconds.into()),
+            ("seconds_symbolic", st.symbolic_seconds.into()),
+            ("seconds_numeric", st.numeric_seconds.into()),
+            ("seconds_solve", st.solve_seconds.into()),
+            ("seconds_contact_solve", st.wall_seconds.into()),
+        ]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::active_set::{load_density, WProblem};
+    use super::backend::Stop;
+    use super::local::{band, interface, LOCAL_ITERATIONS};
+    use super::nested::Guess;
+    use super::*;
+    use crate::assembly::Quadrature;
+    use crate::expr::Expr;
+    use crate::mesh::Diagonal;
+    use crate::problem::Data;
+
+    /// The unit square on n × n right-diagonal cells, μ1 = 1, μ2 = 2, f2 = 0.
+    fn problem(n: usize, f1: &str, g: &str) -> DiscreteProblem {
+        let e = |s: &str| Expr::parse(s).unwrap();
+        let data = Data::new([1.0, 2.0], e(f1), e("0"), e(g), Quadrature { degree: 2 }).unwrap();
+        let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], n, n, Diagonal::Right).unwrap();
+        DiscreteProblem::new(mesh, &data).unwrap()
+    }
+
+    #[test]
+    fn the_summary_says_which_linear_solver_ran() {
+        let direct = SolverStats {
+            linear: LinearSolver::Direct,
+            factorizations: 3,
+            ..Default::default()
+        };
+        assert_eq!(direct.linear_work(), "Cholesky, 3 factorizations");
+        let multigrid = SolverStats {
+            linear: LinearSolver::Multigrid,
+            multigrid_levels: 8,
+            v_cg_iterations: 13,
+            cg_iterations: vec![10, 6],
+            ..Default::default()
+        };
+        assert_eq!(
+            multigrid.linear_work(),
+            "multigrid on 8 levels, CG iterations v 13, steps [10, 6]"
+        );
+    }
+
+    #[test]
+    fn adding_the_v_solve_sums_its_work() {
+        let mut w = SolverStats {
+            symbolic_seconds: 1.0,
+            numeric_seconds: 2.0,
+            solve_seconds: 3.0,
+            factorizations: 4,
+            iterations: 5,
+            ..Default::default()
+        };
+        let v = SolverStats {
+            symbolic_seconds: 0.5,
+            numeric_seconds: 0.25,
+            solve_seconds: 0.125,
+            factorizations: 1,
+            iterations: 7,
+            ..Default::default()
+        };
+        w.add_work(&v);
+        let s = (w.symbolic_seconds, w.numeric_seconds, w.solve_seconds);
+        assert_eq!(s, (1.5, 2.25, 3.125));
+        assert_eq!((w.factorizations, w.iterations), (5, 5));
+    }
+
+    #[test]
+    fn statistics_count_the_work_of_a_cold_solve() {
+        // Membrane 1 pressed onto membrane 2 in the middle: some contact, several iterations.
+        let p = problem(24, "-10", "0.05");
+        let system = InteriorSystem::new(&p.stiffness, &p.mesh.on_boundary);
+        let o = obstacle(&p, &system, None, None, SolverOptions::default(), Role::Solution).unwrap();
+        let s = &o.stats;
+        let inside = |a: usize| !p.mesh.on_boundary[a];
+        let interior = (0..p.mesh.n_vertices()).filter(|&a| inside(a)).count();
+        let interior_edges = p
+            .mesh
+            .edges()
+            .iter()
+            .filter(|&&(a, b)| inside(a) && inside(b))
+            .count();
+        assert_eq!(s.unknowns, interior);
+        // The factor holds at least the lower triangle of K_II: its diagonal and one entry per
+        // interior edge whose vertices K couples.
+        let coupled = (p.mesh.edges().iter())
+            .filter(|&&(a, b)| inside(a) && inside(b) && p.stiffness.matrix().get(a, b) != 0.0)
+            .count();
+        assert!(
+            coupled <= interior_edges && s.factor_nnz >= interior + coupled,
+            "{s:?}"
+        );
+        let contact = o.contact.iter().filter(|&&c| c).count();
+        assert!(contact > 10 && s.iterations > 2, "{s:?}");
+        assert_eq!(
+            (s.changes.len(), s.active_sizes.len()),
+            (s.iterations, s.iterations)
+        );
+        assert_eq!(
+            (s.changes.last(), s.active_sizes.last()),
+            (Some(&0), Some(&contact))
+        );
+        // Each global iteration factorizes for a new held set.
+        assert_eq!(s.factorizations, s.iterations);
+        assert!((1..=s.iterations).contains(&s.analyses), "{s:?}");
+        assert!(s.local_iterations <= LOCAL_ITERATIONS * s.iterations, "{s:?}");
+        for (name, t) in [
+            ("symbolic", s.symbolic_seconds),
+            ("numeric", s.numeric_seconds),
+            ("solve", s.solve_seconds),
+        ] {
+            assert!(t > 0.0 && t < 60.0, "{name} seconds: {t}");
+        }
+        assert!(s.local_seconds >= 0.0 && s.coarse_seconds == 0.0, "{s:?}");
+    }
+
+    #[test]
+    fn interface_and_band_follow_the_couplings_of_k() {
+        let p = problem(8, "-10", "0.05");
+        let system = InteriorSystem::new(&p.stiffness, &p.mesh.on_boundary);
+        let n = system.n();
+        // The unknowns' neighbours along the edges of the mesh whose vertices K couples (not
+        // the diagonals of this right-angled mesh, across which the coupling vanishes).
+        let mut neighbours = vec![Vec::new(); n];
+        let coupled = |&(a, b): &(usize, usize)| p.stiffness.matrix().get(a, b) != 0.0;
+        let edges = p.mesh.edges();
+        assert_eq!(edges.iter().filter(|e| coupled(e)).count(), edges.len() - 64);
+        for (a, b) in edges.into_iter().filter(coupled) {
+            if let (Some(i), Some(j)) = (system.unknown[a].index(), system.unknown[b].index()) {
+                neighbours[i].push(j);
+                neighbours[j].push(i);
+            }
+        }
+        let x = |i: usize| p.mesh.points[system.vertices[i]];
+        let active: Vec<bool> = (0..n).map(|i| x(i)[0] + 0.5 * x(i)[1] < 0.6).collect();
+        let expected: Vec<usize> = (0..n)
+            .filter(|&i| neighbours[i].iter().any(|&j| active[j] != active[i]))
+            .collect();
+        assert!(expected.len() > 4 && expected.len() < n / 2);
+        assert_eq!(interface(&p, &system, &active), expected);
+        // The band of r rings: the unknowns within r edges of a seed, by breadth-first search
+        // where active unknowns `held` steps or more from a seed lead no further.
+        let seeds = [4 * 9 + 2, 6 * 9 + 6].map(|a| system.unknown[a].index().unwrap());
+        let distances = |held: usize| {
+            let mut distance = vec![usize::MAX; n];
+            let mut queue: std::collections::VecDeque<usize> = seeds.iter().copied().collect();
+            seeds.iter().for_each(|&i| distance[i] = 0);
+            while let Some(i) = queue.pop_front() {
+                if active[i] && distance[i] >= held {
+                    continue;
+                }
+                for &j in &neighbours[i] {
+                    if distance[j] == usize::MAX {
+                        distance[j] = distance[i] + 1;
+                        queue.push_back(j);
+                    }
+                }
+            }
+            distance
+        };
+        let distance = distances(usize::MAX);
+        for rings in 0..5 {
+            let expected: Vec<usize> = (0..n).filter(|&i| distance[i] <= rings).collect();
+            assert_eq!(
+                band(&p, &system, &seeds, &active, [rings, rings]),
+                expected,
+                "{rings} rings"
+            );
+        }
+        let distance = distances(1);
+        let expected: Vec<usize> = (0..n).filter(|&i| distance[i] <= 4).collect();
+        assert!(expected.len() < band(&p, &system, &seeds, &active, [4, 4]).len());
+        assert_eq!(band(&p, &system, &seeds, &active, [4, 1]), expected);
+    }
+
+    #[test]
+    fn a_start_from_the_solution_is_confirmed_at_once() {
+        // With μ1 = 1, μ2 = 2 and f2 = 0, −Δw = f1: w = g − τ for f1 = −1 and g constant, τ the
+        // torsion function (max 0.0737), so g = 0.072 gives a small contact set around the centre,
+        // whose band of local correction is a small part of the unknowns.
+        let p = problem(96, "-1", "0.072");
+        let options = SolverOptions::default();
+        let cold = solve(&p, Start::Cold, Vec::new(), options).unwrap();
+        let start = Start::From {
+            mesh: &p.mesh,
+            obstacle: &cold.obstacle,
+        };
+        let warm = solve(&p, start, Vec::new(), options).unwrap();
+        let s = &warm.obstacle.stats;
+        let contact = warm.obstacle.contact.iter().filter(|&&c| c).count();
+        assert!((10..200).contains(&contact), "contact at {contact} vertices");
+        assert_eq!(warm.obstacle.contact, cold.obstacle.contact);
+        assert_eq!(warm.obstacle.gap, cold.obstacle.gap);
+        // The guess's contact set is the solution's: the local correction on the band around its
+        // free boundary confirms it in one local iteration, one global solve confirms it again.
+        assert_eq!(
+            (s.iterations, s.local_iterations, s.factorizations),
+            (1, 1, 2),
+            "{s:?}"
+        );
+        assert!(s.local_seconds > 0.0 && s.local_seconds < s.wall_seconds, "{s:?}");
+    }
+
+    #[test]
+    fn a_proposal_is_solved_relative_to_the_loads_and_a_result_to_the_right_hand_side() {
+        // f1 = 1, f2 = 0, μ1 = 1, μ2 = 2: f_w = 2/3 = μ*, so (f_w, φ_a)/(μ* m_a) = 1 exactly;
+        // g = 100 puts a lift Σ_b 100 |K_ab|/m_a of up to 2·100·64² next to ∂ω into the
+        // right-hand side.
+        let p = problem(64, "1", "100");
+        let coarser: Vec<Mesh> = [32, 16, 8]
+            .map(|n| Mesh::rectangle([0.0, 0.0], [1.0, 1.0], n, n, Diagonal::Right).unwrap())
+            .into();
+        let prolongations = chain(&p.mesh, &coarser);
+        let (system, hierarchy) = analysed(&p, Some(&prolongations));
+        let hierarchy = hierarchy.unwrap();
+        let w_problem = WProblem::new(&p);
+        let rhs = w_problem.rhs(&system, &p.g_h);
+        let loads = load_density(&p, &system, |a| w_problem.load(a), w_problem.mu_star);
+        assert!((loads - 1.0).abs() < 1e-12, "{loads}");
+        let density = |r: &dyn Fn(usize) -> f64| {
+            (system.vertices.iter().enumerate())
+                .map(|(i, &a)| (r(i) / p.mass[a]).abs())
+                .fold(0.0, f64::max)
+        };
+        let lifted = density(&|i| rhs[i]);
+        assert!(lifted > 8e5, "{lifted}");
+        // The true residual density of each solve against its target.
+        let mut iterations = Vec::new();
+        for (stop, loads) in [
+            (Stop::Loads(1e-6), loads),
+            (Stop::Result(1e-6), loads),
+            (Stop::Loads(1e-6), 0.0),
+        ] {
+            let loads = Loads {
+                density: loads,
+                problem: &p,
+                scale: w_problem.mu_star,
+            };
+            let mut solver = backend::solver(&system, Some((&hierarchy, stop)), None, loads);
+            solver.prepare(&vec![false; system.n()]).unwrap();
+            let x = solver.solve(Cow::Borrowed(&rhs)).unwrap();
+            let residual = density(&|i| {
+                let a = system.vertices[i];
+                let kx: f64 = (p.stiffness.row(a))
+                    .filter_map(|(b, v)| system.unknown[b].index().map(|j| v * x[j]))
+                    .sum();
+                rhs[i] - kx
+            });
+            let target = match stop {
+                Stop::Loads(t) if loads.density > 0.0 => t * loads.density,
+                Stop::Residual(t) | Stop::Result(t) | Stop::Loads(t) => t * lifted,
+            };
+            assert!(residual <= 1.001 * target, "{stop:?}: {residual:e} > {target:e}");
+            iterations.push(solver.work().cg_iterations[0]);
+        }
+        // Against the lift, CG stops about six orders of magnitude earlier; without loads, the
+        // loads' stop is the lift's; a result's stop adds the backward error.
+        assert!(iterations[0] >= iterations[2] + 3, "{iterations:?}");
+        assert!(iterations[1] >= iterations[2], "{iterations:?}");
+    }
+
+    #[test]
+    fn the_coarser_levels_take_one_step_each_and_the_finest_is_solved() {
+        // Nested iteration from the coarsest 8² mesh (solved) through 16² and 32² (one global step
+        // each from the guess below) to 64², by both linear solvers: the same solution as from no
+        // guess, to round-off.
+        let p = problem(64, "-1", "0.072");
+        let coarser = || -> Vec<Mesh> {
+            [32, 16, 8]
+                .map(|n| Mesh::rectangle([0.0, 0.0], [1.0, 1.0], n, n, Diagonal::Right).unwrap())
+                .into()
+        };
+        let cold = solve(&p, Start::Cold, Vec::new(), SolverOptions::default()).unwrap();
+        for linear in [LinearSolver::Multigrid, LinearSolver::Direct] {
+            let options = SolverOptions {
+                linear,
+                ..Default::default()
+            };
+            let nested = solve(&p, Start::Nested, coarser(), options).unwrap();
+            let s = &nested.obstacle.stats;
+            assert_eq!(s.coarse_iterations.len(), 3, "{linear:?}");
+            assert!(s.coarse_iterations[0] > 1, "{:?}", s.coarse_iterations);
+            assert_eq!(s.coarse_iterations[1..], [1, 1], "{linear:?}");
+            assert_eq!(nested.obstacle.contact, cold.obstacle.contact, "{linear:?}");
+            let d = (nested.obstacle.gap.iter().zip(&cold.obstacle.gap))
+                .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(d < 1e-12, "{linear:?}: {d:e}");
+        }
+        // A proposal from a guess is one global step, without local correction; the solution
+        // from the same guess corrects it locally first.
+        let coarse = problem(32, "-1", "0.072");
+        let from = solve(&coarse, Start::Cold, Vec::new(), SolverOptions::default()).unwrap();
+        let prolongation = Prolongation::new(&p.mesh, &coarse.mesh);
+        let system = InteriorSystem::new(&p.stiffness, &p.mesh.on_boundary);
+        let options = SolverOptions::default();
+        let guess = || Some(Guess::prolong(&prolongation, &from.obstacle));
+        let proposal = obstacle(&p, &system, None, guess(), options, Role::Proposal).unwrap();
+        let solution = obstacle(&p, &system, None, guess(), options, Role::Solution).unwrap();
+        let (s, t) = (&proposal.stats, &solution.stats);
+        assert_eq!((s.iterations, s.local_iterations), (1, 0), "{s:?}");
+        assert!(t.local_iterations > 0, "{t:?}");
+        assert_eq!(solution.contact, cold.obstacle.contact);
+    }
+}

@@ -1,0 +1,267 @@
+//! The smoother of the V-cycle: Gauss–Seidel sweeps in blocks of rows (hybrid Gauss–Seidel).
+
+use crate::parallel;
+use crate::sparse::Csr;
+
+/// Levels are smoothed in blocks of about this many rows (one block below twice as many):
+/// Gauss–Seidel within each block, the other blocks' unknowns read at their values from before
+/// the sweep (hybrid Gauss–Seidel, block Jacobi between the blocks), so that the blocks can be
+/// swept in parallel. The forward sweep before the coarse correction and the backward sweep after
+/// it stay each other's adjoint, so the cycle stays symmetric. Meshes are numbered along a
+/// Z-order curve (or by rows, built-in ones), so the blocks are compact parts of ω and few rows
+/// couple across. The blocks depend on the level's size only, not on the threads: the numbers
+/// are the same swept on one thread or many.
+pub const BLOCK_ROWS: usize = 1 << 14;
+
+/// The rows of a level in the blocks of its smoother: where each block begins and the rows
+/// coupled to another block.
+#[derive(Clone)]
+pub(super) struct Blocks {
+    pub(super) starts: Vec<usize>,
+    pub(super) interface: Vec<u32>,
+}
+
+/// The values of x at the interface rows when a backward sweep starts (what each block reads of
+/// the others).
+#[derive(Clone, Copy)]
+pub(super) struct Ghosts<'a> {
+    interface: &'a [u32],
+    values: &'a [f64],
+}
+
+impl Ghosts<'_> {
+    /// x_j as the sweep started (j an interface row).
+    fn at(&self, j: u32) -> f64 {
+        self.values[self.interface.binary_search(&j).expect("a row coupled across")]
+    }
+}
+
+impl Blocks {
+    /// The blocks of the rows of `a`: n / `block_rows` of them (at least one), of equal sizes.
+    pub(super) fn new(a: &Csr, block_rows: usize) -> Self {
+        let n = a.rows();
+        let count = (n / block_rows.max(1)).max(1);
+        let starts: Vec<usize> = (0..count).map(|k| k * n / count).collect();
+        let blocks = Blocks {
+            starts,
+            interface: Vec::new(),
+        };
+        let interface = (0..n)
+            .filter(|&i| {
+                let own = blocks.of(i, n);
+                let (cols, _) = a.row(i);
+                cols.first().is_some_and(|&j| (j as usize) < own.start)
+                    || cols.last().is_some_and(|&j| j as usize >= own.end)
+            })
+            .map(|i| i as u32)
+            .collect();
+        Blocks { interface, ..blocks }
+    }
+
+    /// The rows of the block of row i (of n).
+    fn of(&self, i: usize, n: usize) -> std::ops::Range<usize> {
+        let k = self.starts.partition_point(|&s| s <= i) - 1;
+        self.starts[k]..self.starts.get(k + 1).copied().unwrap_or(n)
+    }
+
+    /// Σ_j a_ij x_j over the unknowns j of the other blocks than row i's.
+    fn across(&self, a: &Csr, i: usize, x: &[f64]) -> f64 {
+        let own = self.of(i, a.rows());
+        let (cols, vals) = a.row(i);
+        (cols.iter().zip(vals))
+            .filter(|(&j, _)| !own.contains(&(j as usize)))
+            .map(|(&j, &v)| v * x[j as usize])
+            .sum()
+    }
+}
+
+/// Pre-smoothing from x = 0 (forward, backward, … sweeps; the first in the level's blocks), and
+/// the residual r = b − A x after it.
+pub(super) fn presmooth(
+    a: &Csr,
+    skip: &[bool],
+    blocks: &Blocks,
+    b: &[f64],
+    x: &mut [f64],
+    r: &mut [f64],
+    sweeps: usize,
+) {
+    parallel::map_parts2(x, r, &blocks.starts, |k, x, r| {
+        forward_from_zero(a, skip, b, blocks.starts[k], x, r)
+    });
+    // The couplings between the blocks, left out of the sweep.
+    for &i in &blocks.interface {
+        let i = i as usize;
+        if !skip[i] {
+            r[i] -= blocks.across(a, i, x);
+        }
+    }
+    if sweeps > 1 {
+        let none = Ghosts {
+            interface: &[],
+            values: &[],
+        };
+        for s in 1..sweeps {
+            if s % 2 == 0 {
+                forward(a, skip, b, x);
+            } else {
+                backward::<false>(a, skip, b, 0, x, &mut [], none);
+            }
+        }
+        for i in 0..a.rows() {
+            r[i] = if skip[i] { 0.0 } else { b[i] - a.row_dot(i, x) };
+        }
+    }
+}
+
+/// Post-smoothing, the adjoint of [`presmooth`] (its sweeps reversed, forward ↔ backward), so
+/// that the cycle is symmetric: its last sweep is backward, in the level's blocks, reading the
+/// other blocks at the values `ghost` keeps of them. With `AX`, ax = A x from it. Returns b·x on
+/// the unknowns not skipped (summed over the blocks in order).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn postsmooth<const AX: bool>(
+    a: &Csr,
+    skip: &[bool],
+    blocks: &Blocks,
+    b: &[f64],
+    x: &mut [f64],
+    ax: &mut [f64],
+    ghost: &mut Vec<f64>,
+    sweeps: usize,
+) -> f64 {
+    let none = Ghosts {
+        interface: &[],
+        values: &[],
+    };
+    for s in (1..sweeps).rev() {
+        if s % 2 == 0 {
+            backward::<false>(a, skip, b, 0, x, &mut [], none);
+        } else {
+            forward(a, skip, b, x);
+        }
+    }
+    ghost.clear();
+    ghost.extend(blocks.interface.iter().map(|&i| x[i as usize]));
+    let ghost = Ghosts {
+        interface: &blocks.interface,
+        values: ghost,
+    };
+    let bx: f64 = parallel::map_parts2(x, ax, &blocks.starts, |k, x, ax| {
+        backward::<AX>(a, skip, b, blocks.starts[k], x, ax, ghost)
+    })
+    .into_iter()
+    .sum();
+    if AX {
+        // The rows coupled across: their products with the final x.
+        for &i in &blocks.interface {
+            let i = i as usize;
+            if !skip[i] {
+                ax[i] = a.row_dot(i, x);
+            }
+        }
+    }
+    bx
+}
+
+/// A forward Gauss–Seidel sweep from x = 0 on the rows of one block (from `base`; x and r hold
+/// the block's entries, row i at i − base), with the block's part of the residual r = b − A x
+/// after it, reading each row up to its diagonal only: the entries left of it give x_i, and then,
+/// read as the entries above the diagonal in column i (A is symmetric), the parts −a_ji x_i of the
+/// earlier rows' residuals (row i's own residual is 0 after its update). One pass over half the
+/// matrix instead of two over all of it. The other blocks' unknowns count as 0 here (they are 0
+/// when their sweeps start); their couplings are added to r afterwards ([`presmooth`]).
+fn forward_from_zero(a: &Csr, skip: &[bool], b: &[f64], base: usize, x: &mut [f64], r: &mut [f64]) {
+    for li in 0..x.len() {
+        let i = base + li;
+        r[li] = 0.0;
+        if skip[i] {
+            x[li] = 0.0;
+            continue;
+        }
+        let (lower, _, _) = a.split(i);
+        let own = a.part_at_or_above(lower, base);
+        let xi = (b[i] - a.gather_from(own.clone(), x, base)) * reciprocal(a.diagonal(i));
+        x[li] = xi;
+        for p in own {
+            let j = a.col[p] as usize;
+            if !skip[j] {
+                r[j - base] -= a.val[p] * xi;
+            }
+        }
+    }
+}
+
+/// 1/a_ii, the factor of a Gauss–Seidel update (0 where a_ii ≤ 0: the row is left as it is).
+#[inline(always)]
+fn reciprocal(a_ii: f64) -> f64 {
+    if a_ii > 0.0 {
+        1.0 / a_ii
+    } else {
+        0.0
+    }
+}
+
+/// One forward Gauss–Seidel sweep on the unknowns not skipped.
+fn forward(a: &Csr, skip: &[bool], b: &[f64], x: &mut [f64]) {
+    for i in 0..a.rows() {
+        if !skip[i] {
+            x[i] += (b[i] - a.row_dot(i, x)) * reciprocal(a.diagonal(i));
+        }
+    }
+}
+
+/// One backward Gauss–Seidel sweep on the rows of one block (from `base`; x and ax hold the
+/// block's entries), the other blocks' unknowns read from the `ghost` values; returns b·x
+/// over the block after it. With `AX`, also ax = A x (0 where skipped) on the rows not coupled to
+/// the other blocks ([`postsmooth`] completes those): row i's product is complete once x_i is
+/// updated but for the unknowns j < i still to come, whose updates δ_j then add a_ij δ_j (read
+/// from row j right of its diagonal, A being symmetric). No pass of its own.
+fn backward<const AX: bool>(
+    a: &Csr,
+    skip: &[bool],
+    b: &[f64],
+    base: usize,
+    x: &mut [f64],
+    ax: &mut [f64],
+    ghost: Ghosts,
+) -> f64 {
+    let end = base + x.len();
+    let mut bx = 0.0;
+    for li in (0..x.len()).rev() {
+        let i = base + li;
+        if skip[i] {
+            if AX {
+                ax[li] = 0.0;
+            }
+            continue;
+        }
+        let (lower, d, upper) = a.split(i);
+        let (own_lower, own_upper) = (
+            a.part_at_or_above(lower.clone(), base),
+            a.part_below(upper.clone(), end),
+        );
+        let diagonal = a.val[d];
+        // Off the chain of dependent rows: the update below multiplies.
+        let inverse = reciprocal(diagonal);
+        // The nearest entry right of the diagonal (the row just updated) last: a shorter chain.
+        let mut s = a.gather_from(own_lower.clone(), x, base)
+            + diagonal * x[li]
+            + a.gather_from_rev(own_upper.clone(), x, base);
+        for p in (lower.start..own_lower.start).chain(own_upper.end..upper.end) {
+            s += a.val[p] * ghost.at(a.col[p]);
+        }
+        let delta = (b[i] - s) * inverse;
+        x[li] += delta;
+        bx += b[i] * x[li];
+        if AX {
+            ax[li] = s + diagonal * delta;
+            for p in own_upper {
+                let j = a.col[p] as usize;
+                if !skip[j] {
+                    ax[j - base] += a.val[p] * delta;
+                }
+            }
+        }
+    }
+    bx
+}

@@ -1,0 +1,79 @@
+//! The numbers do not depend on the number of threads: a multigrid case large enough that every
+//! parallel path works in several pieces (the smoother's blocks, the loops over vertices, rows,
+//! triangles and dual cells), solved and postprocessed on 1, 2, 3 and 8 threads, gives the same
+//! fields and attributes bit for bit; and the CLI's `--threads` sets the pool.
+
+use membrane_contact::case::Case;
+use membrane_contact::contact::{LinearSolver, Start};
+use membrane_contact::result::{Describe, Values};
+use membrane_contact::run;
+
+/// Every field and every attribute but the timings of the default case on 256² cells solved
+/// with multigrid, with flux, estimate and ‖λ − λh‖_H⁻¹, on a pool of `threads`, as text that
+/// holds each f64 exactly (its shortest round-trip form).
+fn everything(threads: usize) -> Vec<String> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    pool.install(|| {
+        let mut case = Case::default_case();
+        case.set_cells(256).unwrap();
+        case.solver.linear = LinearSolver::Multigrid;
+        let options = run::Options {
+            start: Start::Nested,
+            hminus1: true,
+            flux: true,
+            estimate: true,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let r = run::solve(&case, &options, &dir.path().join("out")).unwrap();
+        assert!(r.problem.mesh.n_vertices() > 4 * membrane_contact::multigrid::BLOCK_ROWS);
+        let mut out: Vec<String> = (r.fields().into_iter())
+            .map(|f| match f.values {
+                Values::Items(v) | Values::PerVertex(v) => format!("{} {:?}", f.name, v),
+            })
+            .collect();
+        out.extend(
+            (r.attributes().into_iter())
+                .filter(|(name, _)| !name.contains("seconds"))
+                .map(|(name, value)| format!("{name} {value:?}")),
+        );
+        out
+    })
+}
+
+#[test]
+fn fields_are_the_same_bit_for_bit_on_1_2_3_and_8_threads() {
+    let one = everything(1);
+    assert!(one.len() > 30, "{} fields and attributes", one.len());
+    for threads in [2, 3, 8] {
+        let other = everything(threads);
+        assert_eq!(one.len(), other.len());
+        for (a, b) in one.iter().zip(&other) {
+            let name = a.split(' ').next().unwrap();
+            assert!(a == b, "{name} differs on {threads} threads");
+        }
+    }
+}
+
+#[test]
+fn the_threads_option_sets_the_pool() {
+    let bin = env!("CARGO_BIN_EXE_membrane-contact");
+    let dir = tempfile::tempdir().unwrap();
+    let run = |threads: &str| {
+        std::process::Command::new(bin)
+            .args(["solve", "--n", "32", "--threads", threads, "-o"])
+            .arg(dir.path().join(threads))
+            .output()
+            .unwrap()
+    };
+    let three = run("3");
+    assert!(three.status.success());
+    let summary = String::from_utf8_lossy(&three.stdout);
+    assert!(summary.contains("on 3 threads"), "{summary}");
+    let zero = run("0");
+    assert!(!zero.status.success());
+    let message = String::from_utf8_lossy(&zero.stderr);
+    assert!(message.contains("--threads"), "{message}");
+}
