@@ -16,6 +16,8 @@ SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 BENCH_SIZES ?= 256 512 1024 disk-6
 # Multigrid only (Cholesky would not fit): 16.8M vertices, about 6 GB.
 BENCH_LARGE ?= 4096
+# Sizes also solved on one thread, for the speed-up of the threads.
+BENCH_THREADS ?= 1024 4096
 BENCH_REPEAT ?= 3
 
 .PHONY: all deps solver-deps build run test cargo-test validate bench bench-reference study fuzz lint mutants expr-property clean
@@ -49,12 +51,15 @@ validate: deps build
 bench: deps
 	cargo build --release --benches
 	@{ for n in $(BENCH_SIZES); do for r in $$(seq $(BENCH_REPEAT)); do \
-		for what in poisson contact contact-mg; do \
+		for what in poisson poisson-mg contact contact-mg; do \
 			cargo bench -q --bench phases -- $$what $$n | grep -E '^(poisson|contact)' ; \
 		done; \
 	done; done; \
 	for n in $(BENCH_LARGE); do for r in $$(seq $(BENCH_REPEAT)); do \
 		cargo bench -q --bench phases -- contact-mg $$n | grep '^contact' ; \
+	done; done; \
+	for n in $(BENCH_THREADS); do for r in $$(seq $(BENCH_REPEAT)); do \
+		RAYON_NUM_THREADS=1 cargo bench -q --bench phases -- contact-mg $$n | sed -n 's/^contact-mg /contact-mg-1 /p' ; \
 	done; done; } | tee target/bench.log | $(PY) -m reference.bench_table
 
 bench-reference: deps build

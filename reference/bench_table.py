@@ -3,7 +3,11 @@ checks the targets of the multilevel solver (issue #14):
 - at 1024^2 cells the multigrid contact solve <= 0.5 x one Cholesky Poisson solve on the same mesh;
 - at 4096^2 cells (16.8M vertices) the peak memory of the whole run <= 400 bytes per vertex, and its
   contact solve <= 20 x the 1024^2 one;
-- CG iterations per level printed (flat from level to level).
+- CG iterations per level printed (flat from level to level);
+and of the solver layer (issue #25):
+- at 4096^2 the contact solve on all threads >= 1.7 x faster than on one;
+- the contact solve against one multigrid Poisson solve of the same code on the same mesh (how many
+  Poisson solves the contact problem costs).
 
 Each size is run several times; timings on a shared machine vary by tens of per cent from run to
 run, so the tables show the fastest run of each (its phases) and the median, and ratios of both.
@@ -13,7 +17,7 @@ Usage (from the repository root): ... | /usr/bin/python3 -m reference.bench_tabl
 import statistics
 import sys
 
-KINDS = ("poisson", "contact", "contact-mg")
+KINDS = ("poisson", "contact", "contact-mg", "poisson-mg", "contact-mg-1")
 
 
 def parse(line):
@@ -76,7 +80,7 @@ def main():
     print("|" + "---|" * len(cols))
     ratios = {}
     for n in meshes:
-        ps, ds, ms = (runs[n].get(k) for k in KINDS)
+        ps, ds, ms = (runs[n].get(k) for k in KINDS[:3])
         if not ps or not ms:
             continue
         p, m = fastest(ps, "total"), fastest(ms, "contact_solve")
@@ -89,9 +93,10 @@ def main():
             "%.2f" % (float(d["contact_solve"]) / float(p["total"])) if d else "—", p["peak_mb"],
             max(r["peak_mb"] for r in ds) if ds else "—", max(r["peak_mb"] for r in ms)))
 
+    speedups = threads_table(runs, meshes)
     print("\nseconds; fastest run of each (median in brackets). The contact solve is wall clock: the v "
-          "solve and the coarser levels of nested iteration on two threads, then the active-set steps "
-          "for w.\n")
+          "solve beside the coarser levels of nested iteration, then the active-set steps for w, every "
+          "kernel on all threads.\n")
     print("Targets:")
     verdict = lambda ok: "met" if ok else "NOT MET"
     if "1024" in ratios:
@@ -107,6 +112,43 @@ def main():
                 fastest(small, "contact_solve")["contact_solve"])
             print("- 4096²: contact solve %.1f x the 1024² one (target <= 20; 16 = linear): %s"
                   % (growth, verdict(growth <= 20)))
+    if "4096" in speedups:
+        print("- 4096²: contact solve on %s threads %.2f x faster than on one (target >= 1.7): %s"
+              % (speedups["4096"][0], speedups["4096"][1], verdict(speedups["4096"][1] >= 1.7)))
+
+
+def threads_table(runs, meshes):
+    """The contact solve on all threads against one thread and against one multigrid Poisson solve;
+    returns the speed-ups by mesh (threads, fastest ratio)."""
+    print("\nThe multigrid contact solve on all threads, on one, and against one multigrid Poisson solve "
+          "(CG + V-cycles from zero to 1e-12, transfers and set-up included) on the same mesh:\n")
+    cols = ("mesh", "threads", "contact", "contact, 1 thread", "speed-up (median)", "Poisson, multigrid",
+            "contact / Poisson (median)")
+    print("| " + " | ".join(cols) + " |")
+    print("|" + "---|" * len(cols))
+    speedups = {}
+    for n in meshes:
+        ms, ones, pmg = (runs[n].get(k) for k in ("contact-mg", "contact-mg-1", "poisson-mg"))
+        if not ms or not (ones or pmg):
+            continue
+        m = fastest(ms, "contact_solve")
+        cells = [label(n), m.get("threads", "?"), m["contact_solve"]]
+        if ones:
+            o = fastest(ones, "contact_solve")
+            speedup = float(o["contact_solve"]) / float(m["contact_solve"])
+            speedups[n] = (m.get("threads", "?"), speedup)
+            cells += [o["contact_solve"], "%.2f (%.2f)" % (speedup, median(ones, "contact_solve") /
+                                                           median(ms, "contact_solve"))]
+        else:
+            cells += ["—", "—"]
+        if pmg:
+            p = fastest(pmg, "total")
+            cells += [p["total"], "%.2f (%.2f)" % (float(m["contact_solve"]) / float(p["total"]),
+                                                   median(ms, "contact_solve") / median(pmg, "total"))]
+        else:
+            cells += ["—", "—"]
+        print("| " + " | ".join(cells) + " |")
+    return speedups
 
 
 if __name__ == "__main__":

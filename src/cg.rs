@@ -103,10 +103,19 @@ impl Free<'_> {
     /// The largest |r_i| the `tolerance` allows at each unknown (+∞ on the held ones) for the
     /// iterate x and its residual r (given times 1/`unscale`), from σ = |K_FF| |x| + |b|: never
     /// below the round-off [`ROUNDOFF`] σ_i of r_i (a density the data cannot resolve is left to
-    /// the checks of the solution, which say so).
-    fn limits(&self, tolerance: &Tolerance, r: &[f64], unscale: f64, x: &[f64], limit: &mut Vec<f64>) {
+    /// the checks of the solution, which say so). Returns whether r meets them (not where r_i is
+    /// NaN).
+    fn limits(
+        &self,
+        tolerance: &Tolerance,
+        r: &[f64],
+        unscale: f64,
+        x: &[f64],
+        limit: &mut Vec<f64>,
+    ) -> bool {
         limit.resize(self.n(), 0.0);
-        parallel::map_mut(limit, PIECE, |base, limit| {
+        let met = parallel::map_mut(limit, PIECE, |base, limit| {
+            let mut met = true;
             for (k, limit) in limit.iter_mut().enumerate() {
                 let i = base + k;
                 if self.skip[i] {
@@ -120,24 +129,20 @@ impl Free<'_> {
                     kx += t;
                     size += t.abs();
                 }
-                let sigma = size + (r[i] * unscale + kx).abs();
+                let r = r[i] * unscale;
+                let sigma = size + (r + kx).abs();
                 let density = tolerance.density * self.mass[i];
                 let wanted = match &tolerance.backward {
                     Some((backward, floor)) => density.min(backward * (sigma + floor(i))),
                     None => density,
                 };
                 *limit = wanted.max(ROUNDOFF * sigma);
+                met &= r.abs() <= *limit;
             }
+            met
         });
+        met.into_iter().all(|m| m)
     }
-}
-
-/// Whether |r_i| · `unscale` ≤ limit_i everywhere (not where r_i is NaN).
-fn meets(r: &[f64], unscale: f64, limit: &[f64]) -> bool {
-    let parts = parallel::map(r.len(), PIECE, |range| {
-        range.into_iter().all(|i| r[i].abs() * unscale <= limit[i])
-    });
-    parts.into_iter().all(|met| met)
 }
 
 /// max(m, |d|), NaN once either is NaN (so that CG does not stop on it).
@@ -183,8 +188,7 @@ pub fn conjugate_gradients(
     for _ in 0..=restarts {
         let mut r = b.clone();
         a.residual(&mut r, x);
-        a.limits(&tolerance, &r, 1.0, x, &mut limit);
-        if meets(&r, 1.0, &limit) {
+        if a.limits(&tolerance, &r, 1.0, x, &mut limit) {
             return Ok(iterations);
         }
         let left = max_iterations - iterations;
@@ -249,8 +253,7 @@ fn iterate(
         // σ moves with x: the bound is met only against σ of this x (and σ is renewed now and
         // then, so that CG stops once r is at its round-off).
         if met.into_iter().all(|m| m) || iteration % SIGMA_EVERY == 0 {
-            a.limits(tolerance, &r, unscale, x, limit);
-            if meets(&r, unscale, limit) {
+            if a.limits(tolerance, &r, unscale, x, limit) {
                 return Ok(iteration);
             }
         }
