@@ -231,28 +231,29 @@ pub fn load(mesh: &Mesh, f: &Expr, quad: Quadrature) -> Result<Vec<f64>, NotFini
         // Exact for constants: (c, φ_a) = c m_a.
         return Ok(lumped_mass(mesh).into_iter().map(|m| c * m).collect());
     }
-    let parts = crate::parallel::map(mesh.n_triangles(), crate::parallel::PIECE, |range| {
-        load_part(mesh, f, quad, range)
+    // (f, φ_k)_T at corner 3 t + k of triangle t.
+    let mut local = vec![0.0; 3 * mesh.n_triangles()];
+    let piece = crate::parallel::PIECE;
+    let parts = crate::parallel::map_mut(&mut local, 3 * piece, |base, local| {
+        load_part(mesh, f, quad, base / 3..base / 3 + local.len() / 3, local)
     });
-    let mut local = Vec::with_capacity(mesh.n_triangles());
-    for part in parts {
-        local.extend(part?);
-    }
+    parts.into_iter().collect::<Result<(), NotFinite>>()?;
     let stars = Stars::new(mesh);
     Ok(crate::parallel::collect(mesh.n_vertices(), |a| {
-        stars.around(a).map(|(t, k): (usize, usize)| local[t][k]).sum()
+        stars.corners(a).map(|c| local[c]).sum()
     }))
 }
 
-/// The contributions (f, φ_k)_T of the `triangles` T to their corners k.
+/// The contributions (f, φ_k)_T of the `triangles` T to their corners k, into `local` (corner
+/// 3 (t − first) + k).
 fn load_part(
     mesh: &Mesh,
     f: &Expr,
     quad: Quadrature,
     triangles: std::ops::Range<usize>,
-) -> Result<Vec<[f64; 3]>, NotFinite> {
+    local: &mut [f64],
+) -> Result<(), NotFinite> {
     let first = triangles.start;
-    let mut out = vec![[0.0; 3]; triangles.len()];
     let mut bad = None;
     quad.visit(
         |t| mesh.corners(t),
@@ -263,16 +264,13 @@ fn load_part(
                 if !v.is_finite() && bad.is_none() {
                     bad = Some(NotFinite { point: p.x, value: v });
                 }
-                for (out, b) in out[t - first].iter_mut().zip(p.barycentric) {
+                for (out, b) in local[3 * (t - first)..][..3].iter_mut().zip(p.barycentric) {
                     *out += p.weight * v * b;
                 }
             }
         },
     );
-    match bad {
-        Some(e) => Err(e),
-        None => Ok(out),
-    }
+    bad.map_or(Ok(()), Err)
 }
 
 #[cfg(test)]

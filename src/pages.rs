@@ -11,6 +11,10 @@
 //! numbers computed are the same; where the kernel's huge pages are off
 //! (`/sys/kernel/mm/transparent_hugepage/enabled` = never) the advice changes nothing.
 //!
+//! It also keeps glibc to one heap arena for all threads: by default each thread that allocates
+//! gets an arena of its own, and the blocks the threads of the pool free stay in theirs, so that
+//! the resident memory grows with the threads (measured in docs/performance.md).
+//!
 //! The program and `make bench` use it as their global allocator:
 //!
 //! ```ignore
@@ -19,6 +23,7 @@
 //! ```
 
 use std::alloc::{GlobalAlloc, Layout, System};
+use std::sync::Once;
 
 /// The system allocator, with the allocations of at least [`THRESHOLD`] bytes advised onto huge
 /// pages.
@@ -36,10 +41,12 @@ const PAGE: usize = 4096;
 // how the kernel backs the pages of an allocation, never its address, size or contents.
 unsafe impl GlobalAlloc for HugePages {
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        one_arena();
         advised(unsafe { System.alloc(layout) }, layout.size())
     }
 
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
+        one_arena();
         advised(unsafe { System.alloc_zeroed(layout) }, layout.size())
     }
 
@@ -50,6 +57,15 @@ unsafe impl GlobalAlloc for HugePages {
     unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
         advised(unsafe { System.realloc(ptr, layout, new_size) }, new_size)
     }
+}
+
+/// Sets glibc's arenas to one, at the first allocation (before any thread but the first exists).
+fn one_arena() {
+    static ONCE: Once = Once::new();
+    // SAFETY: mallopt only sets a parameter of the allocator; it neither allocates nor frees.
+    ONCE.call_once(|| unsafe {
+        libc::mallopt(libc::M_ARENA_MAX, 1);
+    });
 }
 
 /// `ptr`, with the whole pages of its `size` bytes advised onto huge pages when it is large.

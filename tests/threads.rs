@@ -77,3 +77,41 @@ fn the_threads_option_sets_the_pool() {
     let message = String::from_utf8_lossy(&zero.stderr);
     assert!(message.contains("--threads"), "{message}");
 }
+
+/// The peak resident memory of a run of the program, in kB (its own, read by `wait4`).
+fn peak_kb(args: &[&str]) -> i64 {
+    let bin = env!("CARGO_BIN_EXE_membrane-contact");
+    let child = std::process::Command::new(bin)
+        .args(args)
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut status = 0;
+    // SAFETY: rusage is plain data that wait4 fills; the child is ours and not yet waited for.
+    let mut usage: libc::rusage = unsafe { std::mem::zeroed() };
+    let pid = unsafe { libc::wait4(child.id() as i32, &mut status, 0, &mut usage) };
+    assert!(pid > 0 && libc::WIFEXITED(status) && libc::WEXITSTATUS(status) == 0);
+    usage.ru_maxrss
+}
+
+#[test]
+fn memory_does_not_grow_with_the_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let peak = |threads: &str| {
+        let out = dir.path().join(threads);
+        peak_kb(&[
+            "solve",
+            "--n",
+            "512",
+            "--threads",
+            threads,
+            "-o",
+            out.to_str().unwrap(),
+        ])
+    };
+    let (one, eight) = (peak("1"), peak("8"));
+    assert!(
+        eight as f64 <= 1.05 * one as f64,
+        "peak {eight} kB on 8 threads, {one} kB on 1"
+    );
+}

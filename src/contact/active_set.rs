@@ -97,15 +97,15 @@ impl<'p> WProblem<'p> {
         w: impl Fn(usize) -> f64 + Sync,
     ) -> (Vec<f64>, Vec<bool>) {
         let k = &self.problem.stiffness;
-        let parts = parallel::map(system.n(), PIECE, |unknowns| {
-            (unknowns.map(|i| {
+        let (mut residual, mut next) = (vec![0.0; system.n()], vec![false; system.n()]);
+        parallel::map_mut2(&mut residual, &mut next, PIECE, |base, residual, next| {
+            for (i, (r, next)) in (base..).zip(residual.iter_mut().zip(next)) {
                 let a = system.vertices[i];
-                let r = self.mu_star * k.row(a).map(|(b, v)| v * w(b)).sum::<f64>() - self.load(a);
-                (r, self.predicts_contact(a, r, w_int[i]))
-            }))
-            .collect::<Vec<_>>()
+                *r = self.mu_star * k.row(a).map(|(b, v)| v * w(b)).sum::<f64>() - self.load(a);
+                *next = self.predicts_contact(a, *r, w_int[i]);
+            }
         });
-        parts.into_iter().flatten().unzip()
+        (residual, next)
     }
 }
 

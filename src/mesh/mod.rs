@@ -252,6 +252,13 @@ impl Stars {
             .iter()
             .map(|&c| (c as usize / 3, c as usize % 3))
     }
+
+    /// The corners 3 t + k of the triangles t around vertex a (k: a's corner in t).
+    #[inline]
+    pub fn corners(&self, a: usize) -> impl Iterator<Item = usize> + '_ {
+        let range = self.start[a] as usize..self.start[a + 1] as usize;
+        self.corner[range].iter().map(|&c| c as usize)
+    }
 }
 
 impl Mesh {
