@@ -252,10 +252,9 @@ fn iterate(
         });
         // σ moves with x: the bound is met only against σ of this x (and σ is renewed now and
         // then, so that CG stops once r is at its round-off).
-        if met.into_iter().all(|m| m) || iteration % SIGMA_EVERY == 0 {
-            if a.limits(tolerance, &r, unscale, x, limit) {
-                return Ok(iteration);
-            }
+        let renew = met.into_iter().all(|m| m) || iteration % SIGMA_EVERY == 0;
+        if renew && a.limits(tolerance, &r, unscale, x, limit) {
+            return Ok(iteration);
         }
         let rz_next = preconditioner.precondition(&r, &mut z, &mut kz);
         let beta = rz_next / rz;
