@@ -78,7 +78,9 @@ fn the_threads_option_sets_the_pool() {
     assert!(message.contains("--threads"), "{message}");
 }
 
-/// The peak resident memory of a run of the program, in kB (its own, read by `wait4`).
+/// The peak resident memory of a run of the program, in kB (its own, read by `wait4`, which
+/// reaps it: `Child::wait` cannot give the resources of the child).
+#[allow(clippy::zombie_processes)]
 fn peak_kb(args: &[&str]) -> i64 {
     let bin = env!("CARGO_BIN_EXE_membrane-contact");
     let child = std::process::Command::new(bin)
