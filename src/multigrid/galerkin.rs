@@ -1,6 +1,7 @@
 //! The truncated Galerkin operators Ã_{l+1} = P̃_lᵀ Ã_l P̃_l of a held set (see the module
 //! [`crate::multigrid`]): the products, the coarse unknowns kept, and the rows a held set changes.
 
+use crate::parallel;
 use crate::sparse::{Csr, RowsPart, NEGLIGIBLE};
 
 /// The Galerkin product P̃ᵀ A P̃, P̃ = D P E with D zeroing the rows i of P where `alive[i]` is
@@ -123,28 +124,23 @@ pub(super) fn dirty_rows(
     kept: &[bool],
     base_skip: &[bool],
 ) -> Vec<bool> {
-    // Finer unknowns whose row or status may differ, or that a changed coarse unknown reaches.
-    let mut reach = finer_dirty.to_vec();
+    // Finer unknowns whose row or status may differ, or that a changed coarse unknown reaches,
+    // the finer rows coupled to one, and the coarse rows that interpolate to those: gathers, in
+    // parallel.
     let changed: Vec<bool> = kept.iter().zip(base_skip).map(|(&k, &s)| k == s).collect();
-    for (j, _) in changed.iter().enumerate().filter(|(_, &c)| c) {
-        for &k in pt.row(j).0 {
-            reach[k as usize] = true;
-        }
-    }
-    let mut dirty = changed;
-    for i in 0..b.rows() {
-        let (cols, _) = b.row(i);
-        if reach[i] || cols.iter().any(|&k| reach[k as usize]) {
-            for &big_j in p.row(i).0 {
-                dirty[big_j as usize] = true;
-            }
-        }
-    }
-    dirty
+    let reach = parallel::collect(b.rows(), |k| {
+        finer_dirty[k] || p.row(k).0.iter().any(|&j| changed[j as usize])
+    });
+    let near = parallel::collect(b.rows(), |i| {
+        reach[i] || b.row(i).0.iter().any(|&k| reach[k as usize])
+    });
+    parallel::collect(pt.rows(), |j| {
+        changed[j] || pt.row(j).0.iter().any(|&i| near[i as usize])
+    })
 }
 
 /// The coarse unknowns kept below the live (`alive`) unknowns of a level: those that give one of
-/// them a weight above [`KEEP_WEIGHT`] in the interpolation `p`. On nested meshes these are the
+/// them a weight above [`KEEP_WEIGHT`] in the interpolation P (rows of `pt` = Pᵀ). On nested meshes these are the
 /// coarse vertices that are live fine vertices (weight 1; the other fine vertices take 1/2 from
 /// two coarse ones): truncation drops the coarse unknowns held on the fine level. Each kept
 /// column of P̃ then has a row where its weight exceeds the sum of the others' (the weights of a
@@ -152,17 +148,11 @@ pub(super) fn dirty_rows(
 /// the coarsest, which Cholesky solves. Keeping every coarse function whose truncation is not
 /// zero would not: two of them can both reduce to the same fine hat function (a free fine
 /// vertex amid held ones), and the coarse matrix is then singular.
-pub(super) fn kept(p: &Csr, alive: &[bool]) -> Vec<bool> {
-    let mut kept = vec![false; p.cols];
-    for (i, _) in alive.iter().enumerate().filter(|(_, &a)| a) {
-        let (cols, weights) = p.row(i);
-        for (&j, &w) in cols.iter().zip(weights) {
-            if w > KEEP_WEIGHT {
-                kept[j as usize] = true;
-            }
-        }
-    }
-    kept
+pub(super) fn kept(pt: &Csr, alive: &[bool]) -> Vec<bool> {
+    parallel::collect(pt.rows(), |j| {
+        let (fine, weights) = pt.row(j);
+        (fine.iter().zip(weights)).any(|(&i, &w)| alive[i as usize] && w > KEEP_WEIGHT)
+    })
 }
 
 /// The weight above which a coarse unknown is kept: more than 1/2 (what the rank argument needs),

@@ -201,8 +201,8 @@ impl<'h> Hierarchy<'h> {
         let mut alive: Vec<bool> = skip.iter().map(|&s| !s).collect();
         let mut out: Vec<(Cow<'b, Csr>, Vec<bool>)> = Vec::with_capacity(self.p.len());
         for (l, (p, (b, b_skip))) in self.p.iter().zip(base).enumerate() {
+            let kept = kept(p.transposed(), &alive);
             let p = p.matrix();
-            let kept = kept(p, &alive);
             let same = !dirty.iter().any(|&d| d) && kept.iter().zip(b_skip).all(|(&k, &s)| k != s);
             let a = if same {
                 // The base's skipped set (v's): its operators themselves.
@@ -233,7 +233,7 @@ impl<'h> Hierarchy<'h> {
                 out.last().map_or(self.fine, |(c, _)| c),
             );
             let alive: Vec<bool> = skip.iter().map(|&s| !s).collect();
-            let kept = kept(p, &alive);
+            let kept = kept(pt, &alive);
             let a = galerkin(finer, p, pt, &alive, &kept, None);
             skip = kept.iter().map(|&k| !k).collect();
             out.push((a, skip.clone()));
@@ -419,7 +419,7 @@ mod tests {
             p,
             &p.transpose(),
             &held,
-            &kept(p, &alive),
+            &kept(&p.transpose(), &alive),
             skip1,
         );
         let (count, rows) = (dirty.iter().filter(|&&d| d).count(), b1.rows());
@@ -589,7 +589,7 @@ mod tests {
         let mut x = vec![0.0; k.n()];
         assert_eq!(mg.solve(b, &mut x, 1e-12, 10), Ok(1));
         assert!((x[midpoint] - 1.0 / k.diagonal(midpoint)).abs() < 1e-15);
-        assert!(kept(p, &alive).iter().all(|&k| !k));
+        assert!(kept(&p.transpose(), &alive).iter().all(|&k| !k));
     }
 
     /// CG returns x = 0 at once for b = 0 (whatever the start), and does not stop on a NaN.

@@ -46,16 +46,27 @@ impl Blocks {
             starts,
             interface: Vec::new(),
         };
-        let interface = (0..n)
-            .filter(|&i| {
+        let interface = parallel::map(n, parallel::PIECE, |rows| {
+            rows.filter(|&i| {
                 let own = blocks.of(i, n);
                 let (cols, _) = a.row(i);
                 cols.first().is_some_and(|&j| (j as usize) < own.start)
                     || cols.last().is_some_and(|&j| j as usize >= own.end)
             })
             .map(|i| i as u32)
-            .collect();
+            .collect::<Vec<u32>>()
+        })
+        .concat();
         Blocks { interface, ..blocks }
+    }
+
+    /// The interface rows of block k.
+    fn interface_of(&self, k: usize) -> &[u32] {
+        let start = self.starts[k] as u32;
+        let end = self.starts.get(k + 1).map_or(u32::MAX, |&e| e as u32);
+        let first = self.interface.partition_point(|&i| i < start);
+        let last = self.interface.partition_point(|&i| i < end);
+        &self.interface[first..last]
     }
 
     /// The rows of the block of row i (of n).
@@ -89,13 +100,14 @@ pub(super) fn presmooth(
     parallel::map_parts2(x, r, &blocks.starts, |k, x, r| {
         forward_from_zero(a, skip, b, blocks.starts[k], x, r)
     });
-    // The couplings between the blocks, left out of the sweep.
-    for &i in &blocks.interface {
-        let i = i as usize;
-        if !skip[i] {
-            r[i] -= blocks.across(a, i, x);
+    // The couplings between the blocks, left out of the sweep: each block's rows, in parallel.
+    let across = &*x;
+    parallel::map_parts2(r, &mut [0u8; 0], &blocks.starts, |k, r, _| {
+        let base = blocks.starts[k];
+        for &i in blocks.interface_of(k).iter().filter(|&&i| !skip[i as usize]) {
+            r[i as usize - base] -= blocks.across(a, i as usize, across);
         }
-    }
+    });
     if sweeps > 1 {
         let none = Ghosts {
             interface: &[],
@@ -152,13 +164,14 @@ pub(super) fn postsmooth<const AX: bool>(
     .into_iter()
     .sum();
     if AX {
-        // The rows coupled across: their products with the final x.
-        for &i in &blocks.interface {
-            let i = i as usize;
-            if !skip[i] {
-                ax[i] = a.row_dot(i, x);
+        // The rows coupled across: their products with the final x, each block's in parallel.
+        let x = &*x;
+        parallel::map_parts2(ax, &mut [0u8; 0], &blocks.starts, |k, ax, _| {
+            let base = blocks.starts[k];
+            for &i in blocks.interface_of(k).iter().filter(|&&i| !skip[i as usize]) {
+                ax[i as usize - base] = a.row_dot(i as usize, x);
             }
-        }
+        });
     }
     bx
 }
