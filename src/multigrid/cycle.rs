@@ -205,17 +205,15 @@ impl Cycle<'_, '_> {
             }
             return b.iter().zip(&*x).map(|(b, x)| b * x).sum();
         }
-        let (a, skip, blocks) = (&*level.a, &level.skip[..], &level.blocks);
-        presmooth(a, skip, blocks, b, x, &mut self.work[l].r, ops.sweeps);
+        presmooth(level, b, x, &mut self.work[l].r, ops.sweeps);
         let (mut bc, mut xc) = {
             let (fine, coarse) = self.work.split_at_mut(l + 1);
             restrict(ops.p[l].transposed(), &fine[l].r, &mut coarse[0].b);
             (std::mem::take(&mut coarse[0].b), std::mem::take(&mut coarse[0].x))
         };
         self.cycle::<false>(l + 1, &bc, &mut xc, &mut []);
-        prolong(ops.p[l].matrix(), skip, &xc, x);
-        let work = &mut self.work[l];
-        let bx = postsmooth::<AX>(a, skip, blocks, b, x, ax, &mut work.ghost, ops.sweeps);
+        prolong(ops.p[l].matrix(), &level.skip, &xc, x);
+        let bx = postsmooth::<AX>(level, b, x, ax, &mut self.work[l].ghost, ops.sweeps);
         let coarse = &mut self.work[l + 1];
         std::mem::swap(&mut coarse.b, &mut bc);
         std::mem::swap(&mut coarse.x, &mut xc);

@@ -18,91 +18,109 @@ pub(super) fn galerkin(
     kept: &[bool],
     base: Option<(&Csr, &[bool])>,
 ) -> Csr {
+    let product = Product {
+        a,
+        p,
+        pt,
+        alive,
+        kept,
+        base,
+    };
     let nc = pt.rows();
     // Room for as many entries per row as the finer operator has, and one more.
     let per_row = a.nnz() / a.rows().max(1) + 1;
-    let rows = |rows, part: &mut RowsPart| galerkin_rows(a, p, pt, alive, kept, base, rows, part);
-    Csr::by_rows(nc, nc, per_row, rows).with_diagonal()
+    Csr::by_rows(nc, nc, per_row, |rows, part| product.rows(rows, part)).with_diagonal()
+}
+
+/// The arguments of [`galerkin`].
+#[derive(Clone, Copy)]
+struct Product<'a> {
+    a: &'a Csr,
+    p: &'a Csr,
+    pt: &'a Csr,
+    alive: &'a [bool],
+    kept: &'a [bool],
+    base: Option<(&'a Csr, &'a [bool])>,
 }
 
 /// The marker of a coarse column that E drops: never a row number (the rows of a [`Csr`] number
 /// fewer than 2³² − 2).
 const NOT_KEPT: u32 = u32::MAX - 1;
 
-/// Rows `rows` of [`galerkin`], pushed to `part`.
-#[allow(clippy::too_many_arguments)]
-fn galerkin_rows(
-    a: &Csr,
-    p: &Csr,
-    pt: &Csr,
-    alive: &[bool],
-    kept: &[bool],
-    base: Option<(&Csr, &[bool])>,
-    rows: std::ops::Range<usize>,
-    (ends, col, val): &mut RowsPart,
-) {
-    let nc = pt.rows();
-    // Per coarse column: the row whose sum it last entered, or NOT_KEPT (a column of E's zeros,
-    // so that one load decides both), and that sum.
-    let mut marker: Vec<u32> = kept
-        .iter()
-        .map(|&k| if k { u32::MAX } else { NOT_KEPT })
-        .collect();
-    let mut acc = vec![0.0; nc];
-    for big_i in rows {
-        let start = col.len();
-        if let Some((b, _)) = base.filter(|(_, dirty)| !dirty[big_i]) {
-            let (cols, vals) = b.row(big_i);
-            col.extend_from_slice(cols);
-            val.extend_from_slice(vals);
-        } else if kept[big_i] {
-            let row = big_i as u32;
-            let (fine, weights) = pt.row(big_i);
-            for (&i, &w) in fine.iter().zip(weights) {
-                let i = i as usize;
-                if !alive[i] {
-                    continue;
-                }
-                let (ks, avals) = a.row(i);
-                for (&k, &a) in ks.iter().zip(avals) {
-                    let k = k as usize;
-                    if !alive[k] {
+impl Product<'_> {
+    /// Rows `rows` of [`galerkin`], pushed to `part`.
+    fn rows(self, rows: std::ops::Range<usize>, (ends, col, val): &mut RowsPart) {
+        let Product {
+            a,
+            p,
+            pt,
+            alive,
+            kept,
+            base,
+        } = self;
+        let nc = pt.rows();
+        // Per coarse column: the row whose sum it last entered, or NOT_KEPT (a column of E's zeros,
+        // so that one load decides both), and that sum.
+        let mut marker: Vec<u32> = kept
+            .iter()
+            .map(|&k| if k { u32::MAX } else { NOT_KEPT })
+            .collect();
+        let mut acc = vec![0.0; nc];
+        for big_i in rows {
+            let start = col.len();
+            if let Some((b, _)) = base.filter(|(_, dirty)| !dirty[big_i]) {
+                let (cols, vals) = b.row(big_i);
+                col.extend_from_slice(cols);
+                val.extend_from_slice(vals);
+            } else if kept[big_i] {
+                let row = big_i as u32;
+                let (fine, weights) = pt.row(big_i);
+                for (&i, &w) in fine.iter().zip(weights) {
+                    let i = i as usize;
+                    if !alive[i] {
                         continue;
                     }
-                    let f = w * a;
-                    let (js, pvals) = p.row(k);
-                    for (&j, &q) in js.iter().zip(pvals) {
-                        let j = j as usize;
-                        match marker[j] {
-                            m if m == row => acc[j] += f * q,
-                            NOT_KEPT => {}
-                            _ => {
-                                marker[j] = row;
-                                acc[j] = f * q;
-                                col.push(j as u32);
+                    let (ks, avals) = a.row(i);
+                    for (&k, &a) in ks.iter().zip(avals) {
+                        let k = k as usize;
+                        if !alive[k] {
+                            continue;
+                        }
+                        let f = w * a;
+                        let (js, pvals) = p.row(k);
+                        for (&j, &q) in js.iter().zip(pvals) {
+                            let j = j as usize;
+                            match marker[j] {
+                                m if m == row => acc[j] += f * q,
+                                NOT_KEPT => {}
+                                _ => {
+                                    marker[j] = row;
+                                    acc[j] = f * q;
+                                    col.push(j as u32);
+                                }
                             }
                         }
                     }
                 }
-            }
-            col[start..].sort_unstable();
-            let diagonal = if marker[big_i] == row {
-                acc[big_i].abs()
-            } else {
-                0.0
-            };
-            let mut end = start;
-            for q in start..col.len() {
-                let j = col[q];
-                if acc[j as usize].abs() > NEGLIGIBLE * diagonal {
-                    col[end] = j;
-                    val.push(acc[j as usize]);
-                    end += 1;
+                col[start..].sort_unstable();
+                let diagonal = if marker[big_i] == row {
+                    acc[big_i].abs()
+                } else {
+                    0.0
+                };
+                let mut end = start;
+                for q in start..col.len() {
+                    let j = col[q];
+                    if acc[j as usize].abs() > NEGLIGIBLE * diagonal {
+                        col[end] = j;
+                        val.push(acc[j as usize]);
+                        end += 1;
+                    }
                 }
+                col.truncate(end);
             }
-            col.truncate(end);
+            ends.push(col.len() as u32);
         }
-        ends.push(col.len() as u32);
     }
 }
 

@@ -1,5 +1,6 @@
 //! The smoother of the V-cycle: Gauss–Seidel sweeps in blocks of rows (hybrid Gauss–Seidel).
 
+use super::cycle::Level;
 use crate::parallel;
 use crate::sparse::Csr;
 
@@ -88,15 +89,8 @@ impl Blocks {
 
 /// Pre-smoothing from x = 0 (forward, backward, … sweeps; the first in the level's blocks), and
 /// the residual r = b − A x after it.
-pub(super) fn presmooth(
-    a: &Csr,
-    skip: &[bool],
-    blocks: &Blocks,
-    b: &[f64],
-    x: &mut [f64],
-    r: &mut [f64],
-    sweeps: usize,
-) {
+pub(super) fn presmooth(level: &Level, b: &[f64], x: &mut [f64], r: &mut [f64], sweeps: usize) {
+    let (a, skip, blocks) = (&*level.a, &level.skip[..], &level.blocks);
     parallel::map_parts2(x, r, &blocks.starts, |k, x, r| {
         forward_from_zero(a, skip, b, blocks.starts[k], x, r)
     });
@@ -130,17 +124,15 @@ pub(super) fn presmooth(
 /// that the cycle is symmetric: its last sweep is backward, in the level's blocks, reading the
 /// other blocks at the values `ghost` keeps of them. With `AX`, ax = A x from it. Returns b·x on
 /// the unknowns not skipped (summed over the blocks in order).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn postsmooth<const AX: bool>(
-    a: &Csr,
-    skip: &[bool],
-    blocks: &Blocks,
+    level: &Level,
     b: &[f64],
     x: &mut [f64],
     ax: &mut [f64],
     ghost: &mut Vec<f64>,
     sweeps: usize,
 ) -> f64 {
+    let (a, skip, blocks) = (&*level.a, &level.skip[..], &level.blocks);
     let none = Ghosts {
         interface: &[],
         values: &[],
