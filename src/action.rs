@@ -16,9 +16,7 @@ use crate::problem::DiscreteProblem;
 use crate::result::{Attribute, Describe, Field, Place};
 use std::fmt;
 
-/// The largest relative defect of Prop. 12, of λ_a ≥ 0 and of (4.8) a run accepts: round-off
-/// of the factorizations leaves about 1e-15.
-pub const TOLERANCE: f64 = 1e-10;
+pub use crate::contact::CHECK_TOLERANCE as TOLERANCE;
 
 /// The largest round-off of λ_h a run accepts, relative to the size of the loads.
 pub const RESOLUTION: f64 = 1e-3;

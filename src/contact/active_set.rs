@@ -3,14 +3,14 @@
 //! A, repeated until A no longer changes.
 
 use super::backend::{self, LinearSolve, Loads, Stop, GUESS_STOP, RESULT_STOP};
-use super::nested::Guess;
+use super::local::interface;
+use super::options::{SolveError, SolverOptions};
 use super::stats::{SolverStats, Timed};
-use super::{Obstacle, SolveError, SolverOptions};
+use super::w_problem::{load_density, Step, WProblem};
 use crate::linear::InteriorSystem;
+use crate::mesh::Prolongation;
 use crate::multigrid::Hierarchy;
-use crate::parallel::{self, PIECE};
 use crate::problem::DiscreteProblem;
-use std::borrow::Cow;
 
 /// What [`obstacle`] solves for.
 #[derive(Clone, Copy, PartialEq)]
@@ -23,103 +23,34 @@ pub(super) enum Role {
     Proposal,
 }
 
-/// The obstacle problem for w on one mesh: μ* K w ≥ f_w, w ≥ 0, complementarity.
-pub(super) struct WProblem<'p> {
-    pub(super) problem: &'p DiscreteProblem,
-    pub(super) mu_star: f64,
-    /// Room for the numbering of a local correction's band, one entry per vertex, all
-    /// [`crate::linear::Unknown::HELD`] between corrections (so that each costs O(band), not
-    /// O(vertices)).
-    pub(super) scratch: Vec<crate::linear::Unknown>,
+/// An initial guess of the gap w and λ at every vertex, e.g. a coarser mesh's solution
+/// interpolated here (nested iteration).
+pub(super) struct Guess {
+    pub(super) gap: Vec<f64>,
+    pub(super) lambda: Vec<f64>,
 }
 
-/// One primal–dual active-set step: w with w = 0 on the active set and the equation off it, the
-/// residual r_a = μ*(K w)_a − (f_w, φ_a) = λ_a m_a and the next active set {r_a − μ* K_aa w_a > 0}.
-pub(super) struct Step {
-    /// w at every vertex.
-    w: Vec<f64>,
-    residual: Vec<f64>,
-    next: Vec<bool>,
-}
-
-impl<'p> WProblem<'p> {
-    pub(super) fn new(problem: &'p DiscreteProblem) -> Self {
-        let (mu1, mu2) = (problem.data.mu1, problem.data.mu2);
-        WProblem {
-            problem,
-            mu_star: mu1 * mu2 / (mu1 + mu2),
-            scratch: Vec::new(),
+impl Guess {
+    /// The gap and λ of another mesh's solution, transferred by `p`.
+    pub(super) fn prolong(p: &Prolongation, o: &Obstacle) -> Guess {
+        Guess {
+            gap: p.apply(&o.gap),
+            lambda: p.apply(&o.lambda),
         }
     }
-
-    /// (f_w, φ_a) = (μ2 (f1, φ_a) − μ1 (f2, φ_a))/(μ1+μ2).
-    pub(super) fn load(&self, a: usize) -> f64 {
-        let p = self.problem;
-        let (mu1, mu2) = (p.data.mu1, p.data.mu2);
-        (mu2 * p.load1[a] - mu1 * p.load2[a]) / (mu1 + mu2)
-    }
-
-    /// The active-set rule at vertex a: λ_a m_a − μ* K_aa w_a > 0 (i.e. λ_a > c_a w_a with
-    /// c_a = μ* K_aa / m_a).
-    fn predicts_contact(&self, a: usize, residual: f64, w: f64) -> bool {
-        residual - self.mu_star * self.problem.stiffness.diagonal(a) * w > 0.0
-    }
-
-    /// The right-hand side of `system` with the values `bc` off its unknowns.
-    pub(super) fn rhs(&self, system: &InteriorSystem, bc: &[f64]) -> Vec<f64> {
-        system.lifted_rhs(&self.problem.stiffness, |a| self.load(a), self.mu_star, |b| bc[b])
-    }
-
-    /// One step: w with `solver` (prepared first for a `new_set`), its residual and the next set.
-    fn step(
-        &self,
-        system: &InteriorSystem,
-        solver: &mut dyn LinearSolve,
-        [rhs, bc]: [&[f64]; 2],
-        new_set: Option<&[bool]>,
-    ) -> Result<Step, SolveError> {
-        if let Some(active) = new_set {
-            solver.analyse(active);
-            solver.prepare(active)?;
-        }
-        let w_int = solver.solve(Cow::Borrowed(rhs))?;
-        let w = system.scatter(&w_int, bc);
-        let (residual, next) = self.residual_and_next(system, &w_int, |b| w[b]);
-        Ok(Step { w, residual, next })
-    }
-
-    /// The residual r_a = μ*(K w)_a − (f_w, φ_a) at the unknowns of `system` and the next active
-    /// set, for w = w_int there and `w(b)` at every vertex b; in parallel.
-    pub(super) fn residual_and_next(
-        &self,
-        system: &InteriorSystem,
-        w_int: &[f64],
-        w: impl Fn(usize) -> f64 + Sync,
-    ) -> (Vec<f64>, Vec<bool>) {
-        let k = &self.problem.stiffness;
-        let (mut residual, mut next) = (vec![0.0; system.n()], vec![false; system.n()]);
-        parallel::map_mut2(&mut residual, &mut next, PIECE, |base, residual, next| {
-            for (i, (r, next)) in (base..).zip(residual.iter_mut().zip(next)) {
-                let a = system.vertices[i];
-                *r = self.mu_star * k.row(a).map(|(b, v)| v * w(b)).sum::<f64>() - self.load(a);
-                *next = self.predicts_contact(a, *r, w_int[i]);
-            }
-        });
-        (residual, next)
-    }
 }
 
-/// max_a |load(a)|/(scale m_a) over the unknowns of `system`: the density of the loads of
-/// scale·K u = load (see [`Stop::Loads`]).
-pub(super) fn load_density(
-    problem: &DiscreteProblem,
-    system: &InteriorSystem,
-    load: impl Fn(usize) -> f64,
-    scale: f64,
-) -> f64 {
-    (system.vertices.iter())
-        .map(|&a| (load(a) / (scale * problem.mass[a])).abs())
-        .fold(0.0, f64::max)
+/// The solution w of the obstacle problem, with its λ and contact set.
+#[derive(Debug, Clone)]
+pub struct Obstacle {
+    /// w = u1h − u2h at every vertex.
+    pub gap: Vec<f64>,
+    /// λ_a = r_a / m_a at interior vertices (0 on ∂ω).
+    pub lambda: Vec<f64>,
+    /// Interior vertices where the membranes touch (the final active set).
+    pub contact: Vec<bool>,
+    /// What the solver did.
+    pub stats: SolverStats,
 }
 
 /// The obstacle problem for w on `problem`'s mesh by primal–dual active sets, its linear solves
@@ -220,7 +151,7 @@ fn first_set(
     let data: Vec<f64> = (guess.gap.iter().zip(&problem.g_h).enumerate())
         .map(|(a, (&w, &g))| if problem.mesh.on_boundary[a] { g } else { w })
         .collect();
-    let seeds = super::local::interface(problem, system, &active);
+    let seeds = interface(problem, system, &active);
     w_problem.local_correction(system, &data, &seeds, active, stats)
 }
 

@@ -2,8 +2,9 @@
 //! ([`Cholesky`]), or CG preconditioned by the truncated V-cycle of K_FF ([`MultigridCg`]), and
 //! where CG stops ([`Stop`]).
 
-use super::SolveError;
+use super::options::SolveError;
 use crate::linear::{Factorization, InteriorSystem};
+use crate::mesh::Prolongation;
 use crate::multigrid::{Hierarchy, Multigrid, Tolerance};
 use crate::problem::DiscreteProblem;
 use std::borrow::Cow;
@@ -226,8 +227,8 @@ impl Stop {
 /// defects at a vertex are combinations of the two residuals there (Prop. 12's is v's, λ_h ≥ 0's
 /// at a free vertex μ1/(μ1+μ2) v's plus w's), each relative to a scale that σ_a bounds from
 /// below within a factor 2 (CG's σ_a plus the sizes of the loads, which b may cancel), so an
-/// eighth of [`crate::action::TOLERANCE`] leaves them at half of it, and round-off the rest.
-const RESULT_BACKWARD: f64 = crate::action::TOLERANCE / 8.0;
+/// eighth of [`super::CHECK_TOLERANCE`] leaves them at half of it, and round-off the rest.
+const RESULT_BACKWARD: f64 = super::CHECK_TOLERANCE / 8.0;
 
 /// The steps that confirm an active set on the final mesh: to the round-off of K x, as the direct
 /// solve (how closely the two agree, and why λ_h's agreement widens on fine meshes with g ≠ 0:
@@ -253,5 +254,21 @@ pub(super) fn solver<'s>(
     match multigrid {
         None => Box::new(Cholesky::new(system)),
         Some((hierarchy, stop)) => Box::new(MultigridCg::new(system, hierarchy, stop, start, loads)),
+    }
+}
+
+/// The interior unknowns of `problem` with, for the direct solver (no `prolongations`), the
+/// Cholesky analysis of K_II, or else its multigrid hierarchy on the `prolongations` below it.
+pub(super) fn analysed<'t>(
+    problem: &'t DiscreteProblem,
+    prolongations: Option<&'t [Prolongation]>,
+) -> (InteriorSystem, Option<Hierarchy<'t>>) {
+    let (k, on_boundary) = (&problem.stiffness, &problem.mesh.on_boundary);
+    match prolongations {
+        None => (InteriorSystem::new(k, on_boundary), None),
+        Some(p) => (
+            InteriorSystem::numbering(on_boundary),
+            Some(Hierarchy::new(k, &problem.mass, p)),
+        ),
     }
 }

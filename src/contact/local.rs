@@ -2,9 +2,9 @@
 //! on a band of vertices around the free boundary, the current iterate as Dirichlet data outside
 //! it, solved by primal–dual active sets with small Cholesky factorizations.
 
-use super::active_set::WProblem;
 use super::backend::{Cholesky, LinearSolve};
 use super::stats::{SolverStats, Timed};
+use super::w_problem::WProblem;
 use crate::linear::{InteriorSystem, Unknown};
 use crate::problem::DiscreteProblem;
 use std::borrow::Cow;

@@ -17,144 +17,31 @@ mod active_set;
 mod backend;
 mod local;
 mod nested;
+mod options;
 mod stats;
+mod w_problem;
 
+pub use active_set::Obstacle;
+pub use nested::Start;
+pub use options::{LinearSolver, SolveError, SolverOptions};
 pub use stats::SolverStats;
 
 use crate::linear::InteriorSystem;
 use crate::mesh::{Mesh, Prolongation};
-use crate::multigrid::{Hierarchy, NotConverged};
+use crate::multigrid::Hierarchy;
 use crate::parallel;
-use crate::problem::{DataError, DiscreteProblem};
+use crate::problem::DiscreteProblem;
 use crate::result::{Attr, Attribute, Describe, Field, Place};
 use active_set::{obstacle, Role};
-use backend::{LinearSolve, Loads, FINAL_STOP, RESULT_STOP};
+use backend::{analysed, LinearSolve, Loads, FINAL_STOP, RESULT_STOP};
 use nested::{chain, initial_guess, Started};
 use std::borrow::Cow;
-use std::fmt;
 use std::time::Instant;
 
-/// Why the discrete problem could not be solved.
-#[derive(Debug, Clone, PartialEq)]
-pub enum SolveError {
-    /// The active-set method did not converge within the cap.
-    IterationCap {
-        /// Iterations done.
-        iterations: usize,
-        /// Vertices that changed in the last one.
-        changed: usize,
-    },
-    /// A factorization failed (cannot happen for a valid mesh; reported, not panicked).
-    NotPositiveDefinite,
-    /// The data fail on a coarser mesh of nested iteration.
-    CoarseData(DataError),
-    /// Multigrid-preconditioned CG did not converge (cannot happen for a valid mesh).
-    NotConverged(NotConverged),
-}
-
-impl fmt::Display for SolveError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            SolveError::IterationCap { iterations, changed } => write!(
-                f,
-                "the active-set method did not converge in {iterations} iterations \
-                 ({changed} vertices changed in the last one); raise solver.max_iterations"
-            ),
-            SolveError::NotPositiveDefinite => {
-                write!(f, "the stiffness matrix is not positive definite")
-            }
-            SolveError::CoarseData(e) => write!(f, "on a coarser mesh of nested iteration: {e}"),
-            SolveError::NotConverged(e) => write!(
-                f,
-                "conjugate gradients did not converge in {} iterations (residual density {:.1e}, \
-                 {:.1e} wanted); try [solver] linear = \"direct\"",
-                e.iterations, e.residual, e.target
-            ),
-        }
-    }
-}
-
-impl std::error::Error for SolveError {}
-
-/// How the active-set method starts.
-#[derive(Debug, Clone, Copy)]
-pub enum Start<'a> {
-    /// From no contact.
-    Cold,
-    /// Nested iteration (grid sequencing): the obstacle problem on the coarser meshes passed to
-    /// [`solve`] first, each warm-starting the next, the last one prolonged onto this mesh.
-    Nested,
-    /// From the solution on another mesh of the same domain, interpolated (e.g. the previous
-    /// level of a study).
-    From {
-        /// The other mesh.
-        mesh: &'a Mesh,
-        /// Its obstacle solution.
-        obstacle: &'a Obstacle,
-    },
-}
-
-/// Options of the active-set method.
-#[derive(Debug, Clone, Copy)]
-pub struct SolverOptions {
-    /// Active-set iterations before giving up.
-    pub max_iterations: usize,
-    /// The linear solver of v and of the active-set steps.
-    pub linear: LinearSolver,
-}
-
-impl Default for SolverOptions {
-    fn default() -> Self {
-        SolverOptions {
-            max_iterations: 200,
-            linear: LinearSolver::Multigrid,
-        }
-    }
-}
-
-/// The linear solver of the Poisson problem for v and of every active-set step (`[solver] linear`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum LinearSolver {
-    /// Sparse Cholesky ([`crate::linear`]).
-    Direct,
-    /// CG preconditioned by multigrid V-cycles on the hierarchy of meshes, truncated on the held
-    /// unknowns ([`crate::multigrid`]): O(n) time and memory, the default.
-    #[default]
-    Multigrid,
-}
-
-impl LinearSolver {
-    /// The names of the case file, in order.
-    pub const NAMES: [&'static str; 2] = ["direct", "multigrid"];
-
-    /// The name in the case file.
-    pub fn name(self) -> &'static str {
-        match self {
-            LinearSolver::Direct => Self::NAMES[0],
-            LinearSolver::Multigrid => Self::NAMES[1],
-        }
-    }
-
-    /// The solver of a name, `None` for an unknown one.
-    pub fn from_name(name: &str) -> Option<Self> {
-        [LinearSolver::Direct, LinearSolver::Multigrid]
-            .into_iter()
-            .find(|s| s.name() == name)
-    }
-}
-
-/// The solution w of the obstacle problem, with its λ and contact set.
-#[derive(Debug, Clone)]
-pub struct Obstacle {
-    /// w = u1h − u2h at every vertex.
-    pub gap: Vec<f64>,
-    /// λ_a = r_a / m_a at interior vertices (0 on ∂ω).
-    pub lambda: Vec<f64>,
-    /// Interior vertices where the membranes touch (the final active set).
-    pub contact: Vec<bool>,
-    /// What the solver did.
-    pub stats: SolverStats,
-}
+/// The largest relative defect of Prop. 12, of λ_a ≥ 0 and of (4.8) a run accepts
+/// (`action::Checks`): round-off of the factorizations leaves about 1e-15, and the solves whose
+/// result is returned are solved to a backward error below it.
+pub const CHECK_TOLERANCE: f64 = 1e-10;
 
 /// The solution (u1h, u2h) of (3.4), with the obstacle problem's w = u1h − u2h, its λ,
 /// the contact set and the solver statistics.
@@ -223,22 +110,6 @@ pub fn solve(
     stats.multigrid_levels = analysis.hierarchy.as_ref().map_or(0, Hierarchy::levels);
     stats.wall_seconds = clock.elapsed().as_secs_f64();
     Ok(Solution::of(problem, v, obstacle))
-}
-
-/// The interior unknowns of `problem` with, for the direct solver (no `prolongations`), the
-/// Cholesky analysis of K_II, or else its multigrid hierarchy on the `prolongations` below it.
-fn analysed<'t>(
-    problem: &'t DiscreteProblem,
-    prolongations: Option<&'t [Prolongation]>,
-) -> (InteriorSystem, Option<Hierarchy<'t>>) {
-    let (k, on_boundary) = (&problem.stiffness, &problem.mesh.on_boundary);
-    match prolongations {
-        None => (InteriorSystem::new(k, on_boundary), None),
-        Some(p) => (
-            InteriorSystem::numbering(on_boundary),
-            Some(Hierarchy::new(k, &problem.mass, p)),
-        ),
-    }
 }
 
 /// What the v and w solves on the final mesh share: the unknowns with the Cholesky analysis of
@@ -370,10 +241,10 @@ impl Describe for Solution {
 
 #[cfg(test)]
 mod tests {
-    use super::active_set::{load_density, WProblem};
+    use super::active_set::Guess;
     use super::backend::Stop;
     use super::local::{band, interface, LOCAL_ITERATIONS};
-    use super::nested::Guess;
+    use super::w_problem::{load_density, WProblem};
     use super::*;
     use crate::assembly::Quadrature;
     use crate::expr::Expr;

@@ -1,28 +1,30 @@
 //! The guess the active-set iteration starts from: nested iteration (grid sequencing) on coarser
 //! meshes, or another mesh's solution interpolated.
 
-use super::active_set::{obstacle, Role};
-use super::backend::GUESS_STOP;
-use super::{analysed, LinearSolver, Obstacle, SolveError, SolverOptions, Start};
+use super::active_set::Obstacle;
+use super::active_set::{obstacle, Guess, Role};
+use super::backend::{analysed, GUESS_STOP};
+use super::options::{LinearSolver, SolveError, SolverOptions};
 use crate::mesh::{Mesh, Prolongation};
 use crate::problem::{boundary_values, DiscreteProblem};
 use std::time::Instant;
 
-/// An initial guess of the gap w and λ at every vertex, e.g. a coarser mesh's solution
-/// interpolated here (nested iteration).
-pub(super) struct Guess {
-    pub(super) gap: Vec<f64>,
-    pub(super) lambda: Vec<f64>,
-}
-
-impl Guess {
-    /// The gap and λ of another mesh's solution, transferred by `p`.
-    pub(super) fn prolong(p: &Prolongation, o: &Obstacle) -> Guess {
-        Guess {
-            gap: p.apply(&o.gap),
-            lambda: p.apply(&o.lambda),
-        }
-    }
+/// How the active-set method starts.
+#[derive(Debug, Clone, Copy)]
+pub enum Start<'a> {
+    /// From no contact.
+    Cold,
+    /// Nested iteration (grid sequencing): the obstacle problem on the coarser meshes passed to
+    /// [`solve`] first, each warm-starting the next, the last one prolonged onto this mesh.
+    Nested,
+    /// From the solution on another mesh of the same domain, interpolated (e.g. the previous
+    /// level of a study).
+    From {
+        /// The other mesh.
+        mesh: &'a Mesh,
+        /// Its obstacle solution.
+        obstacle: &'a Obstacle,
+    },
 }
 
 /// The guess of a start, with the coarser levels' active-set iterations and the CG iterations of

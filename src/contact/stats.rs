@@ -2,7 +2,7 @@
 //! solvers ([`Timed`]), outside the algorithms.
 
 use super::backend::{LinearSolve, Stop, Work};
-use super::{LinearSolver, SolveError};
+use super::options::{LinearSolver, SolveError};
 use std::borrow::Cow;
 use std::time::Instant;
 

@@ -2,21 +2,12 @@
 //! the residual restricted by Pᵀ, the coarser level's correction interpolated by P, the coarsest
 //! level solved by Cholesky; and CG preconditioned by it.
 
-use super::smoother::{postsmooth, presmooth, Blocks};
+use super::smoother::{postsmooth, presmooth, Level};
 use crate::cg::{conjugate_gradients, Free, NotConverged, Preconditioner, Tolerance};
 use crate::linear::{Cholesky, NotPositiveDefinite, Unknown};
 use crate::mesh::Prolongation;
 use crate::parallel::{self, PIECE};
 use crate::sparse::Csr;
-use std::borrow::Cow;
-
-/// One level of the V-cycle: its operator (level 0's is K itself), the vertices skipped (on the
-/// boundary, held, or coarse ones not kept) and the blocks of its smoother.
-pub(super) struct Level<'h> {
-    pub(super) a: Cow<'h, Csr>,
-    pub(super) skip: Vec<bool>,
-    pub(super) blocks: Blocks,
-}
 
 /// The operators of the V-cycle: its levels, the interpolations P_l from level l + 1 onto level l
 /// (with their transposes), and the masses of level 0 (which weigh CG's residual).
@@ -112,7 +103,7 @@ impl<'h> Multigrid<'h> {
 
     /// The blocks of level 0's smoother.
     #[cfg(test)]
-    pub(super) fn fine_blocks(&self) -> &Blocks {
+    pub(super) fn fine_blocks(&self) -> &super::smoother::Blocks {
         &self.operators.levels[0].blocks
     }
 

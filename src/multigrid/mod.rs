@@ -73,9 +73,9 @@ use crate::assembly::Stiffness;
 use crate::linear::NotPositiveDefinite;
 use crate::mesh::Prolongation;
 use crate::sparse::Csr;
-use cycle::{Level, Operators};
+use cycle::Operators;
 use galerkin::{dirty_rows, galerkin, kept};
-use smoother::Blocks;
+use smoother::{Blocks, Level};
 use std::borrow::Cow;
 use std::sync::OnceLock;
 

@@ -1,8 +1,8 @@
 //! The smoother of the V-cycle: Gauss–Seidel sweeps in blocks of rows (hybrid Gauss–Seidel).
 
-use super::cycle::Level;
 use crate::parallel;
 use crate::sparse::Csr;
+use std::borrow::Cow;
 
 /// Levels are smoothed in blocks of about this many rows (one block below twice as many):
 /// Gauss–Seidel within each block, the other blocks' unknowns read at their values from before
@@ -13,6 +13,14 @@ use crate::sparse::Csr;
 /// couple across. The blocks depend on the level's size only, not on the threads: the numbers
 /// are the same swept on one thread or many.
 pub const BLOCK_ROWS: usize = 1 << 14;
+
+/// One level of the V-cycle: its operator (level 0's is K itself), the vertices skipped (on the
+/// boundary, held, or coarse ones not kept) and the blocks of its smoother.
+pub(super) struct Level<'h> {
+    pub(super) a: Cow<'h, Csr>,
+    pub(super) skip: Vec<bool>,
+    pub(super) blocks: Blocks,
+}
 
 /// The rows of a level in the blocks of its smoother: where each block begins and the rows
 /// coupled to another block.
