@@ -26,6 +26,7 @@ fn solve<'c>(c: &'c Case, start: Start<'c>) -> Run<'c> {
         hminus1: false,
         flux: false,
         estimate: false,
+        dual: false,
     };
     run::run(c, &options).unwrap()
 }
@@ -291,6 +292,7 @@ fn flux_reconstruction_is_conservative_and_converges() {
             hminus1: false,
             flux: true,
             estimate: false,
+            dual: false,
         };
         let r = run::run(&c, &options).unwrap();
         let flux = r.flux.as_ref().unwrap();
@@ -331,6 +333,7 @@ fn error_norms_have_their_closed_form_values() {
         hminus1: true,
         flux: false,
         estimate: false,
+        dual: false,
     };
     let e = run::run(&c, &options).unwrap().errors.unwrap();
     let pi = std::f64::consts::PI;
