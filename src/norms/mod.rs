@@ -79,7 +79,7 @@ pub struct Errors {
 
 impl Errors {
     /// The errors of `solution` and `action` against `exact`; with `hminus1`, the H⁻¹ norm too.
-    /// Each squared norm is integrated to [`adaptive::TOLERANCE`] relative.
+    /// Each squared norm is integrated to about [`adaptive::TOLERANCE`] relative.
     pub fn compute(
         problem: &DiscreteProblem,
         dual: &DualMesh,
