@@ -17,6 +17,9 @@ BENCH_SIZES ?= 256 512 1024 disk-6
 # Multigrid only (Cholesky would not fit): 16.8M vertices, about 6 GB.
 BENCH_LARGE ?= 4096
 BENCH_REPEAT ?= 3
+# Whole CLI runs (`solve --n N [options]`, spaces in the options as commas): wall time, peak memory
+# and output size of the process, beside the phases it prints. 4096² takes minutes and about 6 GB.
+BENCH_WHOLE ?= 1024 1024:--estimate 4096
 
 .PHONY: all deps solver-deps build run test cargo-test validate bench bench-reference study fuzz lint mutants expr-property clean
 
@@ -47,7 +50,7 @@ validate: deps build
 	$(PY) -m reference.validate --bin $(BIN) --out validation
 
 bench: deps
-	cargo build --release --benches
+	cargo build --release --benches --bins
 	@{ for n in $(BENCH_SIZES); do for r in $$(seq $(BENCH_REPEAT)); do \
 		for what in poisson contact contact-mg; do \
 			cargo bench -q --bench phases -- $$what $$n | grep -E '^(poisson|contact)' ; \
@@ -55,6 +58,12 @@ bench: deps
 	done; done; \
 	for n in $(BENCH_LARGE); do for r in $$(seq $(BENCH_REPEAT)); do \
 		cargo bench -q --bench phases -- contact-mg $$n | grep '^contact' ; \
+	done; done; \
+	for spec in $(BENCH_WHOLE); do for r in $$(seq $(BENCH_REPEAT)); do \
+		n=$${spec%%:*}; options=$$(echo "$${spec#$$n}" | tr ':,' '  '); \
+		out=$$( { /usr/bin/time -f "wall=%e peak_kb=%M" $(BIN) solve --n $$n $$options -o target/bench-whole; } 2>&1 ) \
+			|| { echo "$$out" >&2; exit 1; }; \
+		echo "whole $$spec bytes=$$(cat target/bench-whole/* | wc -c) $$(echo "$$out" | tr '\n' ' ')"; \
 	done; done; } | tee target/bench.log | $(PY) -m reference.bench_table
 
 bench-reference: deps build
