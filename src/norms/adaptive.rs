@@ -7,7 +7,7 @@
 //! jump or at a singularity are refined, as deep as the error there needs, with the budget that
 //! the smooth cells of the piece leave unused.
 //!
-//! The integral is estimated first on every [`SAMPLE`]-th cell (and the whole pass done again
+//! The integral is estimated first on every seventh cell (and the whole pass done again
 //! with the true value if that estimate was more than twice too large). The fields are evaluated
 //! for a block of parts at a time ([`Expr::eval_many`]), the pieces in parallel and their sums
 //! added in their order: the result does not depend on the thread count.
