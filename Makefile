@@ -19,6 +19,9 @@ BENCH_LARGE ?= 4096
 # Sizes also solved on one thread, for the speed-up of the threads.
 BENCH_THREADS ?= 1024 4096
 BENCH_REPEAT ?= 3
+# Whole CLI runs (`solve --n N [options]`, spaces in the options as commas): wall time, peak memory
+# and output size of the process, beside the phases it prints. 4096² takes minutes and about 6 GB.
+BENCH_WHOLE ?= 1024 1024:--estimate 4096
 
 .PHONY: all deps solver-deps build run test cargo-test validate bench bench-reference study fuzz lint mutants expr-property clean
 
@@ -49,7 +52,7 @@ validate: deps build
 	$(PY) -m reference.validate --bin $(BIN) --out validation
 
 bench: deps
-	cargo build --release --benches
+	cargo build --release --benches --bins
 	@{ for n in $(BENCH_SIZES); do for r in $$(seq $(BENCH_REPEAT)); do \
 		for what in poisson poisson-mg contact contact-mg; do \
 			cargo bench -q --bench phases -- $$what $$n | grep -E '^(poisson|contact)' ; \
@@ -60,6 +63,12 @@ bench: deps
 	done; done; \
 	for n in $(BENCH_THREADS); do for r in $$(seq $(BENCH_REPEAT)); do \
 		RAYON_NUM_THREADS=1 cargo bench -q --bench phases -- contact-mg $$n | sed -n 's/^contact-mg /contact-mg-1 /p' ; \
+	done; done; \
+	for spec in $(BENCH_WHOLE); do for r in $$(seq $(BENCH_REPEAT)); do \
+		n=$${spec%%:*}; options=$$(echo "$${spec#$$n}" | tr ':,' '  '); \
+		out=$$( { /usr/bin/time -f "wall=%e peak_kb=%M" $(BIN) solve --n $$n $$options -o target/bench-whole; } 2>&1 ) \
+			|| { echo "$$out" >&2; exit 1; }; \
+		echo "whole $$spec bytes=$$(cat target/bench-whole/* | wc -c) $$(echo "$$out" | tr '\n' ' ')"; \
 	done; done; } | tee target/bench.log | $(PY) -m reference.bench_table
 
 bench-reference: deps build

@@ -75,6 +75,7 @@ fn main() {
                 hminus1: false,
                 flux: false,
                 estimate: false,
+                dual: false,
             };
             let t = Instant::now();
             let r = run::solve(&case, &options, &dir.path().join("bench")).expect("solve");

@@ -9,11 +9,20 @@ and of the solver layer (issue #25):
 - the contact solve against one multigrid Poisson solve of the same code on the same mesh (how many
   Poisson solves the contact problem costs).
 
+and the targets of whole runs (issue #26), `membrane-contact solve --n N [options]` timed as a
+process (`whole SPEC ...` lines: the CLI's summary, /usr/bin/time's wall and peak, the result's
+bytes):
+- at 1024^2 the whole `solve` of the default case <= 3 x its contact solve (`--estimate`: <= 4 x,
+  reported only);
+- at 4096^2 the whole `solve` <= 3 x its contact solve and its peak <= 400 bytes per vertex;
+- the result <= 200 bytes per vertex, written in <= 0.5 x the contact solve.
+
 Each size is run several times; timings on a shared machine vary by tens of per cent from run to
 run, so the tables show the fastest run of each (its phases) and the median, and ratios of both.
 
 Usage (from the repository root): ... | /usr/bin/python3 -m reference.bench_table
 """
+import re
 import statistics
 import sys
 
@@ -46,12 +55,71 @@ def per_vertex(row):
     return float(row["peak_mb"]) * 2**20 / float(row["vertices"])
 
 
+PHASES = re.compile(r"seconds\s+mesh ([\d.]+), assembly ([\d.]+), contact solve ([\d.]+) .*?postprocess ([\d.]+)"
+                    r"(?:, estimate ([\d.]+))?, write ([\d.]+)")
+
+
+def parse_whole(line):
+    """A `whole SPEC ...` line: the phases of the CLI's summary and the process's figures."""
+    spec = line.split()[1]
+    m = PHASES.search(line)
+    if not m:
+        raise SystemExit("bench_table: no phases in: " + line.strip()[:200])
+    row = dict(zip(("mesh", "assembly", "contact", "postprocess", "estimate", "write"),
+                   (float(v) if v else 0.0 for v in m.groups())))
+    row["vertices"] = int(re.search(r"mesh\s+(\d+) vertices", line).group(1))
+    for key in ("wall", "peak_kb", "bytes"):
+        row[key] = float(re.search(key + r"=([\d.]+)", line).group(1))
+    row["ratio"] = row["wall"] / row["contact"]
+    return spec, row
+
+
+def whole_table(whole):
+    """The whole-run rows and their targets."""
+    print("\nWhole runs, `membrane-contact solve --n N` as a process (seconds; the fastest run, median of the "
+          "ratio in brackets):\n")
+    cols = ("run", "vertices", "runs", "mesh", "assembly", "contact solve", "postprocess", "estimate", "write",
+            "whole process", "whole / contact solve", "write / contact solve", "peak MB", "peak bytes/vertex",
+            "output bytes/vertex")
+    print("| " + " | ".join(cols) + " |")
+    print("|" + "---|" * len(cols))
+    verdicts = []
+    verdict = lambda ok: "met" if ok else "NOT MET"
+    for spec, rows in whole.items():
+        r = min(rows, key=lambda r: r["wall"])
+        ratio = statistics.median(x["ratio"] for x in rows)
+        peak = max(x["peak_kb"] * 1024 / x["vertices"] for x in rows)
+        out = r["bytes"] / r["vertices"]
+        n, options = spec.split(":")[0], " ".join(spec.split(":")[1:]).replace(",", " ")
+        print("| %s | %d | %d | %.3f | %.3f | %.3f | %.3f | %s | %.3f | %.2f (median %.2f) | **%.2f** (%.2f) | %.2f "
+              "| %.0f | %.0f | %.0f |" % (
+                  ("%s² %s" % (n, options)).strip(), r["vertices"], len(rows), r["mesh"], r["assembly"], r["contact"], r["postprocess"],
+                  "%.3f" % r["estimate"] if "estimate" in options else "—", r["write"], r["wall"],
+                  statistics.median(x["wall"] for x in rows), r["ratio"], ratio, r["write"] / r["contact"],
+                  r["peak_kb"] / 1024, peak, out))
+        limit = 4 if "estimate" in options else 3
+        line = "- %s: whole / contact solve %.2f (median %.2f; target <= %d%s)" % (
+            ("%s² %s" % (n, options)).strip(), r["ratio"], ratio, limit, "" if "estimate" in options else ": " + verdict(r["ratio"] <= limit))
+        if n == "4096":
+            line += "; peak %.0f bytes per vertex (target <= 400): %s" % (peak, verdict(peak <= 400))
+        if not options:
+            line += "; output %.0f bytes per vertex (target <= 200): %s, written in %.2f x the contact solve " \
+                    "(target <= 0.5): %s" % (out, verdict(out <= 200), r["write"] / r["contact"],
+                                             verdict(r["write"] <= 0.5 * r["contact"]))
+        verdicts.append(line)
+    print("\nTargets of whole runs:")
+    print("\n".join(verdicts))
+
+
 def main():
-    runs = {}
+    runs, whole = {}, {}
     for line in sys.stdin:
         if line.startswith(tuple(k + " " for k in KINDS)):
             kind, n, values = parse(line)
             runs.setdefault(n, {}).setdefault(kind, []).append(values)
+        elif line.startswith("whole "):
+            spec, row = parse_whole(line)
+            whole.setdefault(spec, []).append(row)
     meshes = sorted(runs, key=order)
 
     print("Multigrid contact solve (`[solver] linear = \"multigrid\"`, the default):\n")
@@ -115,6 +183,9 @@ def main():
     if "4096" in speedups:
         print("- 4096²: contact solve on %s threads %.2f x faster than on one (target >= 1.7): %s"
               % (speedups["4096"][0], speedups["4096"][1], verdict(speedups["4096"][1] >= 1.7)))
+
+    if whole:
+        whole_table(whole)
 
 
 def threads_table(runs, meshes):

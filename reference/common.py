@@ -23,22 +23,27 @@ ERROR_KEYS = ("l2_u1", "l2_u2", "h1_u1", "h1_u2", "energy", "l2_lambda", "hminus
 
 def read_result(path):
     """Everything of a Rust result directory (or its solution.h5) that the reference uses:
-    mesh and vertex fields, the dual submesh S_h with its cell fields, the case and the attributes."""
+    mesh and vertex fields, the dual submesh S_h with its cell fields (when written), the case and
+    the attributes."""
     h5 = os.path.join(path, "solution.h5") if os.path.isdir(path) else path
     with h5py.File(h5, "r") as f:
-        mesh, dual = f["mesh"], f["dual"]
+        mesh = f["mesh"]
         out = {
             "path": path,
             "points": mesh["geometry"][...],
             "cells": mesh["topology"][...].astype(np.int64),
-            "dual_points": dual["geometry"][...],
-            "dual_cells": dual["topology"][...].astype(np.int64),
-            "dual_owner": dual["vertex"][...].astype(np.int64),
-            "dual_lambda": dual["lambda"][...],
             "attrs": {k: f.attrs[k] for k in f.attrs},
         }
         out.update({k: mesh[k][...] for k in VERTEX_FIELDS + EXACT_FIELDS if k in mesh})
-        out.update({k: dual[k][...] for k in FLUX_FIELDS if k in dual})
+        if "dual" in f:  # written by `solve --dual` or `--flux`
+            dual = f["dual"]
+            out.update({
+                "dual_points": dual["geometry"][...],
+                "dual_cells": dual["topology"][...].astype(np.int64),
+                "dual_owner": dual["vertex"][...].astype(np.int64),
+                "dual_lambda": dual["lambda"][...],
+            })
+            out.update({k: dual[k][...] for k in FLUX_FIELDS if k in dual})
     out["case_text"] = str(out["attrs"]["case_text"])
     # Expressions parsed once, with the names of the case's [let] table substituted.
     out["case"] = expr.parse_case(tomllib.loads(out["case_text"]))

@@ -28,9 +28,9 @@ def read(path):
 
 
 def check(path):
-    """Checks DIR/solution.xdmf (the mesh) and DIR/dual.xdmf (the dual submesh)."""
+    """Checks DIR/solution.xdmf (the mesh) and DIR/dual.xdmf (the dual submesh, when written:
+    `solve --dual` or `--flux`)."""
     mesh = read(os.path.join(path, "solution.xdmf"))
-    dual = read(os.path.join(path, "dual.xdmf"))
     problems = []
     for name in POINT_FIELDS:
         arr = mesh.GetPointData().GetArray(name)
@@ -39,6 +39,9 @@ def check(path):
         elif arr.GetDataType() != VTK_DOUBLE or arr.GetNumberOfTuples() != mesh.GetNumberOfPoints():
             problems.append("point field %s: type %s, %d values"
                             % (name, arr.GetDataTypeAsString(), arr.GetNumberOfTuples()))
+    if not os.path.exists(os.path.join(path, "dual.xdmf")):
+        return problems
+    dual = read(os.path.join(path, "dual.xdmf"))
     cells = dual.GetCellData()
     if cells.GetArray("lambda") is None:
         problems.append("dual cell field lambda missing")

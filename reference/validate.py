@@ -191,7 +191,7 @@ def estimator_check(path, label, level, binary, workdir, failures, reuse=False):
     rust_dir = os.path.join(workdir, "estimate-%s" % tag)
     t = time.perf_counter()
     if not (reuse and os.path.isdir(rust_dir)):
-        proc = subprocess.run([binary, "solve", path, option, str(value), "--estimate", "-o", rust_dir],
+        proc = subprocess.run([binary, "solve", path, option, str(value), "--estimate", "--dual", "-o", rust_dir],
                               capture_output=True, text=True)
         if proc.returncode != 0:
             failures.append("%s: Rust solver failed with --estimate: %s" % (label, proc.stderr.strip()))
@@ -228,7 +228,7 @@ def direct_agreement(path, label, level, binary, workdir, failures, reuse=False)
     option, value, _, tag = level
     default_dir, direct_dir = (os.path.join(workdir, "%s-%s" % (k, tag)) for k in ("rust", "direct"))
     if not (reuse and os.path.isdir(direct_dir)):
-        proc = subprocess.run([binary, "solve", path, option, str(value), "--linear", "direct", "-o", direct_dir],
+        proc = subprocess.run([binary, "solve", path, option, str(value), "--linear", "direct", "--dual", "-o", direct_dir],
                               capture_output=True, text=True)
         if proc.returncode != 0:
             failures.append("%s: Rust solver failed with --linear direct: %s" % (label, proc.stderr.strip()))
@@ -319,7 +319,7 @@ def mesh_files(binary, out, tol, failures):
         with open(case_path, "w") as f:
             f.write(data + '[mesh]\nkind = "file"\npath = "%s"\n' % os.path.basename(mesh_path))
         rust_dir, ref_path = os.path.join(workdir, writer + "-rust"), os.path.join(workdir, writer + "-reference.h5")
-        proc = subprocess.run([binary, "solve", case_path, "--estimate", "-o", rust_dir], capture_output=True, text=True)
+        proc = subprocess.run([binary, "solve", case_path, "--estimate", "--dual", "-o", rust_dir], capture_output=True, text=True)
         label = "mesh file from %s" % writer
         if proc.returncode != 0:
             failures.append("%s: Rust solver failed: %s" % (label, proc.stderr.strip()))

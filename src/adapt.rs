@@ -176,6 +176,7 @@ fn estimating(start: Start) -> run::Options {
         hminus1: false,
         flux: false,
         estimate: true,
+        dual: false,
     }
 }
 
@@ -188,8 +189,15 @@ fn mesh_error(case: &Case, e: &dyn std::fmt::Display) -> RunError {
 fn write_step(staging: &Staging, dir: &str, r: &Run) -> Result<(), RunError> {
     let path = staging.path().join(dir);
     std::fs::create_dir(&path).map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
-    result::write(&path, &r.problem.mesh, &r.dual(), &r.fields(), &r.attributes())
-        .map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
+    let dual = r.writes_dual.then(|| r.dual());
+    result::write(
+        &path,
+        &r.problem.mesh,
+        dual.as_ref(),
+        &r.fields(),
+        &r.attributes(),
+    )
+    .map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
     Ok(())
 }
 

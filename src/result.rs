@@ -1,10 +1,14 @@
 //! Result files that ParaView opens. A result is a directory (put in place whole by
 //! [`crate::atomic`]) holding
-//! - `solution.h5`: the mesh T_h under `/mesh` (`geometry`, `topology` and the vertex fields), the
-//!   dual submesh S_h under `/dual` (its cell fields), and the case, the parameters, the solver
-//!   statistics, the checks and the errors as attributes of `/`;
-//! - `solution.xdmf` and `dual.xdmf`: the two grids and their fields, for ParaView's Xdmf3 reader
-//!   (float data with `Precision="8"`).
+//! - `solution.h5`: the mesh T_h under `/mesh` (`geometry`, `topology` and the vertex and cell
+//!   fields), when asked for the dual submesh S_h under `/dual` (its cell fields), and the case,
+//!   the parameters, the solver statistics, the checks and the errors as attributes of `/`;
+//! - `solution.xdmf` (and `dual.xdmf` with S_h): the grids and their fields, for ParaView's Xdmf3
+//!   reader (float data with `Precision="8"`).
+//!
+//! S_h has six times the triangles of T_h and its points are the vertices, edge midpoints and
+//! barycentres: written, it is about four fifths of the result. λ_h is on T_h anyway (`lambda`, its
+//! nodal values λ_a, constant on each D_a), so S_h is written only on request.
 //!
 //! Each quantity describes itself ([`Describe`]); a result writes what its parts describe.
 //!
@@ -129,11 +133,12 @@ pub trait Describe {
     }
 }
 
-/// Writes `solution.h5`, `solution.xdmf` and `dual.xdmf` into `dir`.
+/// Writes `solution.h5` and `solution.xdmf` into `dir`, and with a `dual` submesh its grid, its
+/// fields (those at [`Place::DualCells`]; without it they are left out) and `dual.xdmf`.
 pub fn write(
     dir: &Path,
     mesh: &Mesh,
-    dual: &DualMesh,
+    dual: Option<&DualMesh>,
     fields: &[Field],
     attrs: &[Attribute],
 ) -> Result<(), String> {
@@ -144,25 +149,23 @@ pub fn write(
 fn write_in_chunks(
     dir: &Path,
     mesh: &Mesh,
-    dual: &DualMesh,
+    dual: Option<&DualMesh>,
     fields: &[Field],
     attrs: &[Attribute],
     chunk: usize,
 ) -> Result<(), String> {
-    let grids = [
-        Grid {
-            name: "mesh",
-            xdmf: "solution.xdmf",
-            triangulation: Triangulation::Mesh(mesh),
-            places: &[Place::Vertices, Place::Cells],
-        },
-        Grid {
-            name: "dual",
-            xdmf: "dual.xdmf",
-            triangulation: Triangulation::Dual(*dual),
-            places: &[Place::DualCells],
-        },
-    ];
+    let mut grids = vec![Grid {
+        name: "mesh",
+        xdmf: "solution.xdmf",
+        triangulation: Triangulation::Mesh(mesh),
+        places: &[Place::Vertices, Place::Cells],
+    }];
+    grids.extend(dual.map(|d| Grid {
+        name: "dual",
+        xdmf: "dual.xdmf",
+        triangulation: Triangulation::Dual(*d),
+        places: &[Place::DualCells],
+    }));
     check_space(dir, &grids, fields)?;
     write_hdf5(&dir.join(SOLUTION_H5), &grids, fields, attrs, chunk).map_err(|e| no_space_hint(dir, e))?;
     for g in &grids {
@@ -525,7 +528,7 @@ mod tests {
             .iter()
             .all(|n| n % chunk != 0 && *n > chunk));
         let dir = tempfile::tempdir().unwrap();
-        write_in_chunks(dir.path(), &mesh, &dual, &fields, &[], chunk).unwrap();
+        write_in_chunks(dir.path(), &mesh, Some(&dual), &fields, &[], chunk).unwrap();
         let file = hdf5::File::open(dir.path().join(SOLUTION_H5)).unwrap();
         let read = |path: &str, shape: &[usize]| {
             let d = file.dataset(path).unwrap();

@@ -27,6 +27,9 @@ pub struct Options<'a> {
     pub flux: bool,
     /// The guaranteed error bound and its indicators (docs/a-posteriori.md).
     pub estimate: bool,
+    /// Write the dual submesh S_h and its cell fields too (`dual.xdmf`); the fluxes, which live
+    /// on S_h only, write it anyway.
+    pub dual: bool,
 }
 
 /// The result of one run.
@@ -49,6 +52,8 @@ pub struct Run<'c> {
     pub estimate: Option<Estimate>,
     /// Wall-clock seconds of the phases.
     pub timings: Timings,
+    /// Whether the result holds S_h ([`Options::dual`], or the fluxes).
+    pub writes_dual: bool,
 }
 
 /// Solves `case` and writes its result directory `target` whole: an earlier result there is
@@ -58,7 +63,7 @@ pub struct Run<'c> {
 /// use membrane_contact::{case::Case, contact::Start, run};
 /// let case = Case::default_case();
 /// let dir = tempfile::tempdir().unwrap();
-/// let options = run::Options { start: Start::Nested, hminus1: false, flux: true, estimate: true };
+/// let options = run::Options { start: Start::Nested, hminus1: false, flux: true, estimate: true, dual: false };
 /// let r = run::solve(&case, &options, &dir.path().join("default")).unwrap();
 /// assert!(r.action.total > 0.0 && dir.path().join("default/solution.xdmf").exists());
 /// assert!(r.estimate.unwrap().total >= r.errors.unwrap().energy.unwrap());
@@ -142,6 +147,7 @@ pub fn on_mesh<'c>(
         flux,
         estimate,
         timings,
+        writes_dual: options.dual || options.flux,
     })
 }
 
@@ -149,10 +155,11 @@ impl Run<'_> {
     /// Writes the result into `staging` and puts it in place.
     pub fn write(&mut self, staging: Staging, inputs: &[PathBuf]) -> Result<(), RunError> {
         let t = Instant::now();
+        let dual = self.writes_dual.then(|| self.dual());
         result::write(
             staging.path(),
             &self.problem.mesh,
-            &self.dual(),
+            dual.as_ref(),
             &self.fields(),
             &self.attributes(),
         )

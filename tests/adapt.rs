@@ -104,6 +104,7 @@ fn adaptivity_follows_the_true_error_in_and_out_of_contact() {
         hminus1: false,
         flux: false,
         estimate: true,
+        dual: false,
     };
     let r = run::on_mesh(&case, file::read(&last).unwrap(), Vec::new(), &options, 0.0).unwrap();
     let mesh = &r.problem.mesh;

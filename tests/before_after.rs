@@ -32,6 +32,7 @@ fn compare(case_file: &str, before: &str) {
         hminus1: true,
         flux: true,
         estimate: false,
+        dual: false,
     };
     run::solve(&case, &options, &target).unwrap();
     let old = hdf5::File::open(before).unwrap();
@@ -88,8 +89,16 @@ fn compare(case_file: &str, before: &str) {
             assert_eq!(text(x), text(y), "{case_file}: attribute {name}");
         } else {
             let (p, q) = (x.read_raw::<f64>().unwrap(), y.read_raw::<f64>().unwrap());
+            // The error norms are integrated with a rule per cell to 1e-7 of their squares now. The
+            // fixed degree-10 rule before was off (against a rule per cell to 1e-11) by up to 8e-6
+            // at the default case's kinks, 1.1e-5 at the L-shape's corner singularity, and 4.8e-4
+            // in its ‖λ − λh‖, whose λ jumps.
+            let agree = |a: f64, b: f64| match name.starts_with("error_") {
+                true => (a - b).abs() <= 1e-3 * a.abs(),
+                false => close(a, b, a.abs()),
+            };
             assert!(
-                p.len() == q.len() && p.iter().zip(&q).all(|(&a, &b)| close(a, b, a.abs())),
+                p.len() == q.len() && p.iter().zip(&q).all(|(&a, &b)| agree(a, b)),
                 "{case_file}: attribute {name}: {p:?} before, {q:?} after"
             );
         }

@@ -13,6 +13,7 @@ fn estimated(case: &Case) -> Run<'_> {
         hminus1: false,
         flux: false,
         estimate: true,
+        dual: false,
     };
     run::run(case, &options).unwrap()
 }

@@ -18,6 +18,7 @@ fn solve(case: &Case) -> Run<'_> {
         hminus1: false,
         flux: false,
         estimate: false,
+        dual: false,
     };
     run::run(case, &options).unwrap_or_else(|e| panic!("{}: {e}", case.origin))
 }
@@ -165,6 +166,7 @@ fn a_mesh_without_coarser_levels_is_solved_directly() {
         hminus1: false,
         flux: false,
         estimate: false,
+        dual: false,
     };
     let alone = |c| run::on_mesh(c, Case::mesh(c).unwrap(), Vec::new(), &options, 0.0).unwrap();
     let (asked, direct) = (alone(&multigrid), alone(&direct));

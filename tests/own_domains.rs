@@ -55,6 +55,7 @@ fn solve(case: &Case) -> Run<'_> {
         hminus1: false,
         flux: false,
         estimate: false,
+        dual: false,
     };
     run::run(case, &options).unwrap()
 }
@@ -192,6 +193,7 @@ fn an_unrefined_file_mesh_takes_few_global_iterations() {
         hminus1: false,
         flux: false,
         estimate: false,
+        dual: false,
     };
     let written = run::solve(&case, &options, &dir.path().join("disk")).unwrap();
     let triangles = written.problem.mesh.n_triangles();

@@ -13,6 +13,7 @@ fn options() -> run::Options<'static> {
         hminus1: false,
         flux: false,
         estimate: false,
+        dual: false,
     }
 }
 

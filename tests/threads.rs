@@ -25,6 +25,7 @@ fn everything(threads: usize) -> Vec<String> {
             hminus1: true,
             flux: true,
             estimate: true,
+            dual: true,
         };
         let dir = tempfile::tempdir().unwrap();
         let r = run::solve(&case, &options, &dir.path().join("out")).unwrap();

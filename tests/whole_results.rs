@@ -20,11 +20,17 @@ fn solve(out: &Path, n: usize) -> std::process::Output {
 }
 
 /// Reads a result back whole: the XDMF files parse and name datasets of the declared sizes in
-/// `solution.h5`. Returns its vertex count.
+/// `solution.h5`, and `dual.xdmf` is there exactly when the group `/dual` is. Returns its vertex
+/// count.
 fn read_whole(dir: &Path) -> usize {
     let h5 = hdf5::File::open(dir.join("solution.h5")).unwrap();
     let vertices = h5.attr("vertices").unwrap().read_scalar::<i64>().unwrap() as usize;
-    for xdmf in ["solution.xdmf", "dual.xdmf"] {
+    let dual = dir.join("dual.xdmf").exists();
+    assert_eq!(h5.group("dual").is_ok(), dual, "{}", dir.display());
+    for xdmf in ["solution.xdmf", "dual.xdmf"]
+        .into_iter()
+        .take(1 + usize::from(dual))
+    {
         let text = std::fs::read_to_string(dir.join(xdmf)).unwrap();
         let doc = roxmltree::Document::parse(&text).unwrap();
         for item in doc.descendants().filter(|n| n.has_tag_name("DataItem")) {
@@ -44,6 +50,27 @@ fn read_whole(dir: &Path) -> usize {
         }
     }
     vertices
+}
+
+#[test]
+fn the_dual_submesh_is_written_on_request_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let (plain, dual) = (dir.path().join("plain"), dir.path().join("dual"));
+    assert!(solve(&plain, 8).status.success());
+    let status = Command::new(BIN)
+        .args(["solve", "--n", "8", "--dual", "-o"])
+        .arg(&dual)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    assert_eq!(read_whole(&plain), 81);
+    assert_eq!(read_whole(&dual), 81);
+    assert!(!plain.join("dual.xdmf").exists() && dual.join("dual.xdmf").exists());
+    let h5 = hdf5::File::open(dual.join("solution.h5")).unwrap();
+    // Six cells of S_h per triangle of T_h (128 of them), λ_h and the owner on each.
+    for field in ["lambda", "vertex"] {
+        assert_eq!(h5.dataset(&format!("dual/{field}")).unwrap().shape(), [6 * 128]);
+    }
 }
 
 #[test]

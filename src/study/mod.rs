@@ -233,6 +233,7 @@ pub fn run_levels(
                 hminus1,
                 flux: false,
                 estimate: true,
+                dual: false,
             },
         )?;
         let cold_iterations = match (options.cold, &previous) {
@@ -247,6 +248,7 @@ pub fn run_levels(
                     hminus1: false,
                     flux: false,
                     estimate: false,
+                    dual: false,
                 };
                 Some(run::run(&cold_case, &options)?.solution.obstacle.stats.iterations)
             }
