@@ -23,13 +23,7 @@ static ALLOCATOR: membrane_contact::pages::HugePages = membrane_contact::pages::
 
 /// Peak resident set size of this process, in MB.
 fn peak_mb() -> f64 {
-    let status = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
-    status
-        .lines()
-        .find(|l| l.starts_with("VmHWM:"))
-        .and_then(|l| l.split_whitespace().nth(1))
-        .and_then(|kb| kb.parse::<f64>().ok())
-        .map_or(f64::NAN, |kb| kb / 1024.0)
+    membrane_contact::pages::peak_resident_bytes().map_or(f64::NAN, |b| b as f64 / (1 << 20) as f64)
 }
 
 /// The case of a bench mesh: `N` (the default case on N × N cells) or `disk-K`.

@@ -59,6 +59,15 @@ unsafe impl GlobalAlloc for HugePages {
     }
 }
 
+/// The peak resident memory of this process so far (`VmHWM` of /proc/self/status, Linux), in
+/// bytes.
+pub fn peak_resident_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb << 10)
+}
+
 /// Sets glibc's arenas to one, at the first allocation (before any thread but the first exists).
 fn one_arena() {
     static ONCE: Once = Once::new();

@@ -243,7 +243,7 @@ impl Run<'_> {
         }
         out += &format!(
             "seconds     mesh {:.3}, assembly {:.3}, contact solve {:.3} (coarser levels {:.3}, {} {:.3}, \
-             {} {:.3} + {} {:.3} summed over v and w), postprocess {:.3}{}, write {:.3}; on {} threads\n",
+             {} {:.3} + {} {:.3} summed over v and w), postprocess {:.3}{}, write {:.3}; on {} threads{}\n",
             t.mesh,
             t.assembly,
             s.wall_seconds,
@@ -257,7 +257,9 @@ impl Run<'_> {
             t.postprocess,
             (self.estimate.as_ref()).map_or(String::new(), |_| format!(", estimate {:.3}", t.estimate)),
             t.write,
-            crate::parallel::threads()
+            crate::parallel::threads(),
+            crate::pages::peak_resident_bytes()
+                .map_or(String::new(), |b| format!(", peak memory {} MB", b >> 20))
         );
         out
     }
