@@ -38,6 +38,11 @@ use nested::{chain, initial_guess, Started};
 use std::borrow::Cow;
 use std::time::Instant;
 
+/// Above this many vertices, and with Cholesky on any mesh, w's steps on the final mesh start
+/// once v is solved: the CG vectors and coarse operators (or the Cholesky factors) of the two
+/// solves are then never in memory at once (measured in docs/performance.md).
+pub const SIDE_BY_SIDE_LIMIT: usize = 1 << 22;
+
 /// The largest relative defect of Prop. 12, of λ_a ≥ 0 and of (4.8) a run accepts
 /// (`action::Checks`): round-off of the factorizations leaves about 1e-15, and the solves whose
 /// result is returned are solved to a backward error below it.
@@ -55,10 +60,11 @@ pub struct Solution {
     pub obstacle: Obstacle,
 }
 
-/// Solves (3.4): the Poisson problem for v beside the guess of `start` (for [`Start::Nested`],
-/// nested iteration on the `coarser` meshes, from fine to coarse), then the obstacle problem for w
-/// from the guess; u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w. A mesh without coarser ones (an
-/// adapted mesh, a file mesh not refined) is solved by Cholesky.
+/// Solves (3.4): the Poisson problem for v beside the obstacle problem for w from the guess of
+/// `start` (for [`Start::Nested`], nested iteration on the `coarser` meshes, from fine to coarse),
+/// or, with Cholesky and above [`SIDE_BY_SIDE_LIMIT`] vertices, v beside the guess and w's steps
+/// after v; u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w. A mesh without coarser ones (an adapted
+/// mesh, a file mesh not refined) is solved by Cholesky.
 ///
 /// ```
 /// use membrane_contact::{case::Case, contact, problem::DiscreteProblem};
@@ -91,16 +97,28 @@ pub fn solve(
         Vec::new()
     };
     let transfer_seconds = clock.elapsed().as_secs_f64();
-    let ((analysis, v), started) = parallel::join(
-        || {
-            let analysis = Analysis::new(problem, multigrid.then_some(&prolongations[..]));
-            let v = solve_v(problem, &analysis);
-            (analysis, v)
-        },
-        || initial_guess(problem, start, coarser, &prolongations, options),
-    );
-    let (v, mut v_stats) = v?;
-    let mut obstacle = solve_w(problem, &analysis, started?, options)?;
+    let guess = || initial_guess(problem, start, coarser, &prolongations, options);
+    let analyse = || Analysis::new(problem, multigrid.then_some(&prolongations[..]));
+    let (analysis, v, obstacle) = if multigrid && problem.mesh.n_vertices() <= SIDE_BY_SIDE_LIMIT {
+        let analysis = analyse();
+        let (v, w) = parallel::join(
+            || solve_v(problem, &analysis),
+            || solve_w(problem, &analysis, guess()?, options),
+        );
+        (analysis, v, w)
+    } else {
+        let ((analysis, v), started) = parallel::join(
+            || {
+                let analysis = analyse();
+                let v = solve_v(problem, &analysis);
+                (analysis, v)
+            },
+            guess,
+        );
+        let w = started.and_then(|started| solve_w(problem, &analysis, started, options));
+        (analysis, v, w)
+    };
+    let ((v, mut v_stats), mut obstacle) = (v?, obstacle?);
     // The symbolic analysis (and multigrid's transfers) counts with the v solve.
     v_stats.symbolic_seconds += analysis.seconds + transfer_seconds;
     let stats = &mut obstacle.stats;
