@@ -31,6 +31,21 @@ pub fn map<T: Send>(n: usize, size: usize, part: impl Fn(Range<usize>) -> T + Sy
     pieces(n, size).map(part).collect()
 }
 
+/// As [`map`], with scratch room made by `room` once per thread's run of pieces (not per piece)
+/// and handed to `part` with each piece: for results that do not depend on what the room held
+/// before.
+pub fn map_with<T: Send, S>(
+    n: usize,
+    size: usize,
+    room: impl Fn() -> S + Sync + Send,
+    part: impl Fn(&mut S, Range<usize>) -> T + Sync + Send,
+) -> Vec<T> {
+    if n <= size {
+        return vec![part(&mut room(), 0..n)];
+    }
+    pieces(n, size).map_init(room, part).collect()
+}
+
 /// Σ `part`(piece) over the pieces of 0..n (of `size` items), added in the pieces' order.
 pub fn sum(n: usize, size: usize, part: impl Fn(Range<usize>) -> f64 + Sync + Send) -> f64 {
     map(n, size, part).into_iter().sum()

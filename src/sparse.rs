@@ -56,9 +56,20 @@ impl Csr {
         per_row: usize,
         rows: impl Fn(Range<usize>, &mut RowsPart) + Sync + Send,
     ) -> Self {
-        let parts = crate::parallel::map(n, crate::parallel::PIECE, |range| {
+        Csr::by_rows_with(n, cols, per_row, || (), |(), range, part| rows(range, part))
+    }
+
+    /// As [`Csr::by_rows`], with scratch room made by `room` once per thread's run of pieces.
+    pub(crate) fn by_rows_with<S>(
+        n: usize,
+        cols: usize,
+        per_row: usize,
+        room: impl Fn() -> S + Sync + Send,
+        rows: impl Fn(&mut S, Range<usize>, &mut RowsPart) + Sync + Send,
+    ) -> Self {
+        let parts = crate::parallel::map_with(n, crate::parallel::PIECE, room, |scratch, range| {
             let mut part = part_room(&range, n, per_row);
-            rows(range, &mut part);
+            rows(scratch, range, &mut part);
             part
         });
         Csr::joined(parts, cols)

@@ -29,7 +29,11 @@ pub(super) fn galerkin(
     let nc = pt.rows();
     // Room for as many entries per row as the finer operator has, and one more.
     let per_row = a.nnz() / a.rows().max(1) + 1;
-    Csr::by_rows(nc, nc, per_row, |rows, part| product.rows(rows, part)).with_diagonal()
+    let room = || product.room();
+    Csr::by_rows_with(nc, nc, per_row, room, |room, rows, part| {
+        product.rows(room, rows, part)
+    })
+    .with_diagonal()
 }
 
 /// The arguments of [`galerkin`].
@@ -48,8 +52,24 @@ struct Product<'a> {
 const NOT_KEPT: u32 = u32::MAX - 1;
 
 impl Product<'_> {
-    /// Rows `rows` of [`galerkin`], pushed to `part`.
-    fn rows(self, rows: std::ops::Range<usize>, (ends, col, val): &mut RowsPart) {
+    /// The accumulator of the rows (see [`Product::rows`]): per coarse column the row whose sum it
+    /// last entered, or NOT_KEPT (a column of E's zeros, so that one load decides both), and that
+    /// sum. Made once per thread's run of pieces: the rows are distinct, so a column's marker
+    /// from another piece never matches.
+    fn room(self) -> (Vec<u32>, Vec<f64>) {
+        let marker = (self.kept.iter())
+            .map(|&k| if k { u32::MAX } else { NOT_KEPT })
+            .collect();
+        (marker, vec![0.0; self.pt.rows()])
+    }
+
+    /// Rows `rows` of [`galerkin`], pushed to `part`, with the accumulator of [`Product::room`].
+    fn rows(
+        self,
+        (marker, acc): &mut (Vec<u32>, Vec<f64>),
+        rows: std::ops::Range<usize>,
+        (ends, col, val): &mut RowsPart,
+    ) {
         let Product {
             a,
             p,
@@ -58,14 +78,6 @@ impl Product<'_> {
             kept,
             base,
         } = self;
-        let nc = pt.rows();
-        // Per coarse column: the row whose sum it last entered, or NOT_KEPT (a column of E's zeros,
-        // so that one load decides both), and that sum.
-        let mut marker: Vec<u32> = kept
-            .iter()
-            .map(|&k| if k { u32::MAX } else { NOT_KEPT })
-            .collect();
-        let mut acc = vec![0.0; nc];
         for big_i in rows {
             let start = col.len();
             if let Some((b, _)) = base.filter(|(_, dirty)| !dirty[big_i]) {
