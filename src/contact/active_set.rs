@@ -78,13 +78,14 @@ pub(super) fn obstacle(
     };
     // CG starts from the guess's gap, then from the previous step's w.
     let start = (warm.as_ref()).map(|g| system.vertices.iter().map(|&a| g.gap[a]).collect());
+    let warm = warm.is_some();
     let loads = Loads {
         density: load_density(problem, system, |a| w_problem.load(a), w_problem.mu_star),
         problem,
         scale: w_problem.mu_star,
     };
     let mut solver = Timed::new(backend::solver(system, multigrid, start, loads));
-    if warm.is_some() {
+    if warm {
         // The first step from a guess only proposes the next active set: it is solved to the
         // coarser levels' stop, and the set is confirmed by steps to the full one.
         solver.loosen(GUESS_STOP);
