@@ -15,7 +15,7 @@ pub enum Start<'a> {
     /// From no contact.
     Cold,
     /// Nested iteration (grid sequencing): the obstacle problem on the coarser meshes passed to
-    /// [`solve`] first, each warm-starting the next, the last one prolonged onto this mesh.
+    /// [`super::solve`] first, each warm-starting the next, the last one prolonged onto this mesh.
     Nested,
     /// From the solution on another mesh of the same domain, interpolated (e.g. the previous
     /// level of a study).

@@ -23,7 +23,7 @@
 //! checks it to round-off), and on meshes that are not nested (the coarse generated levels below a
 //! disk) it is still the variational choice, which keeps the coarse correction an energy
 //! projection. Galerkin products are also what truncation (below) needs. The coarsest level is
-//! solved by sparse Cholesky ([`Cholesky`]).
+//! solved by sparse Cholesky ([`crate::linear::Cholesky`]).
 //!
 //! Smoothing: one forward Gauss–Seidel sweep before the coarse correction and one backward sweep
 //! after (V(1,1)), so that the cycle is symmetric. Two sweeps each side, V(2,2), contract more
