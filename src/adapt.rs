@@ -169,14 +169,14 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
     Ok(adapted)
 }
 
-/// A run with the estimator.
+/// A run with the estimator, its result with S_h (the validation compares λ_h on it).
 fn estimating(start: Start) -> run::Options {
     run::Options {
         start,
         hminus1: false,
         flux: false,
         estimate: true,
-        dual: false,
+        dual: true,
     }
 }
 
