@@ -11,18 +11,8 @@ use crate::mesh::{DualMesh, Mesh};
 use crate::parallel::{self, PIECE};
 use crate::problem::DiscreteProblem;
 use crate::result::{Attribute, Describe, Field, Place};
-use adaptive::{Integral, Rules};
 
-pub mod adaptive;
-
-/// The rules of ∫ (u − u_h)²: u − u_h is about quadratic on a cell, its square quartic.
-const L2_RULES: Rules = Rules { low: 5, high: 6 };
-/// The rules of ∫ |∇(u − u_h)|²: ∇(u − u_h) is about linear on a cell.
-const H1_RULES: Rules = Rules { low: 4, high: 5 };
-/// The rules of ∫ (λ − λ_h)² on a cell of S_h: λ − λ_a is about linear there.
-const LAMBDA_RULES: Rules = Rules { low: 4, high: 5 };
-
-/// Degree of the rule of the H⁻¹ norm's right-hand side (well above the P1 error's).
+/// Degree of the rule used for error integrals (well above the P1 error's).
 const ERROR_QUADRATURE: Quadrature = Quadrature { degree: 10 };
 
 /// The exact solution of a case, for error norms.
@@ -43,13 +33,7 @@ pub struct Exact {
 impl Exact {
     /// u1, u2 and λ interpolated at the vertices, for comparison in ParaView.
     pub fn fields(&self, mesh: &Mesh) -> Vec<Field<'static>> {
-        let at = |e: &Expr| {
-            let mut values = vec![0.0; mesh.n_vertices()];
-            parallel::map_mut(&mut values, PIECE, |first, chunk| {
-                e.eval_many(&mesh.points[first..first + chunk.len()], chunk)
-            });
-            values
-        };
+        let at = |e: &Expr| mesh.points.iter().map(|p| e.eval(p[0], p[1])).collect();
         vec![
             Field::owned("u1_exact", Place::Vertices, at(&self.u1)),
             Field::owned("u2_exact", Place::Vertices, at(&self.u2)),
@@ -79,7 +63,6 @@ pub struct Errors {
 
 impl Errors {
     /// The errors of `solution` and `action` against `exact`; with `hminus1`, the H⁻¹ norm too.
-    /// Each squared norm is integrated to about [`adaptive::TOLERANCE`] relative.
     pub fn compute(
         problem: &DiscreteProblem,
         dual: &DualMesh,
@@ -91,17 +74,20 @@ impl Errors {
         let mesh = &problem.mesh;
         let (l2_u1, h1_u1) = p1_errors(mesh, &solution.u1, &exact.u1, exact.grad_u1.as_ref());
         let (l2_u2, h1_u2) = p1_errors(mesh, &solution.u2, &exact.u2, exact.grad_u2.as_ref());
-        let l2_lambda = Integral {
-            n: dual.n_cells(),
-            corners: |s| dual.corners(s),
-            fields: [&exact.lambda],
-            integrand: |s| {
-                let c = action.lambda[dual.owner(s)];
-                move |_: [f64; 3], [l]: [f64; 1]| (l - c) * (l - c)
-            },
-            rules: LAMBDA_RULES,
-        }
-        .value();
+        let lambda_h = |s: usize| action.lambda[dual.owner(s)];
+        let l2_lambda: f64 = parallel::sum(dual.n_cells(), PIECE, |range| {
+            let mut sum = 0.0;
+            let corners = |s: usize| dual.corners(s);
+            ERROR_QUADRATURE.visit(corners, range, [&exact.lambda], |s, points, [lambda]| {
+                let l = lambda_h(s);
+                sum += points
+                    .iter()
+                    .zip(lambda)
+                    .map(|(p, v)| p.weight * (v - l).powi(2))
+                    .sum::<f64>();
+            });
+            sum
+        });
         let energy = h1_u1
             .zip(h1_u2)
             .map(|(e1, e2)| (problem.data.mu1 * e1 * e1 + problem.data.mu2 * e2 * e2).sqrt());
@@ -152,35 +138,41 @@ impl Describe for Errors {
 
 /// (‖u − u_h‖_L², |u − u_h|_H¹) for a P1 field u_h.
 fn p1_errors(mesh: &Mesh, uh: &[f64], u: &Expr, grad: Option<&[Expr; 2]>) -> (f64, Option<f64>) {
-    let corners = |t| mesh.corners(t);
-    let l2 = Integral {
-        n: mesh.n_triangles(),
-        corners,
-        fields: [u],
-        integrand: |t| {
-            let v = mesh.triangle(t).map(|a| uh[a]);
-            move |b: [f64; 3], [u]: [f64; 1]| {
-                let e = u - (b[0] * v[0] + b[1] * v[1] + b[2] * v[2]);
-                e * e
-            }
-        },
-        rules: L2_RULES,
-    };
-    let h1 = grad.map(|[gx, gy]| {
-        Integral {
-            n: mesh.n_triangles(),
-            corners,
-            fields: [gx, gy],
-            integrand: |t| {
-                let (tri, g) = (mesh.triangle(t), gradients(mesh.corners(t)));
-                let gh = [0, 1].map(|k| (0..3).map(|i| g[i][k] * uh[tri[i]]).sum::<f64>());
-                move |_: [f64; 3], [gx, gy]: [f64; 2]| (gx - gh[0]).powi(2) + (gy - gh[1]).powi(2)
-            },
-            rules: H1_RULES,
-        }
-        .value()
+    let parts = parallel::map(mesh.n_triangles(), PIECE, |range| {
+        p1_error_sums(mesh, uh, u, grad, range)
     });
-    (l2.value().sqrt(), h1.map(f64::sqrt))
+    let (l2, h1) = parts.iter().fold((0.0, 0.0), |(l2, h1), p| (l2 + p.0, h1 + p.1));
+    (l2.sqrt(), grad.map(|_| h1.sqrt()))
+}
+
+/// ∫ (u − u_h)² and ∫ |∇(u − u_h)|² over the triangles in `range`.
+fn p1_error_sums(
+    mesh: &Mesh,
+    uh: &[f64],
+    u: &Expr,
+    grad: Option<&[Expr; 2]>,
+    range: std::ops::Range<usize>,
+) -> (f64, f64) {
+    let (mut l2, mut h1) = (0.0, 0.0);
+    let corners = |t| mesh.corners(t);
+    ERROR_QUADRATURE.visit(corners, range.clone(), [u], |t, points, [u]| {
+        let tri = mesh.triangle(t);
+        for (p, u) in points.iter().zip(u) {
+            let value: f64 = (0..3).map(|k| p.barycentric[k] * uh[tri[k]]).sum();
+            l2 += p.weight * (u - value).powi(2);
+        }
+    });
+    if let Some([gx, gy]) = grad {
+        ERROR_QUADRATURE.visit(corners, range, [gx, gy], |t, points, [gx, gy]| {
+            let tri = mesh.triangle(t);
+            let g = gradients(mesh.corners(t));
+            let grad_h = [0, 1].map(|k| (0..3).map(|i| g[i][k] * uh[tri[i]]).sum::<f64>());
+            for ((p, gx), gy) in points.iter().zip(gx).zip(gy) {
+                h1 += p.weight * ((gx - grad_h[0]).powi(2) + (gy - grad_h[1]).powi(2));
+            }
+        });
+    }
+    (l2, h1)
 }
 
 /// ‖λ − λ_h‖_H⁻¹(ω), approximated by the dual norm over P1 functions on the dual submesh S_h
