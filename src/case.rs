@@ -714,12 +714,12 @@ impl Describe for Case {
     }
 }
 
-/// A built-in mesh in a numbering whose halves are two regions of ω, as multigrid's two-block
+/// A built-in mesh in a numbering whose blocks of rows are regions of ω, as multigrid's block
 /// smoother needs (`multigrid::BLOCK_ROWS`): dolfinx's row-by-row numbering is one, but with
-/// crossed diagonals it puts the cell midpoints last, and the two halves (the grid vertices and
-/// the midpoints, which K couples only to each other) made the smoother a Jacobi iteration:
-/// CG's iterations doubled with every refinement from 256² on. Crossed meshes are numbered along
-/// a Z-order curve instead.
+/// crossed diagonals it puts the cell midpoints last, and blocks of grid vertices or of midpoints
+/// alone (which K couples only to each other) made the smoother a Jacobi iteration: CG's
+/// iterations doubled with every refinement from 256² on. Crossed meshes are numbered along a
+/// Z-order curve instead.
 fn geometric(mesh: Mesh, diagonal: Diagonal) -> Mesh {
     match diagonal {
         Diagonal::Crossed => mesh.renumbered(),

@@ -67,7 +67,7 @@ mod smoother;
 
 pub use crate::cg::{NotConverged, Tolerance};
 pub use cycle::Multigrid;
-pub use smoother::BLOCK_ROWS;
+pub use smoother::{BLOCK_ROWS, INTERFACE_SHARE};
 
 use crate::assembly::Stiffness;
 use crate::linear::NotPositiveDefinite;
@@ -92,6 +92,7 @@ pub struct Hierarchy<'h> {
     mass: &'h [f64],
     p: &'h [Prolongation],
     block_rows: usize,
+    interface_share: f64,
     /// The boundary, and the coarse operators with it alone skipped (v's), made once when first
     /// needed, each with the coarse unknowns it skips.
     base: Option<(Vec<bool>, OnceLock<BaseLevels>)>,
@@ -123,6 +124,7 @@ impl<'h> Hierarchy<'h> {
             mass,
             p,
             block_rows: BLOCK_ROWS,
+            interface_share: INTERFACE_SHARE,
             base: None,
             fine_blocks: OnceLock::new(),
         }
@@ -139,10 +141,12 @@ impl<'h> Hierarchy<'h> {
         }
     }
 
-    /// Smooths the levels in blocks of about `rows` rows (see [`BLOCK_ROWS`]).
+    /// Smooths the levels in blocks of about `rows` rows (see [`BLOCK_ROWS`]), however many of
+    /// them couple across.
     pub fn with_block_rows(self, rows: usize) -> Self {
         Hierarchy {
             block_rows: rows,
+            interface_share: 1.0,
             ..self
         }
     }
@@ -157,7 +161,7 @@ impl<'h> Hierarchy<'h> {
     /// of the coarsest one.
     pub fn preconditioner(&self, skip: Vec<bool>) -> Result<Multigrid<'_>, NotPositiveDefinite> {
         assert_eq!(skip.len(), self.fine.rows());
-        let blocks = |a: &Csr| Blocks::new(a, self.block_rows);
+        let blocks = |a: &Csr| Blocks::new(a, self.block_rows, self.interface_share);
         let (operators, fine_blocks) = match &self.base {
             None => {
                 let full = self.full(skip.clone()).into_iter();
@@ -568,6 +572,20 @@ mod tests {
             }));
         }
         assert!(results.iter().all(|r| *r == results[0]));
+    }
+
+    /// Blocks of 65 rows on the 65 × 65 grid numbered by rows are strips of one grid line, all
+    /// of whose rows couple across: they grow (doubling) until at most 1/8 do, 16 lines or more.
+    #[test]
+    fn blocks_grow_until_few_rows_couple_across() {
+        let levels = square(64, Diagonal::Right);
+        let blocks = Blocks::new(levels.k.matrix(), 65, INTERFACE_SHARE);
+        let share = blocks.interface.len() as f64 / levels.k.n() as f64;
+        assert!(share <= INTERFACE_SHARE, "{share}");
+        let rows = blocks.starts[1] - blocks.starts[0];
+        assert!((16 * 65..4 * 16 * 65).contains(&rows), "{rows} rows per block");
+        let fixed = Blocks::new(levels.k.matrix(), 65, 1.0);
+        assert_eq!(fixed.starts.len(), 65);
     }
 
     /// One free fine vertex amid held ones, the midpoint of a coarse edge: both coarse hat

@@ -4,15 +4,21 @@ use crate::parallel;
 use crate::sparse::Csr;
 use std::borrow::Cow;
 
-/// Levels are smoothed in blocks of about this many rows (one block below twice as many):
+/// Levels are smoothed in blocks of at least about this many rows (one block below twice as many):
 /// Gauss–Seidel within each block, the other blocks' unknowns read at their values from before
 /// the sweep (hybrid Gauss–Seidel, block Jacobi between the blocks), so that the blocks can be
 /// swept in parallel. The forward sweep before the coarse correction and the backward sweep after
 /// it stay each other's adjoint, so the cycle stays symmetric. Meshes are numbered along a
 /// Z-order curve (or by rows, built-in ones), so the blocks are compact parts of ω and few rows
-/// couple across. The blocks depend on the level's size only, not on the threads: the numbers
-/// are the same swept on one thread or many.
+/// couple across. Where they are strips of a row-by-row numbering a few grid lines wide, the
+/// blocks grow until at most [`INTERFACE_SHARE`] of the rows couple across (16 grid lines). The
+/// blocks depend on the level's matrix only, not on the threads: the numbers are the same swept on
+/// one thread or many.
 pub const BLOCK_ROWS: usize = 1 << 14;
+
+/// The largest share of a level's rows that may couple to another block: on a mesh numbered by
+/// rows, 2 of every 16 grid lines.
+pub const INTERFACE_SHARE: f64 = 0.125;
 
 /// One level of the V-cycle: its operator (level 0's is K itself), the vertices skipped (on the
 /// boundary, held, or coarse ones not kept) and the blocks of its smoother.
@@ -46,8 +52,23 @@ impl Ghosts<'_> {
 }
 
 impl Blocks {
-    /// The blocks of the rows of `a`: n / `block_rows` of them (at least one), of equal sizes.
-    pub(super) fn new(a: &Csr, block_rows: usize) -> Self {
+    /// The blocks of the rows of `a`, of equal sizes: n / `block_rows` of them (at least one),
+    /// or as many fewer (halved each time) as keep the interface within `share` of the rows.
+    pub(super) fn new(a: &Csr, block_rows: usize, share: f64) -> Self {
+        let n = a.rows();
+        let mut rows = block_rows.max(1);
+        loop {
+            let blocks = Self::of_size(a, rows);
+            let coupled = blocks.interface.len() as f64 / n.max(1) as f64;
+            if coupled <= share || blocks.starts.len() == 1 {
+                return blocks;
+            }
+            rows *= 2;
+        }
+    }
+
+    /// The n / `block_rows` blocks (at least one) of the rows of `a`, of equal sizes.
+    fn of_size(a: &Csr, block_rows: usize) -> Self {
         let n = a.rows();
         let count = (n / block_rows.max(1)).max(1);
         let starts: Vec<usize> = (0..count).map(|k| k * n / count).collect();
