@@ -2,6 +2,7 @@
 //! the levels of a hierarchy of meshes, and the coarse operators of multigrid. One home for the
 //! storage every O(n) kernel reads: 12 bytes per entry, rows sorted by column.
 
+use crate::parallel;
 use std::ops::Range;
 
 /// Entries below this times their row's diagonal entry are left out of K and of the Galerkin
@@ -27,17 +28,14 @@ pub struct Csr {
 /// columns and the values.
 pub(crate) type RowsPart = (Vec<u32>, Vec<u32>, Vec<f64>);
 
-/// Empty room for the part `rows` of a matrix of `n` rows with up to `per_row` entries each, to
-/// be [joined](Csr::joined) to the other parts: the first part's room holds the entries of
-/// all, so that joining copies each other part once and moves nothing (growing a vector of
-/// hundreds of megabytes moves its pages, which cost more than the rows took to compute). Room
-/// not written is never touched, so it takes no memory.
-pub(crate) fn part_room(rows: &Range<usize>, n: usize, per_row: usize) -> RowsPart {
-    let entries = per_row * if rows.start == 0 { n } else { rows.len() };
+/// Empty room for the part `rows` of a matrix with up to `per_row` entries per row, to be
+/// [joined](Csr::joined) to the other parts. Parts are small enough for the allocator to reuse
+/// their memory from one matrix to the next.
+pub(crate) fn part_room(rows: &Range<usize>, per_row: usize) -> RowsPart {
     (
         Vec::with_capacity(rows.len()),
-        Vec::with_capacity(entries),
-        Vec::with_capacity(entries),
+        Vec::with_capacity(per_row * rows.len()),
+        Vec::with_capacity(per_row * rows.len()),
     )
 }
 
@@ -67,29 +65,40 @@ impl Csr {
         room: impl Fn() -> S + Sync + Send,
         rows: impl Fn(&mut S, Range<usize>, &mut RowsPart) + Sync + Send,
     ) -> Self {
-        let parts = crate::parallel::map_with(n, crate::parallel::PIECE, room, |scratch, range| {
-            let mut part = part_room(&range, n, per_row);
+        let parts = parallel::map_with(n, parallel::PIECE, room, |scratch, range| {
+            let mut part = part_room(&range, per_row);
             rows(scratch, range, &mut part);
             part
         });
         Csr::joined(parts, cols)
     }
 
-    /// The matrix of the rows of consecutive parts (made in the room of [`part_room`]), the
-    /// first part's rows first, with `cols` columns.
+    /// The matrix of the rows of consecutive parts, the first part's rows first, with `cols`
+    /// columns; the parts copied in parallel.
     pub(crate) fn joined(parts: Vec<RowsPart>, cols: usize) -> Self {
-        let mut parts = parts.into_iter();
-        let (first, mut col, mut val) = parts.next().unwrap_or_default();
-        let mut row_ptr = Vec::with_capacity(first.len() + 1);
-        row_ptr.push(0);
-        row_ptr.extend(&first);
-        for (ends, col2, val2) in parts {
-            fits(col.len() + col2.len(), "entries");
-            let start = col.len() as u32;
-            row_ptr.extend(ends.iter().map(|&end| start + end));
-            col.extend(col2);
-            val.extend(val2);
-        }
+        let offsets = |len: fn(&RowsPart) -> usize| -> Vec<usize> {
+            (parts.iter())
+                .scan(0, |start, part| {
+                    let this = *start;
+                    *start += len(part);
+                    Some(this)
+                })
+                .collect()
+        };
+        let (first_rows, first_entries) = (offsets(|p| p.0.len()), offsets(|p| p.1.len()));
+        let rows: usize = parts.iter().map(|p| p.0.len()).sum();
+        let nnz = fits(parts.iter().map(|p| p.1.len()).sum(), "entries") as usize;
+        let (mut row_ptr, mut col, mut val) = (vec![0u32; rows + 1], vec![0u32; nnz], vec![0.0; nnz]);
+        parallel::map_parts2(&mut col, &mut val, &first_entries, |k, col, val| {
+            col.copy_from_slice(&parts[k].1);
+            val.copy_from_slice(&parts[k].2);
+        });
+        parallel::map_parts2(&mut row_ptr[1..], &mut [0u8; 0], &first_rows, |k, ends, _| {
+            let start = first_entries[k] as u32;
+            for (end, &e) in ends.iter_mut().zip(&parts[k].0) {
+                *end = start + e;
+            }
+        });
         Csr {
             row_ptr,
             col,
@@ -266,7 +275,7 @@ impl Csr {
     /// transpose (columns of this matrix) reads only the pieces of this matrix's rows whose
     /// columns reach it (few, on a mesh numbered along a curve), and writes its own entries.
     pub fn transpose(&self) -> Csr {
-        let piece = crate::parallel::PIECE;
+        let piece = parallel::PIECE;
         let mut count = vec![0u32; self.cols + 1];
         for &j in &self.col {
             count[j as usize + 1] += 1;
@@ -275,7 +284,7 @@ impl Csr {
             count[j + 1] += count[j];
         }
         // The columns each piece of rows reaches.
-        let reach = crate::parallel::map(self.rows(), piece, |rows| {
+        let reach = parallel::map(self.rows(), piece, |rows| {
             let entries = &self.col[self.row_ptr[rows.start] as usize..self.row_ptr[rows.end] as usize];
             let least = entries.iter().min().map_or(u32::MAX, |&j| j);
             (least, entries.iter().max().map_or(0, |&j| j + 1))
@@ -284,7 +293,7 @@ impl Csr {
         let starts: Vec<usize> = (0..self.cols.div_ceil(piece).max(1))
             .map(|k| count[(k * piece).min(self.cols)] as usize)
             .collect();
-        crate::parallel::map_parts2(&mut col, &mut val, &starts, |k, col, val| {
+        parallel::map_parts2(&mut col, &mut val, &starts, |k, col, val| {
             let columns = k * piece..((k + 1) * piece).min(self.cols);
             let first = count[columns.start];
             let mut next: Vec<u32> = count[columns.clone()].iter().map(|&c| c - first).collect();
@@ -321,11 +330,11 @@ mod tests {
     use super::*;
 
     #[test]
-    fn parts_made_in_their_room_join_without_growing() {
-        // The tridiagonal matrix (−1, 2, −1) of 9 rows, made in two parts.
+    fn parts_join_to_the_matrix() {
+        // The tridiagonal matrix (−1, 2, −1) of 9 rows, made in three parts.
         let n = 9;
-        let parts = crate::parallel::map(n, 4, |rows| {
-            let (mut ends, mut col, mut val) = part_room(&rows, n, 3);
+        let parts = parallel::map(n, 4, |rows| {
+            let (mut ends, mut col, mut val) = part_room(&rows, 3);
             for i in rows {
                 for j in i.saturating_sub(1)..(i + 2).min(n) {
                     col.push(j as u32);
@@ -336,8 +345,6 @@ mod tests {
             (ends, col, val)
         });
         assert_eq!(parts.len(), 3);
-        let entries: usize = parts.iter().map(|p| p.1.len()).sum();
-        assert!(parts[0].1.capacity() >= entries && parts[0].2.capacity() >= entries);
         let a = Csr::joined(parts, n);
         assert_eq!((a.rows(), a.cols(), a.nnz()), (n, n, 3 * n - 2));
         for i in 0..n {
@@ -356,7 +363,7 @@ mod tests {
     fn the_transpose_in_pieces_is_the_transpose() {
         // Rows near their columns, as on a mesh numbered along a curve, and a few far ones, over
         // several pieces of rows and columns.
-        let piece = crate::parallel::PIECE;
+        let piece = parallel::PIECE;
         let (rows, cols) = (3 * piece + 17, 2 * piece + 5);
         let mut part = (Vec::new(), Vec::new(), Vec::new());
         for i in 0..rows {
