@@ -1,7 +1,7 @@
 //! P1 assembly on T_h: the stiffness matrix K_ab = ∫∇φ_b·∇φ_a, the lumped pairing
 //! m_a = ∫φ_a (Remark 11: ⟨χ_a, φ_a⟩_h = meas(D_a) = ∫φ_a), and the loads (f, φ_a).
 
-use crate::expr::Expr;
+use crate::expr::{Expr, Program};
 use crate::mesh::{Mesh, Stars};
 use crate::quadrature_tables::TRIANGLE_RULES;
 use crate::sparse::{Csr, NEGLIGIBLE};
@@ -143,8 +143,8 @@ impl Quadrature {
 
     /// Visits the triangles `range` (corners given by `corners`) with the E `fields` evaluated at
     /// their quadrature points: `visit(t, points, values)`, `values[e][q]` the field e at `points[q]`.
-    /// The fields are evaluated for `TRIANGLES_PER_BLOCK` triangles at a time
-    /// ([`Expr::eval_many`]).
+    /// The fields are evaluated together for `TRIANGLES_PER_BLOCK` triangles at a time, what
+    /// they share once ([`Program`]).
     pub fn visit<const E: usize>(
         &self,
         corners: impl Fn(usize) -> [[f64; 2]; 3],
@@ -157,6 +157,7 @@ impl Quadrature {
         let mut points = Vec::with_capacity(TRIANGLES_PER_BLOCK * np);
         let mut xs = Vec::with_capacity(TRIANGLES_PER_BLOCK * np);
         let mut values = [(); E].map(|_| vec![0.0; TRIANGLES_PER_BLOCK * np]);
+        let program = Program::new(&fields);
         let mut start = range.start;
         while start < range.end {
             let block = start..range.end.min(start + TRIANGLES_PER_BLOCK);
@@ -178,9 +179,8 @@ impl Quadrature {
             }
             xs.clear();
             xs.extend(points.iter().map(|p| p.x));
-            for (f, v) in fields.iter().zip(values.iter_mut()) {
-                f.eval_many(&xs, &mut v[..xs.len()]);
-            }
+            let mut out = values.each_mut().map(|v| &mut v[..xs.len()]);
+            program.eval_many(&xs, &mut out);
             for (k, t) in block.clone().enumerate() {
                 let q = k * np..(k + 1) * np;
                 visit(

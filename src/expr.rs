@@ -29,6 +29,7 @@
 //! semantics differ (integer division, base-10 `log`, implicit variable ordering).
 
 use std::fmt;
+use std::ops::Range;
 
 /// A parse or type error, with the byte offset where it was found.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,7 +48,7 @@ impl fmt::Display for ExprError {
 
 impl std::error::Error for ExprError {}
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 enum Unary {
     Neg,
     Sqrt,
@@ -63,7 +64,7 @@ enum Unary {
     Floor,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 enum Binary {
     Add,
     Sub,
@@ -75,7 +76,7 @@ enum Binary {
     Atan2,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 enum Compare {
     Lt,
     Le,
@@ -102,43 +103,50 @@ enum Cond {
     Or(Box<Cond>, Box<Cond>),
 }
 
-/// A parsed expression of (x, y), compiled to a stack program for fast evaluation.
+/// A parsed expression of (x, y), compiled to a [`Program`] for fast evaluation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Expr {
-    code: Vec<Op>,
-    /// The deepest stack the program needs.
-    depth: usize,
+    program: Program,
 }
 
-/// One instruction of the stack program (conditions are 1.0 / 0.0 on the stack).
-#[derive(Debug, Clone, Copy, PartialEq)]
-enum Op {
-    Const(f64),
+/// Expressions compiled together to one list of distinct steps, each step an operation on the
+/// values of earlier ones (value numbering): a subexpression they share — sin(πx) in u and in
+/// ∂u/∂x, (x − 1/2)² in each term of a load — is computed once per point. Each expression's
+/// values are those it has alone, bit for bit: the same operations on the same operands.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Program {
+    steps: Vec<Step>,
+    /// The step of each expression's value.
+    outputs: Vec<u32>,
+}
+
+/// One step of a [`Program`], on the values of earlier steps (conditions are 1.0 / 0.0).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum Step {
+    /// A constant, by its bits (so that steps can be compared and hashed).
+    Const(u64),
     X,
     Y,
-    Unary(Unary),
-    Binary(Binary),
+    Unary(Unary, u32),
+    Binary(Binary, u32, u32),
     /// a^k for a constant integer exponent k.
-    PowI(i32),
-    Compare(Compare),
-    And,
-    Or,
+    PowI(i32, u32),
+    Compare(Compare, u32, u32),
+    And(u32, u32),
+    Or(u32, u32),
     /// c, a, b → a where c ≠ 0, else b (both branches are evaluated: floats do not trap, and the
     /// program stays straight-line, so that it runs over blocks of points).
-    Select,
+    Select(u32, u32, u32),
 }
 
-/// Longest accepted expression, in tokens, and the deepest nesting of the stack program.
+/// Longest accepted expression, in tokens, and the deepest nesting of parentheses, signs and
+/// function calls.
 const MAX_TOKENS: usize = 10_000;
-const STACK: usize = 64;
-/// Points per block of [`Expr::eval_many`].
+const MAX_NESTING: usize = 32;
+/// Points per block of [`Program::eval_many`].
 pub const BLOCK: usize = 32;
-
-/// The stack slots sp − 1 (mutable) and sp.
-fn two<const B: usize>(stack: &mut [[f64; B]], sp: usize) -> (&mut [f64; B], &[f64; B]) {
-    let (lo, hi) = stack.split_at_mut(sp);
-    (&mut lo[sp - 1], &hi[0])
-}
+/// Steps of a program evaluated at one point with room on the call stack.
+const SMALL: usize = 256;
 
 fn truth(b: bool) -> f64 {
     f64::from(u8::from(b))
@@ -154,200 +162,200 @@ impl Expr {
     pub fn parse_with(source: &str, names: &Names) -> Result<Self, ExprError> {
         let root = parse_tree(source, names, &[])?;
         let mut c = Compiler::default();
-        c.num(&root);
-        if c.max_depth > STACK {
-            return Err(ExprError {
-                position: 0,
-                message: "expression nested too deeply".into(),
-            });
-        }
+        let output = c.num(&root);
         Ok(Expr {
-            code: c.code,
-            depth: c.max_depth,
+            program: Program {
+                steps: c.steps,
+                outputs: vec![output],
+            },
         })
     }
 
     /// The value at the point (x, y).
     pub fn eval(&self, x: f64, y: f64) -> f64 {
         let mut out = [0.0];
-        self.run(&[[x, y]], &mut out, &mut [[0.0; 1]; STACK]);
+        self.program.eval_many(&[[x, y]], &mut [&mut out[..]]);
         out[0]
     }
 
-    /// The values at `points`, into `out`: the program runs once per block of [`BLOCK`] points,
-    /// each instruction over the whole block.
+    /// The values at `points`, into `out` (see [`Program::eval_many`]).
     pub fn eval_many(&self, points: &[[f64; 2]], out: &mut [f64]) {
-        let mut stack = vec![[0.0; BLOCK]; self.depth.max(1)];
-        for (points, out) in points.chunks(BLOCK).zip(out.chunks_mut(BLOCK)) {
-            self.run(points, out, &mut stack);
-        }
-    }
-
-    /// Runs the program on up to B points at once.
-    fn run<const B: usize>(&self, points: &[[f64; 2]], out: &mut [f64], stack: &mut [[f64; B]]) {
-        let m = points.len();
-        let mut sp = 0;
-        for op in &self.code {
-            match *op {
-                Op::Const(c) => {
-                    stack[sp][..m].fill(c);
-                    sp += 1;
-                }
-                Op::X | Op::Y => {
-                    let k = usize::from(matches!(op, Op::Y));
-                    for (s, p) in stack[sp].iter_mut().zip(points) {
-                        *s = p[k];
-                    }
-                    sp += 1;
-                }
-                Op::Unary(f) => {
-                    let a = &mut stack[sp - 1][..m];
-                    match f {
-                        Unary::Neg => map1(a, |a| -a),
-                        Unary::Sqrt => map1(a, f64::sqrt),
-                        Unary::Exp => map1(a, f64::exp),
-                        Unary::Log => map1(a, f64::ln),
-                        Unary::Sin => map1(a, f64::sin),
-                        Unary::Cos => map1(a, f64::cos),
-                        Unary::Tan => map1(a, f64::tan),
-                        Unary::Atan => map1(a, f64::atan),
-                        Unary::Tanh => map1(a, f64::tanh),
-                        Unary::Abs => map1(a, f64::abs),
-                        Unary::Sign => map1(a, sign),
-                        Unary::Floor => map1(a, f64::floor),
-                    }
-                }
-                Op::PowI(2) => map1(&mut stack[sp - 1][..m], |a| a * a),
-                Op::PowI(k) => map1(&mut stack[sp - 1][..m], |a| a.powi(k)),
-                Op::Binary(f) => {
-                    sp -= 1;
-                    let (a, b) = two(stack, sp);
-                    let (a, b) = (&mut a[..m], &b[..m]);
-                    match f {
-                        Binary::Add => map2(a, b, |a, b| a + b),
-                        Binary::Sub => map2(a, b, |a, b| a - b),
-                        Binary::Mul => map2(a, b, |a, b| a * b),
-                        Binary::Div => map2(a, b, |a, b| a / b),
-                        Binary::Pow => map2(a, b, f64::powf),
-                        Binary::Min => map2(a, b, min),
-                        Binary::Max => map2(a, b, max),
-                        Binary::Atan2 => map2(a, b, f64::atan2),
-                    }
-                }
-                Op::Compare(f) => {
-                    sp -= 1;
-                    let (a, b) = two(stack, sp);
-                    (a[..m].iter_mut().zip(&b[..m])).for_each(|(a, b)| *a = truth(compare(f, *a, *b)));
-                }
-                Op::And | Op::Or => {
-                    sp -= 1;
-                    let and = matches!(op, Op::And);
-                    let (a, b) = two(stack, sp);
-                    a[..m].iter_mut().zip(&b[..m]).for_each(|(a, b)| {
-                        *a = truth(if and {
-                            *a != 0.0 && *b != 0.0
-                        } else {
-                            *a != 0.0 || *b != 0.0
-                        })
-                    });
-                }
-                Op::Select => {
-                    sp -= 2;
-                    let (c, rest) = stack[sp - 1..].split_at_mut(1);
-                    let (a, b) = rest.split_at(1);
-                    for i in 0..m {
-                        c[0][i] = if c[0][i] != 0.0 { a[0][i] } else { b[0][i] };
-                    }
-                }
-            }
-        }
-        out.copy_from_slice(&stack[0][..m]);
+        self.program.eval_many(points, &mut [out]);
     }
 
     /// The value, if the expression does not read x or y.
     pub fn constant(&self) -> Option<f64> {
-        let reads_xy = self.code.iter().any(|op| matches!(op, Op::X | Op::Y));
+        let reads_xy = (self.program.steps.iter()).any(|s| matches!(s, Step::X | Step::Y));
         (!reads_xy).then(|| self.eval(0.0, 0.0))
     }
 }
 
-/// Compiles the tree to postfix code, tracking the stack depth.
+impl Program {
+    /// The expressions `exprs` compiled together, their shared steps once.
+    pub fn new(exprs: &[&Expr]) -> Program {
+        let mut c = Compiler::default();
+        let outputs = (exprs.iter())
+            .map(|e| {
+                let p = &e.program;
+                let mut at = Vec::with_capacity(p.steps.len());
+                for step in &p.steps {
+                    let id = |i: u32| at[i as usize];
+                    let step = match *step {
+                        Step::Const(_) | Step::X | Step::Y => *step,
+                        Step::Unary(f, a) => Step::Unary(f, id(a)),
+                        Step::Binary(f, a, b) => Step::Binary(f, id(a), id(b)),
+                        Step::PowI(k, a) => Step::PowI(k, id(a)),
+                        Step::Compare(f, a, b) => Step::Compare(f, id(a), id(b)),
+                        Step::And(a, b) => Step::And(id(a), id(b)),
+                        Step::Or(a, b) => Step::Or(id(a), id(b)),
+                        Step::Select(s, a, b) => Step::Select(id(s), id(a), id(b)),
+                    };
+                    at.push(c.add(step));
+                }
+                at[p.outputs[0] as usize]
+            })
+            .collect();
+        Program {
+            steps: c.steps,
+            outputs,
+        }
+    }
+
+    /// The values of the expressions at `points`, into `out` (one slice per expression, as
+    /// long as `points`): the steps run once per block of [`BLOCK`] points, each over the whole
+    /// block.
+    pub fn eval_many(&self, points: &[[f64; 2]], out: &mut [&mut [f64]]) {
+        if points.len() == 1 && self.steps.len() <= SMALL {
+            let mut values = [[0.0; 1]; SMALL];
+            self.run(points, &mut values);
+            self.copy_out(&values, out, 0..1);
+            return;
+        }
+        let mut values = vec![[0.0; BLOCK]; self.steps.len()];
+        for (k, points) in points.chunks(BLOCK).enumerate() {
+            self.run(points, &mut values);
+            self.copy_out(&values, out, k * BLOCK..k * BLOCK + points.len());
+        }
+    }
+
+    /// The outputs' values of a block into `out[..][range]`.
+    fn copy_out<const B: usize>(&self, values: &[[f64; B]], out: &mut [&mut [f64]], range: Range<usize>) {
+        for (out, &o) in out.iter_mut().zip(&self.outputs) {
+            out[range.clone()].copy_from_slice(&values[o as usize][..range.len()]);
+        }
+    }
+
+    /// Runs the steps on up to B points at once, each step's values into its slot of `values`.
+    fn run<const B: usize>(&self, points: &[[f64; 2]], values: &mut [[f64; B]]) {
+        let m = points.len();
+        for (k, step) in self.steps.iter().enumerate() {
+            let (before, slot) = values.split_at_mut(k);
+            let (s, at) = (&mut slot[0][..m], |i: u32| &before[i as usize][..m]);
+            match *step {
+                Step::Const(c) => s.fill(f64::from_bits(c)),
+                Step::X | Step::Y => {
+                    let k = usize::from(matches!(step, Step::Y));
+                    s.iter_mut().zip(points).for_each(|(s, p)| *s = p[k]);
+                }
+                Step::Unary(f, a) => {
+                    let a = at(a);
+                    match f {
+                        Unary::Neg => map1(s, a, |a| -a),
+                        Unary::Sqrt => map1(s, a, f64::sqrt),
+                        Unary::Exp => map1(s, a, f64::exp),
+                        Unary::Log => map1(s, a, f64::ln),
+                        Unary::Sin => map1(s, a, f64::sin),
+                        Unary::Cos => map1(s, a, f64::cos),
+                        Unary::Tan => map1(s, a, f64::tan),
+                        Unary::Atan => map1(s, a, f64::atan),
+                        Unary::Tanh => map1(s, a, f64::tanh),
+                        Unary::Abs => map1(s, a, f64::abs),
+                        Unary::Sign => map1(s, a, sign),
+                        Unary::Floor => map1(s, a, f64::floor),
+                    }
+                }
+                Step::PowI(2, a) => map1(s, at(a), |a| a * a),
+                Step::PowI(k, a) => map1(s, at(a), |a| a.powi(k)),
+                Step::Binary(f, a, b) => {
+                    let (a, b) = (at(a), at(b));
+                    match f {
+                        Binary::Add => map2(s, a, b, |a, b| a + b),
+                        Binary::Sub => map2(s, a, b, |a, b| a - b),
+                        Binary::Mul => map2(s, a, b, |a, b| a * b),
+                        Binary::Div => map2(s, a, b, |a, b| a / b),
+                        Binary::Pow => map2(s, a, b, f64::powf),
+                        Binary::Min => map2(s, a, b, min),
+                        Binary::Max => map2(s, a, b, max),
+                        Binary::Atan2 => map2(s, a, b, f64::atan2),
+                    }
+                }
+                Step::Compare(f, a, b) => map2(s, at(a), at(b), |a, b| truth(compare(f, a, b))),
+                Step::And(a, b) => map2(s, at(a), at(b), |a, b| truth(a != 0.0 && b != 0.0)),
+                Step::Or(a, b) => map2(s, at(a), at(b), |a, b| truth(a != 0.0 || b != 0.0)),
+                Step::Select(c, a, b) => {
+                    let (c, a, b) = (at(c), at(a), at(b));
+                    for i in 0..m {
+                        s[i] = if c[i] != 0.0 { a[i] } else { b[i] };
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// Compiles trees to the steps of a [`Program`], each distinct step once.
 #[derive(Default)]
 struct Compiler {
-    code: Vec<Op>,
-    depth: usize,
-    max_depth: usize,
+    steps: Vec<Step>,
+    index: std::collections::HashMap<Step, u32>,
 }
 
 impl Compiler {
-    fn push(&mut self, op: Op, change: isize) {
-        self.code.push(op);
-        self.depth = self.depth.saturating_add_signed(change);
-        self.max_depth = self.max_depth.max(self.depth);
+    /// The number of `step`, added if new.
+    fn add(&mut self, step: Step) -> u32 {
+        *self.index.entry(step).or_insert_with(|| {
+            self.steps.push(step);
+            (self.steps.len() - 1) as u32
+        })
     }
 
-    fn num(&mut self, n: &Num) {
-        match n {
-            Num::Const(c) => self.push(Op::Const(*c), 1),
-            Num::X => self.push(Op::X, 1),
-            Num::Y => self.push(Op::Y, 1),
-            Num::Unary(op, a) => {
-                self.num(a);
-                self.push(Op::Unary(*op), 0);
-            }
+    fn num(&mut self, n: &Num) -> u32 {
+        let step = match n {
+            Num::Const(c) => Step::Const(c.to_bits()),
+            Num::X => Step::X,
+            Num::Y => Step::Y,
+            Num::Unary(op, a) => Step::Unary(*op, self.num(a)),
             Num::Binary(Binary::Pow, a, b) if matches!(**b, Num::Const(k) if k.fract() == 0.0 && k.abs() <= 64.0) =>
             {
                 let Num::Const(k) = **b else { unreachable!() };
-                self.num(a);
-                self.push(Op::PowI(k as i32), 0);
+                Step::PowI(k as i32, self.num(a))
             }
-            Num::Binary(op, a, b) => {
-                self.num(a);
-                self.num(b);
-                self.push(Op::Binary(*op), -1);
-            }
-            Num::If(c, a, b) => {
-                self.cond(c);
-                self.num(a);
-                self.num(b);
-                self.push(Op::Select, -2);
-            }
-        }
+            Num::Binary(op, a, b) => Step::Binary(*op, self.num(a), self.num(b)),
+            Num::If(c, a, b) => Step::Select(self.cond(c), self.num(a), self.num(b)),
+        };
+        self.add(step)
     }
 
-    fn cond(&mut self, c: &Cond) {
-        match c {
-            Cond::Compare(op, a, b) => {
-                self.num(a);
-                self.num(b);
-                self.push(Op::Compare(*op), -1);
-            }
-            Cond::And(a, b) | Cond::Or(a, b) => {
-                self.cond(a);
-                self.cond(b);
-                self.push(
-                    if matches!(c, Cond::And(..)) {
-                        Op::And
-                    } else {
-                        Op::Or
-                    },
-                    -1,
-                );
-            }
-        }
+    fn cond(&mut self, c: &Cond) -> u32 {
+        let step = match c {
+            Cond::Compare(op, a, b) => Step::Compare(*op, self.num(a), self.num(b)),
+            Cond::And(a, b) => Step::And(self.cond(a), self.cond(b)),
+            Cond::Or(a, b) => Step::Or(self.cond(a), self.cond(b)),
+        };
+        self.add(step)
     }
 }
 
-/// a ← f(a) elementwise.
+/// s ← f(a) elementwise.
 #[inline]
-fn map1(a: &mut [f64], f: impl Fn(f64) -> f64) {
-    a.iter_mut().for_each(|a| *a = f(*a));
+fn map1(s: &mut [f64], a: &[f64], f: impl Fn(f64) -> f64) {
+    s.iter_mut().zip(a).for_each(|(s, a)| *s = f(*a));
 }
 
-/// a ← f(a, b) elementwise.
+/// s ← f(a, b) elementwise.
 #[inline]
-fn map2(a: &mut [f64], b: &[f64], f: impl Fn(f64, f64) -> f64) {
-    a.iter_mut().zip(b).for_each(|(a, b)| *a = f(*a, *b));
+fn map2(s: &mut [f64], a: &[f64], b: &[f64], f: impl Fn(f64, f64) -> f64) {
+    (s.iter_mut().zip(a).zip(b)).for_each(|((s, a), b)| *s = f(*a, *b));
 }
 
 /// −1, 0 or 1 by the sign of a (+0 at ±0, NaN stays NaN), as NumPy's `sign`; `f64::signum`
@@ -763,7 +771,7 @@ impl Parser<'_> {
 
     fn unary(&mut self) -> Result<Node, ExprError> {
         self.depth += 1;
-        if self.depth > STACK / 2 {
+        if self.depth > MAX_NESTING {
             return Err(self.error_at(self.here(), "expression nested too deeply"));
         }
         let result = match self.take_op(&[("-", true), ("+", false)]) {
@@ -1004,6 +1012,34 @@ mod tests {
         let nested_ifs = (0..10).fold("y".to_string(), |e, k| format!("if(x > {k}, {e}, {k})"));
         assert_eq!(Expr::parse(&nested_ifs).unwrap().eval(20.0, 7.0), 7.0);
         assert_eq!(Expr::parse(&nested_ifs).unwrap().eval(4.5, 7.0), 9.0);
+    }
+
+    #[test]
+    fn expressions_compiled_together_share_steps_and_keep_their_values() {
+        let parse = |s: &str| Expr::parse(s).unwrap();
+        let exprs = [
+            parse("0.5*sin(pi*x)*sin(pi*y) + max((x-0.5)^2 + (y-0.5)^2 - 0.0625, 0)^2"),
+            parse("0.5*pi*cos(pi*x)*sin(pi*y) + 4*max((x-0.5)^2 + (y-0.5)^2 - 0.0625, 0)*(x-0.5)"),
+            // The first but for one constant, and a condition.
+            parse("0.25*sin(pi*x)*sin(pi*y) + if(x < 0.5 && y > 0.25, 1, 2)"),
+        ];
+        let program = Program::new(&exprs.each_ref());
+        let alone: usize = exprs.iter().map(|e| e.program.steps.len()).sum();
+        assert!(
+            3 * program.steps.len() < 2 * alone,
+            "{} of {alone} steps",
+            program.steps.len()
+        );
+        let points: Vec<[f64; 2]> = (0..100)
+            .map(|k| [k as f64 / 97.0, (k * k % 89) as f64 / 83.0])
+            .collect();
+        let mut values = [[0.0; 100]; 3];
+        program.eval_many(&points, &mut values.each_mut().map(|v| &mut v[..]));
+        for (e, values) in exprs.iter().zip(&values) {
+            for (p, v) in points.iter().zip(values) {
+                assert_eq!(v.to_bits(), e.eval(p[0], p[1]).to_bits(), "at {p:?}");
+            }
+        }
     }
 
     #[test]

@@ -72,8 +72,7 @@ impl Errors {
         hminus1: bool,
     ) -> Errors {
         let mesh = &problem.mesh;
-        let (l2_u1, h1_u1) = p1_errors(mesh, &solution.u1, &exact.u1, exact.grad_u1.as_ref());
-        let (l2_u2, h1_u2) = p1_errors(mesh, &solution.u2, &exact.u2, exact.grad_u2.as_ref());
+        let [(l2_u1, h1_u1), (l2_u2, h1_u2)] = p1_errors(mesh, [&solution.u1, &solution.u2], exact);
         let lambda_h = |s: usize| action.lambda[dual.owner(s)];
         let l2_lambda: f64 = parallel::sum(dual.n_cells(), PIECE, |range| {
             let mut sum = 0.0;
@@ -136,43 +135,56 @@ impl Describe for Errors {
     }
 }
 
-/// (‖u − u_h‖_L², |u − u_h|_H¹) for a P1 field u_h.
-fn p1_errors(mesh: &Mesh, uh: &[f64], u: &Expr, grad: Option<&[Expr; 2]>) -> (f64, Option<f64>) {
+/// (‖u_i − u_ih‖_L², |u_i − u_ih|_H¹) of both membranes' P1 fields `uh` (the H¹ error where
+/// ∇u_i is given), the exact fields evaluated together (they share most of their terms).
+fn p1_errors(mesh: &Mesh, uh: [&[f64]; 2], exact: &Exact) -> [(f64, Option<f64>); 2] {
+    let (u, g) = ([&exact.u1, &exact.u2], [&exact.grad_u1, &exact.grad_u2]);
     let parts = parallel::map(mesh.n_triangles(), PIECE, |range| {
-        p1_error_sums(mesh, uh, u, grad, range)
-    });
-    let (l2, h1) = parts.iter().fold((0.0, 0.0), |(l2, h1), p| (l2 + p.0, h1 + p.1));
-    (l2.sqrt(), grad.map(|_| h1.sqrt()))
-}
-
-/// ∫ (u − u_h)² and ∫ |∇(u − u_h)|² over the triangles in `range`.
-fn p1_error_sums(
-    mesh: &Mesh,
-    uh: &[f64],
-    u: &Expr,
-    grad: Option<&[Expr; 2]>,
-    range: std::ops::Range<usize>,
-) -> (f64, f64) {
-    let (mut l2, mut h1) = (0.0, 0.0);
-    let corners = |t| mesh.corners(t);
-    ERROR_QUADRATURE.visit(corners, range.clone(), [u], |t, points, [u]| {
-        let tri = mesh.triangle(t);
-        for (p, u) in points.iter().zip(u) {
-            let value: f64 = (0..3).map(|k| p.barycentric[k] * uh[tri[k]]).sum();
-            l2 += p.weight * (u - value).powi(2);
+        let r = range;
+        match g {
+            [Some([ax, ay]), Some([bx, by])] => {
+                p1_error_sums(mesh, uh, [u[0], u[1], ax, ay, bx, by], [Some(2), Some(4)], r)
+            }
+            [Some([ax, ay]), None] => p1_error_sums(mesh, uh, [u[0], u[1], ax, ay], [Some(2), None], r),
+            [None, Some([bx, by])] => p1_error_sums(mesh, uh, [u[0], u[1], bx, by], [None, Some(2)], r),
+            [None, None] => p1_error_sums(mesh, uh, u, [None, None], r),
         }
     });
-    if let Some([gx, gy]) = grad {
-        ERROR_QUADRATURE.visit(corners, range, [gx, gy], |t, points, [gx, gy]| {
-            let tri = mesh.triangle(t);
-            let g = gradients(mesh.corners(t));
-            let grad_h = [0, 1].map(|k| (0..3).map(|i| g[i][k] * uh[tri[i]]).sum::<f64>());
-            for ((p, gx), gy) in points.iter().zip(gx).zip(gy) {
-                h1 += p.weight * ((gx - grad_h[0]).powi(2) + (gy - grad_h[1]).powi(2));
+    let sums = parts
+        .iter()
+        .fold([0.0; 4], |s, p| std::array::from_fn(|k| s[k] + p[k]));
+    [0, 1].map(|i| (sums[i].sqrt(), g[i].as_ref().map(|_| sums[2 + i].sqrt())))
+}
+
+/// ∫ (u_i − u_ih)² and ∫ |∇(u_i − u_ih)|² (i = 1, 2) over the triangles in `range`: `fields`
+/// u1, u2, then the components of the ∇u_i given, the first at `grads[i]`.
+fn p1_error_sums<const E: usize>(
+    mesh: &Mesh,
+    uh: [&[f64]; 2],
+    fields: [&Expr; E],
+    grads: [Option<usize>; 2],
+    range: std::ops::Range<usize>,
+) -> [f64; 4] {
+    let mut sums = [0.0; 4];
+    let corners = |t| mesh.corners(t);
+    ERROR_QUADRATURE.visit(corners, range, fields, |t, points, values| {
+        let tri = mesh.triangle(t);
+        for i in 0..2 {
+            for (p, u) in points.iter().zip(values[i]) {
+                let value: f64 = (0..3).map(|k| p.barycentric[k] * uh[i][tri[k]]).sum();
+                sums[i] += p.weight * (u - value).powi(2);
             }
-        });
-    }
-    (l2, h1)
+            if let Some(at) = grads[i] {
+                let g = gradients(mesh.corners(t));
+                let grad_h = [0, 1].map(|k| (0..3).map(|j| g[j][k] * uh[i][tri[j]]).sum::<f64>());
+                let (gx, gy) = (values[at], values[at + 1]);
+                for ((p, gx), gy) in points.iter().zip(gx).zip(gy) {
+                    sums[2 + i] += p.weight * ((gx - grad_h[0]).powi(2) + (gy - grad_h[1]).powi(2));
+                }
+            }
+        }
+    });
+    sums
 }
 
 /// ‖λ − λ_h‖_H⁻¹(ω), approximated by the dual norm over P1 functions on the dual submesh S_h
