@@ -23,15 +23,21 @@
 use crate::assembly::gradients;
 use crate::flux::Flux;
 use crate::mesh::{orient, DualMesh, Mesh, Stars};
+use crate::parallel::{self, PIECE};
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 /// No neighbour (a boundary edge) or no stream-function unknown (a vertex of S_h where ψ = 0).
 const NONE: usize = usize::MAX;
 
-/// The triangles around each vertex and the neighbour across each edge, for the patch problems.
+/// The triangles around each vertex and the neighbour across each edge, for the patch problems,
+/// and the vertices in classes whose patches share no cell of S_h.
 pub struct Patches {
     stars: Stars,
     /// Across edge j = `(t[j], t[j + 1])` of each triangle: the neighbour, or NONE on ∂ω.
     pub neighbour: Vec<[usize; 3]>,
+    /// Classes of vertices no two of which share a triangle (a greedy colouring in vertex
+    /// order), each in increasing order.
+    classes: Vec<Vec<u32>>,
 }
 
 impl Patches {
@@ -53,8 +59,10 @@ impl Patches {
                 neighbour[t][j] = s;
             }
         }
+        let stars = Stars::new(mesh);
         Patches {
-            stars: Stars::new(mesh),
+            classes: classes(mesh, &stars),
+            stars,
             neighbour,
         }
     }
@@ -63,6 +71,35 @@ impl Patches {
     pub fn around(&self, a: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
         self.stars.around(a)
     }
+}
+
+/// The vertices of `mesh` coloured greedily in order, each the first colour none of the
+/// vertices of its triangles has: the classes of each colour.
+fn classes(mesh: &Mesh, stars: &Stars) -> Vec<Vec<u32>> {
+    let mut colour = vec![u32::MAX; mesh.n_vertices()];
+    let mut classes: Vec<Vec<u32>> = Vec::new();
+    let mut taken = Vec::new();
+    for a in 0..mesh.n_vertices() {
+        taken.clear();
+        taken.resize(classes.len() + 1, false);
+        for (t, _) in stars.around(a) {
+            for b in mesh.triangle(t) {
+                if let Some(c) = taken.get_mut(colour[b] as usize) {
+                    *c = true;
+                }
+            }
+        }
+        let c = taken
+            .iter()
+            .position(|&t| !t)
+            .expect("one colour more than the classes");
+        colour[a] = c as u32;
+        if c == classes.len() {
+            classes.push(Vec::new());
+        }
+        classes[c].push(a as u32);
+    }
+    classes
 }
 
 /// The data of the local problems of one membrane.
@@ -79,37 +116,35 @@ pub struct Membrane<'a> {
 
 /// τ_1, τ_2 = Σ_a τ_{i,a}, by their normal fluxes on the cells of S_h (the convention of [`Flux`]).
 pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: [&Membrane; 2]) -> [Flux; 2] {
-    let grad_u: Vec<[[f64; 2]; 2]> = (0..mesh.n_triangles())
-        .map(|t| {
-            let g = gradients(mesh.corners(t));
-            let tri = mesh.triangle(t);
-            membranes.map(|m| [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()))
-        })
-        .collect();
-    // The patches of each half of the vertices side by side, each adding into its own fluxes (a
-    // cell belongs to the patches of its triangle's three vertices); two halves, not more
-    // pieces, as each holds fluxes on every cell.
-    let half = |vertices: std::ops::Range<usize>| {
-        let mut tau = [0, 1].map(|_| Flux {
-            edge_flux: vec![[0.0; 3]; dual.n_cells()],
-        });
-        let mut work = Patch::default();
-        for a in vertices {
-            work.build(mesh, dual, patches, a);
-            for (i, m) in membranes.iter().enumerate() {
-                work.solve(a, m, |t| grad_u[t][i], &mut tau[i]);
+    let grad_u: Vec<[[f64; 2]; 2]> = parallel::collect(mesh.n_triangles(), |t| {
+        let g = gradients(mesh.corners(t));
+        let tri = mesh.triangle(t);
+        membranes.map(|m| [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()))
+    });
+    // Each patch adds into the fluxes of its cells (a cell belongs to the patches of its
+    // triangle's three vertices); the patches of one class share no cell and run in parallel,
+    // the classes one after the other, so that each cell sums its terms in the same order on
+    // any number of threads.
+    let tau = [0, 1].map(|_| {
+        (0..dual.n_cells())
+            .map(|_| Default::default())
+            .collect::<Vec<_>>()
+    });
+    for class in &patches.classes {
+        parallel::map_with(class.len(), PIECE, Patch::default, |work, range| {
+            for &a in &class[range] {
+                work.build(mesh, dual, patches, a as usize);
+                for (i, m) in membranes.iter().enumerate() {
+                    work.solve(a as usize, m, |t| grad_u[t][i], &tau[i]);
+                }
             }
-        }
-        tau
-    };
-    let n = mesh.n_vertices();
-    let (mut tau, other) = crate::parallel::join(|| half(0..n / 2), || half(n / 2..n));
-    for (mine, theirs) in tau.iter_mut().zip(other) {
-        for (f, g) in mine.edge_flux.iter_mut().zip(theirs.edge_flux) {
-            *f = [f[0] + g[0], f[1] + g[1], f[2] + g[2]];
-        }
+        });
     }
-    tau
+    tau.map(|tau| Flux {
+        edge_flux: parallel::collect(tau.len(), |s| {
+            tau[s].each_ref().map(|f| f64::from_bits(f.load(Relaxed)))
+        }),
+    })
 }
 
 /// One cell of S_h in a patch.
@@ -297,8 +332,9 @@ impl Patch {
         cholesky(&mut self.factor, n);
     }
 
-    /// τ_{i,a} for one membrane, added to `tau`; `grad` gives μ_i ∇u_ih on a triangle.
-    fn solve(&mut self, a: usize, m: &Membrane, grad: impl Fn(usize) -> [f64; 2], tau: &mut Flux) {
+    /// τ_{i,a} for one membrane, added to `tau`'s normal fluxes (f64 bits; no other patch adds
+    /// to these cells meanwhile); `grad` gives μ_i ∇u_ih on a triangle.
+    fn solve(&mut self, a: usize, m: &Membrane, grad: impl Fn(usize) -> [f64; 2], tau: &[[AtomicU64; 3]]) {
         let nodes = self.cells.len() + usize::from(self.ground);
         self.flux.clear();
         self.flux.resize(self.cells.len(), [0.0; 3]);
@@ -351,7 +387,8 @@ impl Patch {
             for e in 0..3 {
                 // The flux of curl ψ through the edge from corner e to e + 1.
                 let f = self.flux[node][e] + psi[(e + 1) % 3] - psi[e];
-                tau.edge_flux[cell.index][e] += f;
+                let sum = &tau[cell.index][e];
+                sum.store((f64::from_bits(sum.load(Relaxed)) + f).to_bits(), Relaxed);
             }
         }
     }

@@ -181,8 +181,9 @@ fn quadrature_defects(problem: &DiscreteProblem, loads: &[CellLoads]) -> [Vec<f6
 fn cell_loads(problem: &DiscreteProblem, dual: &DualMesh, alpha: f64) -> Vec<CellLoads> {
     let data = &problem.data;
     let corners = |s: usize| dual.corners(s);
-    let parts = parallel::map(dual.n_cells(), PIECE, |range| {
-        let mut out = Vec::with_capacity(range.len());
+    let mut loads = vec![CellLoads::default(); dual.n_cells()];
+    parallel::map_mut(&mut loads, PIECE, |base, out| {
+        let range = base..base + out.len();
         data.quadrature
             .visit(corners, range, [&data.f1, &data.f2], |s, points, [f1, f2]| {
                 let frame = DualMesh::frame(s);
@@ -209,11 +210,10 @@ fn cell_loads(problem: &DiscreteProblem, dual: &DualMesh, alpha: f64) -> Vec<Cel
                         *o += p.weight * (f - m / area).powi(2);
                     }
                 }
-                out.push(l);
+                out[s - base] = l;
             });
-        out
     });
-    parts.into_iter().flatten().collect()
+    loads
 }
 
 /// The mean over cell s of a P1 field `v` of T_h (its value at the cell's centroid).
