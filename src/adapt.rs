@@ -155,14 +155,26 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
     write_text(&dir.join("adapt.csv"), &csv(&adapted))?;
     let json = serde_json::to_string_pretty(&adapted).expect("steps serialise");
     write_text(&dir.join("adapt.json"), &json)?;
+    let exact = adapted.adaptive.iter().any(|s| s.error.is_some());
+    let (title, y_name) = if exact {
+        ("η and error", "η and the energy error |||u − u_h|||")
+    } else {
+        ("η", "η (bound of the energy error)")
+    };
+    let series = series(&adapted);
     plot::loglog(
         &dir.join("adapt.png"),
         &format!(
-            "η and error: adaptive (θ = {}) and uniform refinement",
+            "{title}: adaptive (θ = {}) and uniform refinement",
             settings.theta
         ),
-        &series(&adapted),
-        &[1.0, 2.0 / 3.0],
+        y_name,
+        &series,
+        &[plot::Guide {
+            slope: 1.0,
+            label: "slope 1, N^(−1/2): the best rate of P1".into(),
+            beside: usize::from(exact),
+        }],
     )
     .map_err(OutputError)?;
     staging.commit(&inputs)?;
@@ -340,17 +352,22 @@ fn csv(a: &Adapted) -> String {
 }
 
 /// η and the error against N^(−1/2), adaptive and uniform.
+/// The plotted series: η and the error (when exact) of the adaptive steps, then of uniform
+/// refinement, as (N^(−1/2), value), each named with its fitted slope on the plot (2 × [`rate`]).
 fn series(a: &Adapted) -> Vec<(String, Vec<(f64, f64)>)> {
     let mut out = Vec::new();
     for (name, steps) in [("adaptive", &a.adaptive), ("uniform", &a.uniform)] {
         let x = |s: &Step| (s.vertices as f64).powf(-0.5);
+        let slope = |value: fn(&Step) -> Option<f64>| {
+            rate(steps, value).map_or(String::new(), |r| format!("  (slope {:.2})", 2.0 * r))
+        };
         out.push((
-            format!("{name}: η"),
+            format!("{name}: η{}", slope(|s| Some(s.estimator))),
             steps.iter().map(|s| (x(s), s.estimator)).collect(),
         ));
         let errors: Vec<(f64, f64)> = steps.iter().filter_map(|s| Some((x(s), s.error?))).collect();
         if !errors.is_empty() {
-            out.push((format!("{name}: error"), errors));
+            out.push((format!("{name}: error{}", slope(|s| s.error)), errors));
         }
     }
     out
