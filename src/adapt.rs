@@ -119,6 +119,7 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
         let marked = if done {
             None
         } else {
+            crate::progress::phase(|| format!("adapt step {step}: marking and refining"));
             let marks = dorfler(&r.estimate.as_ref().expect("estimated").indicator, settings.theta);
             // Meshes made by bisection carry their labels; the first one gets them here.
             let labelled;
@@ -136,6 +137,7 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
         adaptive.push(Step::new(&r, marked.as_ref().map_or(0, |m| m.1), seconds));
         progress(&adaptive);
         let dir = format!("step-{step:03}");
+        crate::progress::phase(|| format!("writing {dir}"));
         write_step(&staging, &dir, &r)?;
         grids.push(result::step_grid(&dir, step as f64, &r.problem.mesh, &r.fields()));
         let Some((fine, _)) = marked else { break };
@@ -147,8 +149,10 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
         r = run::on_mesh(case, fine, Vec::new(), &estimating(start), 0.0)?;
     }
     let last = adaptive.last().map_or(0, |s| s.vertices);
+    crate::progress::phase(|| "uniform refinement, for comparison".into());
     let uniform = uniform(case, last)?;
     let dir = staging.path();
+    crate::progress::phase(|| "writing adapt.xdmf, the tables and the plot".into());
     result::time_series(&dir.join("adapt.xdmf"), &grids).map_err(OutputError)?;
     let adapted = Adapted { adaptive, uniform };
     write_text(&dir.join("adapt.md"), &markdown(case, settings, &adapted))?;
@@ -243,19 +247,21 @@ fn uniform(case: &Case, vertices: usize) -> Result<Vec<Step>, RunError> {
 /// Prints a step as it finishes.
 fn progress(steps: &[Step]) {
     let s = steps.last().expect("a step");
-    println!(
-        "step {:3}  N = {:8}  η = {:.4e}{}  iterations {}  marked {}  {:.2} s",
-        steps.len() - 1,
-        s.vertices,
-        s.estimator,
-        s.error.map_or(String::new(), |e| format!(
-            "  error {e:.4e}  η/error {:.3}",
-            s.estimator / e
-        )),
-        s.iterations,
-        s.marked,
-        s.seconds
-    );
+    crate::progress::suspend(|| {
+        println!(
+            "step {:3}  N = {:8}  η = {:.4e}{}  iterations {}  marked {}  {:.2} s",
+            steps.len() - 1,
+            s.vertices,
+            s.estimator,
+            s.error.map_or(String::new(), |e| format!(
+                "  error {e:.4e}  η/error {:.3}",
+                s.estimator / e
+            )),
+            s.iterations,
+            s.marked,
+            s.seconds
+        )
+    });
 }
 
 /// The rate s of value ∝ N^(−s): the least-squares slope of −log value against log N over the
