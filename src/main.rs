@@ -279,14 +279,17 @@ fn solve(
     let r = run::solve(&case, &options, &output)?;
     membrane_contact::progress::finish();
     print!("{}", r.summary(verbose));
+    // ParaView's Xdmf3 reader crashes on a bare relative name: the path to open is absolute.
+    let open = std::path::absolute(&output).unwrap_or_else(|_| output.clone());
     let dual = if r.writes_dual {
-        format!(" and {}/dual.xdmf", output.display())
+        format!(" and {}/dual.xdmf", open.display())
     } else {
         String::new()
     };
     println!(
-        "result      {0} — open {0}/solution.xdmf{dual} in ParaView (Xdmf3 reader)",
-        output.display()
+        "result      {} — open {}/solution.xdmf{dual} in ParaView (Xdmf3 reader)",
+        output.display(),
+        open.display()
     );
     Ok(())
 }
@@ -342,9 +345,11 @@ fn adapt(
     let dir = output_dir(output, "adapt", &name)?;
     membrane_contact::adapt::adapt(&case, &settings, &dir)?;
     membrane_contact::progress::finish();
+    let open = std::path::absolute(&dir).unwrap_or_else(|_| dir.clone());
     println!(
-        "adapt       {0} (adapt.md, .csv, .json, adapt.png; open {0}/adapt.xdmf in ParaView for every step)",
-        dir.display()
+        "adapt       {} (adapt.md, .csv, .json, adapt.png; open {}/adapt.xdmf in ParaView, Xdmf3 reader (Temporal Collection), for every step)",
+        dir.display(),
+        open.display()
     );
     Ok(())
 }
