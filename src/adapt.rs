@@ -119,6 +119,7 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
         let marked = if done {
             None
         } else {
+            crate::progress::phase(|| format!("adapt step {step}: marking and refining"));
             let marks = dorfler(&r.estimate.as_ref().expect("estimated").indicator, settings.theta);
             // Meshes made by bisection carry their labels; the first one gets them here.
             let labelled;
@@ -136,6 +137,7 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
         adaptive.push(Step::new(&r, marked.as_ref().map_or(0, |m| m.1), seconds));
         progress(&adaptive);
         let dir = format!("step-{step:03}");
+        crate::progress::phase(|| format!("writing {dir}"));
         write_step(&staging, &dir, &r)?;
         grids.push(result::step_grid(&dir, step as f64, &r.problem.mesh, &r.fields()));
         let Some((fine, _)) = marked else { break };
@@ -147,22 +149,36 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
         r = run::on_mesh(case, fine, Vec::new(), &estimating(start), 0.0)?;
     }
     let last = adaptive.last().map_or(0, |s| s.vertices);
+    crate::progress::phase(|| "uniform refinement, for comparison".into());
     let uniform = uniform(case, last)?;
     let dir = staging.path();
+    crate::progress::phase(|| "writing adapt.xdmf, the tables and the plot".into());
     result::time_series(&dir.join("adapt.xdmf"), &grids).map_err(OutputError)?;
     let adapted = Adapted { adaptive, uniform };
     write_text(&dir.join("adapt.md"), &markdown(case, settings, &adapted))?;
     write_text(&dir.join("adapt.csv"), &csv(&adapted))?;
     let json = serde_json::to_string_pretty(&adapted).expect("steps serialise");
     write_text(&dir.join("adapt.json"), &json)?;
+    let exact = adapted.adaptive.iter().any(|s| s.error.is_some());
+    let (title, y_name) = if exact {
+        ("η and error", "η and the energy error |||u − u_h|||")
+    } else {
+        ("η", "η (bound of the energy error)")
+    };
+    let series = series(&adapted);
     plot::loglog(
         &dir.join("adapt.png"),
         &format!(
-            "η and error: adaptive (θ = {}) and uniform refinement",
+            "{title}: adaptive (θ = {}) and uniform refinement",
             settings.theta
         ),
-        &series(&adapted),
-        &[1.0, 2.0 / 3.0],
+        y_name,
+        &series,
+        &[plot::Guide {
+            slope: 1.0,
+            label: "slope 1, N^(−1/2): the best rate of P1".into(),
+            beside: usize::from(exact),
+        }],
     )
     .map_err(OutputError)?;
     staging.commit(&inputs)?;
@@ -231,19 +247,21 @@ fn uniform(case: &Case, vertices: usize) -> Result<Vec<Step>, RunError> {
 /// Prints a step as it finishes.
 fn progress(steps: &[Step]) {
     let s = steps.last().expect("a step");
-    println!(
-        "step {:3}  N = {:8}  η = {:.4e}{}  iterations {}  marked {}  {:.2} s",
-        steps.len() - 1,
-        s.vertices,
-        s.estimator,
-        s.error.map_or(String::new(), |e| format!(
-            "  error {e:.4e}  η/error {:.3}",
-            s.estimator / e
-        )),
-        s.iterations,
-        s.marked,
-        s.seconds
-    );
+    crate::progress::suspend(|| {
+        println!(
+            "step {:3}  N = {:8}  η = {:.4e}{}  iterations {}  marked {}  {:.2} s",
+            steps.len() - 1,
+            s.vertices,
+            s.estimator,
+            s.error.map_or(String::new(), |e| format!(
+                "  error {e:.4e}  η/error {:.3}",
+                s.estimator / e
+            )),
+            s.iterations,
+            s.marked,
+            s.seconds
+        )
+    });
 }
 
 /// The rate s of value ∝ N^(−s): the least-squares slope of −log value against log N over the
@@ -340,17 +358,22 @@ fn csv(a: &Adapted) -> String {
 }
 
 /// η and the error against N^(−1/2), adaptive and uniform.
+/// The plotted series: η and the error (when exact) of the adaptive steps, then of uniform
+/// refinement, as (N^(−1/2), value), each named with its fitted slope on the plot (2 × [`rate`]).
 fn series(a: &Adapted) -> Vec<(String, Vec<(f64, f64)>)> {
     let mut out = Vec::new();
     for (name, steps) in [("adaptive", &a.adaptive), ("uniform", &a.uniform)] {
         let x = |s: &Step| (s.vertices as f64).powf(-0.5);
+        let slope = |value: fn(&Step) -> Option<f64>| {
+            rate(steps, value).map_or(String::new(), |r| format!("  (slope {:.2})", 2.0 * r))
+        };
         out.push((
-            format!("{name}: η"),
+            format!("{name}: η{}", slope(|s| Some(s.estimator))),
             steps.iter().map(|s| (x(s), s.estimator)).collect(),
         ));
         let errors: Vec<(f64, f64)> = steps.iter().filter_map(|s| Some((x(s), s.error?))).collect();
         if !errors.is_empty() {
-            out.push((format!("{name}: error"), errors));
+            out.push((format!("{name}: error{}", slope(|s| s.error)), errors));
         }
     }
     out

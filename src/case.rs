@@ -391,6 +391,7 @@ impl Case {
             solver: SolverOptions {
                 max_iterations: file.solver.max_iterations,
                 linear,
+                ..Default::default()
             },
             refine: file.mesh.refine.unwrap_or(0),
             validation,

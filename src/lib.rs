@@ -69,6 +69,7 @@ pub mod norms;
 pub mod pages;
 pub mod parallel;
 pub mod problem;
+pub mod progress;
 mod quadrature_tables;
 pub mod result;
 pub mod run;

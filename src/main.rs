@@ -25,6 +25,13 @@ struct Cli {
     /// the same bit for bit on any number.
     #[arg(long, global = true)]
     threads: Option<std::num::NonZeroUsize>,
+    /// Show no progress on stderr (by default the phases are shown as they happen: a live line
+    /// on a terminal, one line per phase otherwise). Stdout holds the summary either way.
+    #[arg(long, short, global = true)]
+    quiet: bool,
+    /// A longer summary: the solver's details (levels, local corrections, CG iterations per step).
+    #[arg(long, short, global = true)]
+    verbose: bool,
 }
 
 #[derive(Subcommand)]
@@ -135,6 +142,10 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     }
+    if !cli.quiet {
+        membrane_contact::progress::show();
+    }
+    let verbose = cli.verbose;
     let result = match cli.command {
         Command::Solve {
             print_default: true, ..
@@ -160,6 +171,7 @@ fn main() -> ExitCode {
             (n, refine),
             (cold, linear),
             [hminus1, flux, estimate, dual],
+            verbose,
         ),
         Command::Study {
             case,
@@ -187,6 +199,7 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
+            membrane_contact::progress::finish();
             eprintln!("error: {e}");
             ExitCode::FAILURE
         }
@@ -231,6 +244,7 @@ fn solve(
     (n, refine): (Option<usize>, Option<usize>),
     (cold, linear): (bool, Option<String>),
     [hminus1, flux, estimate, dual]: [bool; 4],
+    verbose: bool,
 ) -> Result<(), Failure> {
     let (mut case, name) = read_case(&case_path, linear)?;
     if let Some(n) = n {
@@ -263,15 +277,19 @@ fn solve(
         dual,
     };
     let r = run::solve(&case, &options, &output)?;
-    print!("{}", r.summary());
+    membrane_contact::progress::finish();
+    print!("{}", r.summary(verbose));
+    // ParaView's Xdmf3 reader crashes on a bare relative name: the path to open is absolute.
+    let open = std::path::absolute(&output).unwrap_or_else(|_| output.clone());
     let dual = if r.writes_dual {
-        format!(" and {}/dual.xdmf", output.display())
+        format!(" and {}/dual.xdmf", open.display())
     } else {
         String::new()
     };
     println!(
-        "result      {0} — open {0}/solution.xdmf{dual} in ParaView (Xdmf3 reader)",
-        output.display()
+        "result      {} — open {}/solution.xdmf{dual} in ParaView (Xdmf3 reader)",
+        output.display(),
+        open.display()
     );
     Ok(())
 }
@@ -297,6 +315,7 @@ fn study(
         grading,
     };
     study::study(&case, &name, &options, &dir)?;
+    membrane_contact::progress::finish();
     println!(
         "study       {} (study.md, .csv, .json, errors.png, iterations*.png)",
         dir.display()
@@ -325,9 +344,12 @@ fn adapt(
         .map_err(CaseError)?;
     let dir = output_dir(output, "adapt", &name)?;
     membrane_contact::adapt::adapt(&case, &settings, &dir)?;
+    membrane_contact::progress::finish();
+    let open = std::path::absolute(&dir).unwrap_or_else(|_| dir.clone());
     println!(
-        "adapt       {0} (adapt.md, .csv, .json, adapt.png; open {0}/adapt.xdmf in ParaView for every step)",
-        dir.display()
+        "adapt       {} (adapt.md, .csv, .json, adapt.png; open {}/adapt.xdmf in ParaView, Xdmf3 reader (Temporal Collection), for every step)",
+        dir.display(),
+        open.display()
     );
     Ok(())
 }

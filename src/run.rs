@@ -11,6 +11,7 @@ use crate::flux::Fluxes;
 use crate::mesh::{DualMesh, Edges, Mesh, Postprocess};
 use crate::norms::Errors;
 use crate::problem::DiscreteProblem;
+use crate::progress;
 use crate::result::{self, Attribute, Describe, Field};
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -79,6 +80,7 @@ pub fn solve<'c>(case: &'c Case, options: &Options, target: &Path) -> Result<Run
 /// Computes a run without writing it.
 pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
     let clock = Instant::now();
+    progress::phase(|| "meshing".into());
     // The coarser meshes serve nested iteration and multigrid.
     let multigrid = case.solver.linear == LinearSolver::Multigrid;
     let after = Postprocess {
@@ -101,16 +103,24 @@ pub fn on_mesh<'c>(
     mesh_seconds: f64,
 ) -> Result<Run<'c>, RunError> {
     let mut clock = Clock(Instant::now());
+    progress::phase(|| format!("assembly: {} vertices", mesh.n_vertices()));
     let problem =
         DiscreteProblem::new(mesh, &case.data).map_err(|e| CaseError(format!("{}: {e}", case.origin)))?;
     let assembly = clock.lap();
     let solver = SolverOptions {
         linear: case.linear_solver(),
+        on_step: Some(progress::step),
         ..case.solver
     };
+    progress::phase(|| "contact solve".into());
     let solution = (contact::solve(&problem, options.start, coarser, solver))
         .map_err(|e| RunError::Solve(case.origin.clone(), e))?;
     clock.lap();
+    progress::phase(|| {
+        let errors = if case.exact.is_some() { ", error norms" } else { "" };
+        let flux = if options.flux { ", fluxes" } else { "" };
+        format!("postprocess: λ_h and its checks{errors}{flux}")
+    });
     let action = Action::compute(&problem, &solution);
     (action.checks.verify()).map_err(|e| RunError::Check(case.origin.clone(), e))?;
     let edges = Edges::new(&problem.mesh);
@@ -129,6 +139,9 @@ pub fn on_mesh<'c>(
         .flux
         .then(|| Fluxes::reconstruct(&problem, &dual, &solution, &action));
     let postprocess = clock.lap();
+    if options.estimate {
+        progress::phase(|| "estimate".into());
+    }
     let estimate = (options.estimate).then(|| Estimate::compute(&problem, &dual, &solution, &action));
     let timings = Timings {
         mesh: mesh_seconds,
@@ -155,6 +168,7 @@ impl Run<'_> {
     /// Writes the result into `staging` and puts it in place.
     pub fn write(&mut self, staging: Staging, inputs: &[PathBuf]) -> Result<(), RunError> {
         let t = Instant::now();
+        progress::phase(|| format!("writing {}", staging.target().display()));
         let dual = self.writes_dual.then(|| self.dual());
         result::write(
             staging.path(),
@@ -169,40 +183,63 @@ impl Run<'_> {
         Ok(())
     }
 
-    /// A short human-readable summary.
-    pub fn summary(&self) -> String {
+    /// A short human-readable summary; `verbose` adds the solver's details (coarser levels, local
+    /// corrections, CG iterations or factorizations) and why Cholesky ran in place of multigrid.
+    pub fn summary(&self, verbose: bool) -> String {
         let m = &self.problem.mesh;
         let s = &self.solution.obstacle.stats;
         let (a, c) = (&self.action, &self.action.checks);
-        let t = &self.timings;
         let lmax = a.lambda.iter().copied().fold(0.0, f64::max);
-        let phases = match s.linear {
-            LinearSolver::Direct => ["symbolic", "numeric", "solves"],
-            LinearSolver::Multigrid => ["interpolations", "coarse operators", "CG"],
+        let refined = match self.case.refine {
+            0 => String::new(),
+            1 => ", refined once".into(),
+            k => format!(", refined {k} times"),
         };
+        let given = match &self.case.mesh {
+            crate::case::MeshSpec::Domain { h, .. } => format!(" (meshed to h = {h}{refined})"),
+            _ if !refined.is_empty() => format!(" ({})", &refined[2..]),
+            _ => String::new(),
+        };
+        let solver = match s.linear {
+            LinearSolver::Direct => "Cholesky",
+            LinearSolver::Multigrid => "multigrid",
+        };
+        let contact = s.active_sizes.last().copied().unwrap_or(0);
         let mut out = format!(
-            "mesh        {} vertices, {} triangles, h = {:.4e}, {} unknowns per membrane\n\
-             solver      {} active-set iterations + {} local ones (coarser levels: {:?}); {}; contact at {} vertices\n\
-             action      ∫λ_h = {:.6e}, contact area = {:.6e}, max λ = {:.6e}\n\
-             checks      passed, each relative to the terms that cancel (tolerance {:.0e}): Prop. 12 {:.1e}, \
-             λ ≥ 0 {:.1e}, (4.8) {:.1e}, u1 − u2 ≥ 0 {:.1e}; round-off of λ_h {:.1e} of the loads (limit {:.0e})\n",
+            "mesh        {} vertices, {} triangles, longest edge h = {:.3e}{given}\n",
             m.n_vertices(),
             m.n_triangles(),
             m.h(),
-            s.unknowns,
-            s.iterations,
-            s.local_iterations,
-            s.coarse_iterations,
-            if s.linear == LinearSolver::Direct && self.case.solver.linear == LinearSolver::Multigrid {
-                let why = match self.case.linear_solver() {
-                    LinearSolver::Direct => "its coarser levels, meshed from a file mesh's boundary, give the guess only",
-                    LinearSolver::Multigrid => "this mesh has no coarser levels",
-                };
-                format!("{} (multigrid asked for, but {why})", s.linear_work())
+        );
+        out += &if verbose {
+            let fallback = if s.linear == LinearSolver::Direct
+                && self.case.solver.linear == LinearSolver::Multigrid
+            {
+                match self.case.linear_solver() {
+                    LinearSolver::Direct => " (not multigrid: the coarser levels of a file mesh, meshed from its boundary, give the guess only)",
+                    LinearSolver::Multigrid => " (not multigrid: this mesh has no coarser levels)",
+                }
             } else {
-                s.linear_work()
-            },
-            s.active_sizes.last().copied().unwrap_or(0),
+                ""
+            };
+            format!(
+                "solver      {} unknowns per membrane; {} active-set iterations + {} local ones (coarser levels: {:?}); {}{fallback}; contact at {contact} vertices\n",
+                s.unknowns,
+                s.iterations,
+                s.local_iterations,
+                s.coarse_iterations,
+                s.linear_work(),
+            )
+        } else {
+            format!(
+                "solver      {} active-set iterations ({solver}); contact at {contact} vertices\n",
+                s.iterations
+            )
+        };
+        out += &format!(
+            "action      ∫λ_h = {:.6e}, contact area = {:.6e}, max λ = {:.6e}\n\
+             checks      passed, each relative to the terms that cancel (tolerance {:.0e}): Prop. 12 {:.1e}, \
+             λ ≥ 0 {:.1e}, (4.8) {:.1e}, u1 − u2 ≥ 0 {:.1e}; round-off of λ_h {:.1e} of the loads (limit {:.0e})\n",
             a.total,
             a.contact_area,
             lmax,
@@ -241,6 +278,11 @@ impl Run<'_> {
                 f.conservation[0], f.conservation[1]
             );
         }
+        let t = &self.timings;
+        let phases = match s.linear {
+            LinearSolver::Direct => ["symbolic", "numeric", "solves"],
+            LinearSolver::Multigrid => ["interpolations", "coarse operators", "CG"],
+        };
         out += &format!(
             "seconds     mesh {:.3}, assembly {:.3}, contact solve {:.3} (coarser levels {:.3}, {} {:.3}, \
              {} {:.3} + {} {:.3} summed over v and w), postprocess {:.3}{}, write {:.3}; on {} threads{}\n",

@@ -67,7 +67,13 @@ fn limited_command_fails(
     let out = output.unwrap_or_else(|| earlier.clone());
     let before = listing(dir.path());
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_membrane-contact"));
-    cmd.arg(command).arg(&case).arg("-o").arg(&out).args(extra);
+    // Quiet: stderr holds the error alone, no progress.
+    cmd.arg(command)
+        .arg("--quiet")
+        .arg(&case)
+        .arg("-o")
+        .arg(&out)
+        .args(extra);
     prepare(&mut cmd);
     let run = run(&mut cmd);
     let stderr = String::from_utf8_lossy(&run.stderr).to_string();
@@ -872,6 +878,7 @@ fn refused_quickly(case: &str, setup: impl Fn(&Path), stdin: &[u8]) -> String {
     let mut command = Command::new(env!("CARGO_BIN_EXE_membrane-contact"));
     command
         .arg("solve")
+        .arg("--quiet")
         .arg(dir.path().join(case))
         .arg("-o")
         .arg(dir.path().join("out"))

@@ -105,6 +105,9 @@ pub(super) fn obstacle(
         let loose = solver.tighten();
         let changed: Vec<usize> = (0..system.n()).filter(|&i| next.next[i] != active[i]).collect();
         stats.changes.push(changed.len());
+        if let Some(report) = options.on_step.filter(|_| role == Role::Solution) {
+            report(stats.iterations, changed.len());
+        }
         stats.active_sizes.push(next.next.iter().filter(|&&x| x).count());
         same_set = changed.is_empty();
         if same_set && loose {

@@ -53,6 +53,10 @@ pub struct SolverOptions {
     pub max_iterations: usize,
     /// The linear solver of v and of the active-set steps.
     pub linear: LinearSolver,
+    /// Told of each active-set iteration on the final mesh as it ends: its number and how many
+    /// vertices changed set ([`crate::progress::step`] on the command line). A plain function,
+    /// so that the options stay `Copy`.
+    pub on_step: Option<fn(usize, usize)>,
 }
 
 impl Default for SolverOptions {
@@ -60,6 +64,7 @@ impl Default for SolverOptions {
         SolverOptions {
             max_iterations: 200,
             linear: LinearSolver::Multigrid,
+            on_step: None,
         }
     }
 }

@@ -116,14 +116,19 @@ pub fn study(
         } else {
             format!("{name}, {label}")
         };
-        let bar = progress(&format!("study {title}"), levels.len());
-        let result = run_levels(levels, options, |_, l| {
-            bar.set_message(format!("{}: {} iterations", l.label(), l.iterations));
-            bar.inc(1);
+        let result = run_levels(levels, options, |k, l| {
+            crate::progress::phase(|| {
+                format!(
+                    "study {title}: level {}/{} ({}) solved, {} active-set iterations",
+                    k + 1,
+                    levels.len(),
+                    l.label(),
+                    l.iterations
+                )
+            });
         })?;
-        bar.finish_and_clear();
         let table = markdown_table(&title, &result);
-        println!("{table}");
+        crate::progress::suspend(|| println!("{table}"));
         markdown += &table;
         markdown += "\n";
         let dir = staging.path();
@@ -270,16 +275,6 @@ pub fn run_levels(
         previous = Some(r);
     }
     Ok(out)
-}
-
-fn progress(prefix: &str, len: usize) -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::new(len as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{prefix} [{bar:30}] {pos}/{len} levels {msg}")
-            .expect("a valid template"),
-    );
-    bar.set_prefix(prefix.to_string());
-    bar
 }
 
 fn write_text(path: &Path, text: &str) -> Result<(), OutputError> {

@@ -1,0 +1,65 @@
+//! The progress of a run on stderr, as it happens: the phase (meshing, assembly, each active-set
+//! iteration, estimate, writing, a study's levels, adapt's steps). The run driver (`run`, `study`,
+//! `adapt`) reports its phases here and the active-set method reports its iterations through
+//! [`crate::contact::SolverOptions::on_step`]; nothing is shown until [`show`] is called (the
+//! command line calls it unless `--quiet`), so the library stays silent, and stdout is never
+//! written.
+
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::IsTerminal;
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+/// How the phases are shown.
+enum Display {
+    /// A live line on a terminal: the current phase and the time since the start.
+    Live(ProgressBar),
+    /// One line per phase, with the seconds since the start (stderr is a file or a pipe).
+    Lines(Instant),
+}
+
+static DISPLAY: OnceLock<Display> = OnceLock::new();
+
+/// Shows the phases on stderr from now on: a live display when stderr is a terminal, one line per
+/// phase otherwise.
+pub fn show() {
+    let display = if std::io::stderr().is_terminal() {
+        let bar = ProgressBar::new_spinner();
+        bar.set_style(ProgressStyle::with_template("{spinner} [{elapsed}] {msg}").expect("a valid template"));
+        bar.enable_steady_tick(Duration::from_millis(120));
+        Display::Live(bar)
+    } else {
+        Display::Lines(Instant::now())
+    };
+    let _ = DISPLAY.set(display);
+}
+
+/// Reports that the phase `what` begins (its text is made only when it is shown).
+pub fn phase(what: impl FnOnce() -> String) {
+    match DISPLAY.get() {
+        Some(Display::Live(bar)) => bar.set_message(what()),
+        Some(Display::Lines(start)) => eprintln!("[{:8.2} s] {}", start.elapsed().as_secs_f64(), what()),
+        None => {}
+    }
+}
+
+/// Reports an active-set iteration on the final mesh as it ends: its number and how many
+/// vertices changed set (the form of [`crate::contact::SolverOptions::on_step`]).
+pub fn step(iteration: usize, changed: usize) {
+    phase(|| format!("active-set iteration {iteration}: {changed} vertices changed set"));
+}
+
+/// Runs `f` (which writes to stdout) with the live display cleared, so that the two do not mix.
+pub fn suspend<R>(f: impl FnOnce() -> R) -> R {
+    match DISPLAY.get() {
+        Some(Display::Live(bar)) => bar.suspend(f),
+        _ => f(),
+    }
+}
+
+/// Clears the live display for good (before the summary).
+pub fn finish() {
+    if let Some(Display::Live(bar)) = DISPLAY.get() {
+        bar.finish_and_clear();
+    }
+}

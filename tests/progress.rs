@@ -1,0 +1,70 @@
+//! Progress on stderr: the phases of `solve` one line each, in order, when stderr is not a
+//! terminal; none with `--quiet`; stdout the summary either way.
+
+use std::process::Command;
+
+fn solve(dir: &std::path::Path, name: &str, quiet: bool) -> (String, String) {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_membrane-contact"));
+    cmd.args(["solve", "--n", "16", "--estimate", "-o"])
+        .arg(dir.join(name));
+    if quiet {
+        cmd.arg("--quiet");
+    }
+    let out = cmd.output().unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout).to_string(),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    );
+    assert!(out.status.success(), "{stderr}");
+    (stdout, stderr)
+}
+
+/// The summary without its timings and memory, which change from run to run.
+fn steady(summary: &str, dir: &std::path::Path) -> String {
+    let text = summary.replace(&dir.display().to_string(), "DIR");
+    let lines = text.lines().filter(|l| !l.starts_with("seconds"));
+    lines
+        .map(|l| l.replace("/quiet", "/loud"))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+#[test]
+fn phases_on_stderr_in_order_and_none_when_quiet() {
+    let dir = tempfile::tempdir().unwrap();
+    let (stdout, stderr) = solve(dir.path(), "loud", false);
+    let lines: Vec<&str> = stderr.lines().collect();
+    assert!(
+        lines.iter().all(|l| l.starts_with('[') && l.contains(" s] ")),
+        "{stderr}"
+    );
+    let phases = [
+        "meshing",
+        "assembly: 289 vertices",
+        "contact solve",
+        "active-set iteration 1: ",
+        "postprocess: λ_h and its checks, error norms",
+        "estimate",
+        "writing ",
+    ];
+    let mut at = 0;
+    for phase in phases {
+        let found = lines[at..].iter().position(|l| l.contains(phase));
+        at += found.unwrap_or_else(|| panic!("no '{phase}' after line {at}:\n{stderr}")) + 1;
+    }
+    assert!(
+        lines
+            .iter()
+            .any(|l| l.contains("active-set iteration 2: 0 vertices changed set")),
+        "{stderr}"
+    );
+    assert!(!stdout.contains("] "), "no progress on stdout:\n{stdout}");
+    assert!(
+        stdout.starts_with("case ") && stdout.contains("\nsolver "),
+        "{stdout}"
+    );
+
+    let (quiet_stdout, quiet_stderr) = solve(dir.path(), "quiet", true);
+    assert_eq!(quiet_stderr, "", "--quiet shows nothing");
+    assert_eq!(steady(&quiet_stdout, dir.path()), steady(&stdout, dir.path()));
+}
