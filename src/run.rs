@@ -186,72 +186,7 @@ impl Run<'_> {
     /// A short human-readable summary; `verbose` adds the solver's details (coarser levels, local
     /// corrections, CG iterations or factorizations) and why Cholesky ran in place of multigrid.
     pub fn summary(&self, verbose: bool) -> String {
-        let m = &self.problem.mesh;
-        let s = &self.solution.obstacle.stats;
-        let (a, c) = (&self.action, &self.action.checks);
-        let lmax = a.lambda.iter().copied().fold(0.0, f64::max);
-        let refined = match self.case.refine {
-            0 => String::new(),
-            1 => ", refined once".into(),
-            k => format!(", refined {k} times"),
-        };
-        let given = match &self.case.mesh {
-            crate::case::MeshSpec::Domain { h, .. } => format!(" (meshed to h = {h}{refined})"),
-            _ if !refined.is_empty() => format!(" ({})", &refined[2..]),
-            _ => String::new(),
-        };
-        let solver = match s.linear {
-            LinearSolver::Direct => "Cholesky",
-            LinearSolver::Multigrid => "multigrid",
-        };
-        let contact = s.active_sizes.last().copied().unwrap_or(0);
-        let mut out = format!(
-            "mesh        {} vertices, {} triangles, longest edge h = {:.3e}{given}\n",
-            m.n_vertices(),
-            m.n_triangles(),
-            m.h(),
-        );
-        out += &if verbose {
-            let fallback = if s.linear == LinearSolver::Direct
-                && self.case.solver.linear == LinearSolver::Multigrid
-            {
-                match self.case.linear_solver() {
-                    LinearSolver::Direct => " (not multigrid: the coarser levels of a file mesh, meshed from its boundary, give the guess only)",
-                    LinearSolver::Multigrid => " (not multigrid: this mesh has no coarser levels)",
-                }
-            } else {
-                ""
-            };
-            format!(
-                "solver      {} unknowns per membrane; {} active-set iterations + {} local ones (coarser levels: {:?}); {}{fallback}; contact at {contact} vertices\n",
-                s.unknowns,
-                s.iterations,
-                s.local_iterations,
-                s.coarse_iterations,
-                s.linear_work(),
-            )
-        } else {
-            format!(
-                "solver      {} active-set iterations ({solver}); contact at {contact} vertices\n",
-                s.iterations
-            )
-        };
-        out += &format!(
-            "action      ∫λ_h = {:.6e}, contact area = {:.6e}, max λ = {:.6e}\n\
-             checks      passed, each relative to the terms that cancel (tolerance {:.0e}): λ_h the same from \
-             either membrane {:.1e}, λ_h ≥ 0 {:.1e}, λ_h (u1h − u2h) = 0 {:.1e}, u1h − u2h ≥ 0 {:.1e}; \
-             round-off of λ_h {:.1e} of the loads (limit {:.0e})\n",
-            a.total,
-            a.contact_area,
-            lmax,
-            crate::action::TOLERANCE,
-            c.prop12,
-            c.negative_lambda,
-            c.complementarity,
-            c.negative_gap,
-            c.resolution,
-            crate::action::RESOLUTION,
-        );
+        let mut out = self.mesh_line() + &self.solver_line(verbose) + &self.action_lines();
         if let Some(e) = &self.errors {
             let show = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.4e}"));
             out += &format!(
@@ -275,16 +210,97 @@ impl Run<'_> {
         }
         if let Some(f) = &self.flux {
             out += &format!(
-                "flux        t1h, t2h on S_h (4.13); local conservation on the D_a (Lemma 17): relative defect {:.2e}, {:.2e}\n",
+                "flux        t1h, t2h on the dual submesh; their local conservation on the dual cells: relative defect {:.2e}, {:.2e}\n",
                 f.conservation[0], f.conservation[1]
             );
         }
-        let t = &self.timings;
+        out + &self.seconds_line()
+    }
+
+    /// The summary's line on the mesh: its size and the longest edge, beside the case's h.
+    fn mesh_line(&self) -> String {
+        let m = &self.problem.mesh;
+        let refined = match self.case.refine {
+            0 => String::new(),
+            1 => ", refined once".into(),
+            k => format!(", refined {k} times"),
+        };
+        let given = match &self.case.mesh {
+            crate::case::MeshSpec::Domain { h, .. } => format!(" (meshed to h = {h}{refined})"),
+            _ if !refined.is_empty() => format!(" ({})", &refined[2..]),
+            _ => String::new(),
+        };
+        format!(
+            "mesh        {} vertices, {} triangles, longest edge h = {:.3e}{given}\n",
+            m.n_vertices(),
+            m.n_triangles(),
+            m.h(),
+        )
+    }
+
+    /// The summary's line on the solver: short, or with `verbose` its details.
+    fn solver_line(&self, verbose: bool) -> String {
+        let s = &self.solution.obstacle.stats;
+        let contact = s.active_sizes.last().copied().unwrap_or(0);
+        if !verbose {
+            let solver = match s.linear {
+                LinearSolver::Direct => "Cholesky",
+                LinearSolver::Multigrid => "multigrid",
+            };
+            return format!(
+                "solver      {} active-set iterations ({solver}); contact at {contact} vertices\n",
+                s.iterations
+            );
+        }
+        let fallback = if s.linear == LinearSolver::Direct
+            && self.case.solver.linear == LinearSolver::Multigrid
+        {
+            match self.case.linear_solver() {
+                LinearSolver::Direct => " (not multigrid: the coarser levels of a file mesh, meshed from its boundary, give the guess only)",
+                LinearSolver::Multigrid => " (not multigrid: this mesh has no coarser levels)",
+            }
+        } else {
+            ""
+        };
+        format!(
+            "solver      {} unknowns per membrane; {} active-set iterations + {} local ones (coarser levels: {:?}); {}{fallback}; contact at {contact} vertices\n",
+            s.unknowns,
+            s.iterations,
+            s.local_iterations,
+            s.coarse_iterations,
+            s.linear_work(),
+        )
+    }
+
+    /// The summary's lines on λ_h and the checks of the solution.
+    fn action_lines(&self) -> String {
+        let (a, c) = (&self.action, &self.action.checks);
+        format!(
+            "action      ∫λ_h = {:.6e}, contact area = {:.6e}, max λ = {:.6e}\n\
+             checks      passed, each relative to the terms that cancel (tolerance {:.0e}): λ_h the same from \
+             either membrane {:.1e}, λ_h ≥ 0 {:.1e}, λ_h (u1h − u2h) = 0 {:.1e}, u1h − u2h ≥ 0 {:.1e}; \
+             round-off of λ_h {:.1e} of the loads (limit {:.0e})\n",
+            a.total,
+            a.contact_area,
+            a.lambda.iter().copied().fold(0.0, f64::max),
+            crate::action::TOLERANCE,
+            c.prop12,
+            c.negative_lambda,
+            c.complementarity,
+            c.negative_gap,
+            c.resolution,
+            crate::action::RESOLUTION,
+        )
+    }
+
+    /// The summary's line on the time of each phase, the threads and the peak memory.
+    fn seconds_line(&self) -> String {
+        let (t, s) = (&self.timings, &self.solution.obstacle.stats);
         let phases = match s.linear {
             LinearSolver::Direct => ["symbolic", "numeric", "solves"],
             LinearSolver::Multigrid => ["interpolations", "coarse operators", "CG"],
         };
-        out += &format!(
+        format!(
             "seconds     mesh {:.3}, assembly {:.3}, contact solve {:.3} (coarser levels {:.3}, {} {:.3}, \
              {} {:.3} + {} {:.3} summed over v and w), postprocess {:.3}{}, write {:.3}; on {} threads{}\n",
             t.mesh,
@@ -303,8 +319,7 @@ impl Run<'_> {
             crate::parallel::threads(),
             crate::pages::peak_resident_bytes()
                 .map_or(String::new(), |b| format!(", peak memory {} MB", b >> 20))
-        );
-        out
+        )
     }
 }
 
