@@ -572,8 +572,8 @@ impl Case {
             MeshSpec::Lshape { n, grading, .. } => format!("[mesh] n = {n}, grading = {grading}{refine}"),
             MeshSpec::Domain { h, .. } => format!("[mesh] kind = \"{}\", h = {h}{refine}", self.kind()),
             MeshSpec::File { path } => {
-                let mesh =
-                    mesh::file::read(&self.base_dir.join(path)).map_err(|e| CaseError(e.to_string()))?;
+                let mesh = mesh::file::read(&self.base_dir.join(path))
+                    .map_err(|e| err(format!("[mesh] path: {e}")))?;
                 let refined = mesh.n_vertices().saturating_mul(self.refinement_factor());
                 mesh::check_memory(refined, self.bytes_per_vertex(after))
                     .map_err(|e| err(format!("{}{refine}: {e}", path.display())))?;

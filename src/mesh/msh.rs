@@ -41,9 +41,13 @@ pub(super) fn read(path: &Path) -> Result<RawMesh, FileError> {
                 )))
             }
             (dim, kind) => {
+                let hint = match dim {
+                    2 => "; mesh with triangles of Gmsh's default -order 1",
+                    _ => "",
+                };
                 return Err(err(format!(
-                    "elements of type {kind:?} (dimension {dim}): only linear triangles (3 nodes) are read"
-                )))
+                    "elements of type {kind:?} (dimension {dim}): only linear triangles (3 nodes) are read{hint}"
+                )));
             }
         }
     }
