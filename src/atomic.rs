@@ -15,7 +15,7 @@
 use std::ffi::CString;
 use std::os::unix::ffi::OsStrExt;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicI32, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::sync::{Mutex, MutexGuard, Once};
 
 /// The file that marks a directory as a result of this program.
@@ -130,12 +130,27 @@ impl Drop for Staging {
     }
 }
 
+/// Before the process ends: if a signal came, waits for the thread that handles it to remove the
+/// temporaries and exit with 128 + its number, so that a signal received while the run ends
+/// (its result already in place) still gives the exit status a shell expects, not success.
+pub fn exit_as_signalled() {
+    if SIGNALLED.load(Ordering::SeqCst) {
+        loop {
+            std::thread::park();
+        }
+    }
+}
+
 /// The write end of the pipe on which [`on_signal`] passes the signal's number to the thread that
 /// removes the temporaries: a signal handler may do little more than write(2).
 static SIGNAL_PIPE: AtomicI32 = AtomicI32::new(-1);
 
+/// Whether a signal has been handled (set before its number is passed on).
+static SIGNALLED: AtomicBool = AtomicBool::new(false);
+
 /// The handler of SIGINT, SIGTERM and SIGHUP.
 extern "C" fn on_signal(signal: libc::c_int) {
+    SIGNALLED.store(true, Ordering::SeqCst);
     let byte = signal as u8;
     // SAFETY: write(2) is async-signal-safe; the pipe stays open for the life of the process.
     unsafe { libc::write(SIGNAL_PIPE.load(Ordering::Relaxed), (&raw const byte).cast(), 1) };

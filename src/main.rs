@@ -196,6 +196,7 @@ fn main() -> ExitCode {
             output,
         } => adapt(case, n, (theta, target, max_vertices, steps), output),
     };
+    membrane_contact::atomic::exit_as_signalled();
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
