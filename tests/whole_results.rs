@@ -228,35 +228,45 @@ fn killed_runs_leave_the_earlier_result_or_the_new_one() {
 }
 
 /// SIGINT, SIGTERM and SIGHUP in the middle of a run: its temporary is removed and it exits with
-/// 128 + the signal's number (130, 143, 129), as a shell reports a process the signal killed.
+/// 128 + the signal's number (130, 143, 129), as a shell reports a process the signal killed. The
+/// signal is sent once the run has made its temporary, which is while it writes (with S_h, to make
+/// that take a while); a run that still ends first (the test descheduled on a loaded machine)
+/// exits 0 with its result whole, and is tried again, up to 5 times.
 #[test]
 fn signals_exit_with_128_plus_their_number() {
     for (signal, code) in [(libc::SIGINT, 130), (libc::SIGTERM, 143), (libc::SIGHUP, 129)] {
-        let dir = tempfile::tempdir().unwrap();
-        let mut child = Command::new(BIN)
-            .args(["solve", "--n", "256", "-o"])
-            .arg(dir.path().join("out"))
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
-        // The handler is in place once the run has made its temporary.
-        let partial = || listing(dir.path()).iter().any(|f| f.ends_with(".mc-partial"));
-        let t = Instant::now();
-        while !partial() {
-            assert!(
-                child.try_wait().unwrap().is_none() && t.elapsed() < Duration::from_secs(60),
-                "the run ended before it was signalled"
-            );
-            std::thread::sleep(Duration::from_millis(1));
+        let mut codes = Vec::new();
+        while codes.len() < 5 && codes.last() != Some(&code) {
+            let dir = tempfile::tempdir().unwrap();
+            let mut child = Command::new(BIN)
+                .args(["solve", "--n", "256", "--dual", "-o"])
+                .arg(dir.path().join("out"))
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()
+                .unwrap();
+            // The handler is in place once the run has made its temporary.
+            let partial = || listing(dir.path()).iter().any(|f| f.ends_with(".mc-partial"));
+            let t = Instant::now();
+            while !partial() {
+                assert!(
+                    child.try_wait().unwrap().is_none() && t.elapsed() < Duration::from_secs(60),
+                    "the run ended before it was signalled"
+                );
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            unsafe { libc::kill(child.id() as i32, signal) };
+            let status = child.wait().unwrap().code();
+            let expected = match status {
+                Some(0) => vec!["out".to_string()],
+                _ => Vec::new(),
+            };
+            assert_eq!(listing(dir.path()), expected, "signal {signal}: exit {status:?}");
+            codes.push(status.unwrap_or(-1));
         }
-        unsafe { libc::kill(child.id() as i32, signal) };
-        let status = child.wait().unwrap();
-        assert_eq!(status.code(), Some(code), "signal {signal}: {status:?}");
         assert!(
-            listing(dir.path()).is_empty(),
-            "signal {signal}: {:?}",
-            listing(dir.path())
+            codes.iter().all(|&c| c == 0 || c == code) && codes.last() == Some(&code),
+            "signal {signal}: exit codes {codes:?}, expected {code}"
         );
     }
 }
