@@ -5,6 +5,7 @@
 mod common;
 use common::listing;
 
+use std::os::unix::process::CommandExt;
 use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -238,7 +239,19 @@ fn signals_exit_with_128_plus_their_number() {
         let mut codes = Vec::new();
         while codes.len() < 5 && codes.last() != Some(&code) {
             let dir = tempfile::tempdir().unwrap();
-            let mut child = Command::new(BIN)
+            let mut command = Command::new(BIN);
+            // A shell without job control starts background jobs with SIGINT ignored, which the
+            // program then keeps ignored (as after `nohup`): the run gets the default handling.
+            // SAFETY: signal(2) is async-signal-safe, as pre_exec requires.
+            unsafe {
+                command.pre_exec(|| {
+                    for s in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+                        libc::signal(s, libc::SIG_DFL);
+                    }
+                    Ok(())
+                })
+            };
+            let mut child = command
                 .args(["solve", "--n", "256", "--dual", "-o"])
                 .arg(dir.path().join("out"))
                 .stdout(Stdio::null())
