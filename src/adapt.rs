@@ -357,7 +357,6 @@ fn csv(a: &Adapted) -> String {
     s
 }
 
-/// η and the error against N^(−1/2), adaptive and uniform.
 /// The plotted series: η and the error (when exact) of the adaptive steps, then of uniform
 /// refinement, as (N^(−1/2), value), each named with its fitted slope on the plot (2 × [`rate`]).
 fn series(a: &Adapted) -> Vec<(String, Vec<(f64, f64)>)> {

@@ -157,7 +157,7 @@ impl Quadrature {
         let mut points = Vec::with_capacity(TRIANGLES_PER_BLOCK * np);
         let mut xs = Vec::with_capacity(TRIANGLES_PER_BLOCK * np);
         let mut values = [(); E].map(|_| vec![0.0; TRIANGLES_PER_BLOCK * np]);
-        let program = Program::new(&fields);
+        let (program, mut scratch) = (Program::new(&fields), Vec::new());
         let mut start = range.start;
         while start < range.end {
             let block = start..range.end.min(start + TRIANGLES_PER_BLOCK);
@@ -180,7 +180,7 @@ impl Quadrature {
             xs.clear();
             xs.extend(points.iter().map(|p| p.x));
             let mut out = values.each_mut().map(|v| &mut v[..xs.len()]);
-            program.eval_many(&xs, &mut out);
+            program.eval_with(&xs, &mut out, &mut scratch);
             for (k, t) in block.clone().enumerate() {
                 let q = k * np..(k + 1) * np;
                 visit(

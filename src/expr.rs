@@ -231,10 +231,21 @@ impl Program {
             self.copy_out(&values, out, 0..1);
             return;
         }
-        let mut values = vec![[0.0; BLOCK]; self.steps.len()];
+        self.eval_with(points, out, &mut Vec::new());
+    }
+
+    /// As [`Program::eval_many`], the steps' values in `values` (room kept by a caller that
+    /// evaluates many batches).
+    pub(crate) fn eval_with(
+        &self,
+        points: &[[f64; 2]],
+        out: &mut [&mut [f64]],
+        values: &mut Vec<[f64; BLOCK]>,
+    ) {
+        values.resize(self.steps.len(), [0.0; BLOCK]);
         for (k, points) in points.chunks(BLOCK).enumerate() {
-            self.run(points, &mut values);
-            self.copy_out(&values, out, k * BLOCK..k * BLOCK + points.len());
+            self.run(points, values);
+            self.copy_out(values, out, k * BLOCK..k * BLOCK + points.len());
         }
     }
 

@@ -348,7 +348,7 @@ fn adapt(
     membrane_contact::progress::finish();
     let open = std::path::absolute(&dir).unwrap_or_else(|_| dir.clone());
     println!(
-        "adapt       {} (adapt.md, .csv, .json, adapt.png; open {}/adapt.xdmf in ParaView, Xdmf3 reader (Temporal Collection), for every step)",
+        "adapt       {} (adapt.md, .csv, .json, adapt.png; open {}/adapt.xdmf in ParaView (Xdmf3 reader): one time step per adapt step)",
         dir.display(),
         open.display()
     );
