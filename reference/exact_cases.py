@@ -11,21 +11,28 @@ Translation of the case language (data/cases/README.md) into SymPy's input, text
 (it switches at every integer, which the regions below cannot follow): a case using them is
 reported as not checkable.
 
-The domain is split into regions where no Max, Min, Abs, sign or Piecewise switches (sign patterns of
-their switching functions at sample points); in each region every switch is replaced by its
-branch, and there
-  - the PDEs  f1 + mu1 lap u1 + lambda = 0,  f2 + mu2 lap u2 - lambda = 0, the given gradients
-    and the complementarity (u1 - u2) lambda = 0 are checked symbolically (simplify), else at the
-    region's sample points (|residual| <= 1e-9);
-  - u1 - u2 >= 0 and lambda >= 0 at the region's sample points (>= -1e-9);
-and u1 = g, u2 = 0, g >= 0 on EVERY piece of the boundary: each edge of a polygon (holes included)
-or of a mesh file's triangulation, each circle of a disk or annulus (symbolically along the piece,
-else at 201 points of it, ends included). Sample points: random points of the domain, plus pairs
-1e-7 on either side of every switching curve (found by bisection between random points).
+The statements depend on the case's problem (reference/problems.py): for the membranes, the gap
+is u1 - u2 and the boundary values u1 = g, u2 = g2 (default 0); for the obstacle problem the gap
+is u - psi and the boundary value u = g. The domain is split into regions where no Max, Min, Abs,
+sign or Piecewise switches (sign patterns of their switching functions at sample points); in each
+region every switch is replaced by its branch, and there
+  - the PDEs  f1 + mu1 lap u1 + lambda = 0,  f2 + mu2 lap u2 - lambda = 0 (obstacle problem:
+    f + mu lap u + lambda = 0), the given gradients and the complementarity gap lambda = 0 are
+    checked symbolically (simplify), else at the region's sample points (|residual| <= 1e-9);
+  - gap >= 0 and lambda >= 0 at the region's sample points (>= -1e-9);
+across every switching curve u1, u2 (or u) and their given gradients are continuous: they differ
+by at most 1e-5 between the points of each pair 2e-7 apart on either side (the PDEs hold in H^1
+only so; for a free boundary it checks the constants of the matching conditions);
+and the boundary values and g - g2 >= 0 (g - psi >= 0) on EVERY piece of the boundary: each edge
+of a polygon (holes included) or of a mesh file's triangulation, each circle of a disk or annulus
+(symbolically along the piece, else at 201 points of it, ends included). Sample points: random
+points of the domain, plus pairs 1e-7 on either side of every switching curve (found by
+bisection between random points).
 
 Usage (from the repository root):
     /usr/bin/python3 -m reference.exact_cases [CASE.toml ...]   (default: data/cases/*.toml)
 """
+import functools
 import os
 import re
 import signal
@@ -36,7 +43,7 @@ import sympy as sp
 from matplotlib.path import Path
 from sympy.parsing.sympy_parser import parse_expr, rationalize, standard_transformations
 
-from . import common
+from . import common, problems
 
 X, Y = sp.symbols("x y", real=True)
 T = sp.symbols("t", nonnegative=True)
@@ -45,6 +52,7 @@ NAMES = {"x": X, "y": Y, "ite": lambda c, a, b: sp.Piecewise((a, c), (b, True)),
          "atan2": sp.atan2, "pi": sp.pi, "e": sp.E, "tan": sp.tan, "atan": sp.atan, "tanh": sp.tanh,
          "sign": sp.sign}
 TOL = 1e-9
+JUMP_TOL = 1e-5  # the largest change of u and grad u across a switching curve (points 2e-7 apart)
 SIMPLIFY_SECONDS = 20
 
 
@@ -158,15 +166,32 @@ def switches(exprs):
 
 
 def numeric(e):
+    """e as a NumPy function of points (the branches of a Piecewise that are not taken may be NaN).
+    Max and Min are rewritten with Abs (SymPy prints them as NumPy's amax of a tuple, which does
+    not work elementwise on arrays)."""
+    pair = lambda s: lambda *a: functools.reduce(lambda p, q: (p + q + s * sp.Abs(p - q)) / 2, a)  # noqa: E731
+    e = e.replace(sp.Max, pair(1)).replace(sp.Min, pair(-1)) if isinstance(e, sp.Basic) else e
     fn = sp.lambdify((X, Y), e, modules="numpy")
-    return lambda p: np.broadcast_to(np.asarray(fn(p[:, 0], p[:, 1]), float), (len(p),))
+
+    def at(p):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.broadcast_to(np.asarray(fn(p[:, 0], p[:, 1]), float), (len(p),))
+    return at
 
 
 def samples(domain, funcs, rng, count=400):
     """Random points of the domain and points 1e-7 on either side of each switching curve."""
+    p, pairs = straddles(domain, funcs, rng, count)
+    q = np.concatenate([p] + [x for pair in pairs for x in pair])
+    return q[domain.inside(q)]
+
+
+def straddles(domain, funcs, rng, count=400):
+    """`count` random points of the domain, and [(a, b)]: for each switching function, points
+    a, b 1e-7 on either side of its curve (found by bisection between random points)."""
     p = rng.uniform(domain.lo, domain.hi, (4 * count, 2))
     p = p[domain.inside(p)][:count]
-    near = []
+    pairs = []
     for f in funcs:
         v = f(p)
         a, b = p[:count // 2], p[count // 2: 2 * (count // 2)]
@@ -177,9 +202,8 @@ def samples(domain, funcs, rng, count=400):
             same = np.sign(f(m)) == np.sign(f(a))
             a, b = np.where(same[:, None], m, a), np.where(same[:, None], b, m)
         d = (b - a) / np.maximum(np.linalg.norm(b - a, axis=1), 1e-300)[:, None]
-        near += [a - 1e-7 * d, b + 1e-7 * d]
-    q = np.concatenate([p] + near)
-    return q[domain.inside(q)]
+        pairs.append((a - 1e-7 * d, b + 1e-7 * d))
+    return p, pairs
 
 
 def resolve(e, point):
@@ -235,27 +259,37 @@ def zero_check(name, e, pts, failures, how):
         failures.append("%s = %.3e at (%.6g, %.6g)" % (name, v[bad][0], *pts[bad][0]))
 
 
-def read(case):
-    """The case's data and exact solution as SymPy expressions."""
+def read(case, problem):
+    """The case's data and exact solution as SymPy expressions, and the problem's gap (u1 - u2 or
+    u - psi), boundary values ({displacement: its value}) and the least boundary value of the
+    first displacement (g >= g2 or g >= psi)."""
     names = {}
     for k, v in case.get("let", {}).items():
         names[k] = to_sympy(v, names)
     ex = case["exact"]
-    e = {k: to_sympy(ex[k], names) for k in ("u1", "u2", "lambda")}
-    e.update({k: to_sympy(case[k], names) for k in ("f1", "f2", "g")})
-    for name in ("u1", "u2"):
+    e = {k: to_sympy(ex[k], names) for k in problem.displacements + ("lambda",)}
+    e.update({k: to_sympy(case[k] if k in case else problem.defaults[k], names) for k in problem.expressions})
+    for name in problem.displacements:
         if ex.get("grad_" + name):
             e["grad_" + name] = [to_sympy(c, names) for c in ex["grad_" + name]]
-    return e
+    if problem is problems.MEMBRANES:
+        e["gap"], e["floor"], values = e["u1"] - e["u2"], e["g2"], {"u1": "g", "u2": "g2"}
+    else:
+        e["gap"], e["floor"], values = e["u"] - e["psi"], e["psi"], {"u": "g"}
+    e.update({"%s - %s" % (u, g): e[u] - e[g] for u, g in values.items()})
+    return e, ["%s - %s" % kv for kv in values.items()]
 
 
-def region_identities(e, mu):
-    """{name: expression that must vanish} in a region (e already resolved there)."""
+def region_identities(e, mu, problem):
+    """{name: expression that must vanish} in a region (e already resolved there): each
+    membrane's PDE (+ lambda on the upper one, - lambda on the lower), the complementarity and
+    the gradients."""
     lap = lambda u: sp.diff(u, X, 2) + sp.diff(u, Y, 2)  # noqa: E731
-    out = {"f1 + mu1 lap u1 + lambda": e["f1"] + mu[0] * lap(e["u1"]) + e["lambda"],
-           "f2 + mu2 lap u2 - lambda": e["f2"] + mu[1] * lap(e["u2"]) - e["lambda"],
-           "(u1 - u2) lambda": (e["u1"] - e["u2"]) * e["lambda"]}
-    for name in ("u1", "u2"):
+    out = {"gap lambda": e["gap"] * e["lambda"]}
+    for i, (u, f, m, t) in enumerate(zip(problem.displacements, problem.loads, mu, problem.tensions)):
+        sign = "+" if i == 0 else "-"
+        out["%s + %s lap %s %s lambda" % (f, t, u, sign)] = e[f] + m * lap(e[u]) + (e["lambda"] if i == 0 else -e["lambda"])
+    for name in problem.displacements:
         for k, var in enumerate((X, Y)):
             if "grad_" + name in e:
                 out["grad_%s[%d] - d%s/d%s" % (name, k, name, var)] = e["grad_" + name][k] - sp.diff(e[name], var)
@@ -276,47 +310,68 @@ def regions(exprs, pts, funcs):
     return out
 
 
-def check_interior(e, mu, domain, funcs, rng, failures, how):
+def check_interior(e, mu, problem, domain, funcs, rng, failures, how):
     """The PDEs, gradients, complementarity and sign conditions in every region."""
     pts = samples(domain, funcs, rng)
     for r, sel in regions(e, pts, funcs):
-        for name, res in region_identities(r, mu).items():
+        for name, res in region_identities(r, mu, problem).items():
             zero_check(name, res, sel, failures, how)
-        for name, v in (("u1 - u2", r["u1"] - r["u2"]), ("lambda", r["lambda"])):
+        for name, v in (("gap", r["gap"]), ("lambda", r["lambda"])):
             val = numeric(v)(sel)
             if (val < -TOL).any():
                 failures.append("%s = %.3e < 0 at (%.6g, %.6g)" % (name, val.min(), *sel[np.argmin(val)]))
     return len(pts)
 
 
-def check_boundary(e, domain, funcs, failures, how):
-    """u1 = g, u2 = 0 and g >= 0 on every piece of the boundary."""
+def check_continuity(e, problem, domain, funcs, rng, failures):
+    """The displacements and their given gradients change by at most JUMP_TOL across every
+    switching curve."""
+    _, pairs = straddles(domain, funcs, rng)
+    fields = [(u, e[u]) for u in problem.displacements]
+    fields += [("grad_%s[%d]" % (u, k), c) for u in problem.displacements for k, c in enumerate(e.get("grad_" + u, []))]
+    for name, v in fields:
+        fn = numeric(v)
+        for a, b in pairs:
+            inside = domain.inside(a) & domain.inside(b)
+            a, b = a[inside], b[inside]
+            jump = np.abs(fn(a) - fn(b))
+            if (jump > JUMP_TOL).any():
+                k = np.argmax(jump)
+                failures.append("%s jumps by %.3e across a switching curve at (%.6g, %.6g)" % (name, jump[k], *a[k]))
+
+
+def check_boundary(e, boundary, domain, funcs, failures, how):
+    """The boundary values (the `boundary` keys of e vanish) and g >= g2 (g >= psi) on every
+    piece of the boundary."""
     t = np.linspace(0.0, 1.0, 201)[:, None]
+    floor = "g - floor"
     for edge, at, on_edge in domain.pieces:
         pts = at(t)
-        for r, sel in regions({"u1 - g": e["u1"] - e["g"], "u2": e["u2"], "g": e["g"]}, pts, funcs):
-            for name in ("u1 - g", "u2"):
+        for r, sel in regions({**{k: e[k] for k in boundary}, floor: e["g"] - e["floor"]}, pts, funcs):
+            for name in boundary:
                 if is_zero(r[name].subs(on_edge)):
                     how["symbolic"] += 1
                 else:
                     zero_check("%s on the %s" % (name, edge), r[name], sel, failures, how)
-            g = numeric(r["g"])(sel)
+            g = numeric(r[floor])(sel)
             if (g < -TOL).any():
-                failures.append("g = %.3e < 0 on the %s" % (g.min(), edge))
+                failures.append("g is %.3e below its floor (g2 or psi) on the %s" % (g.min(), edge))
 
 
 def check(path):
     """The failures of one case (an empty list when its exact solution checks out) and how the
     identities were shown ({"symbolic": count, "numeric": count})."""
     case = common.load_case(path)
-    e = read(case)
-    mu = (sp.nsimplify(case["mu1"]), sp.nsimplify(case["mu2"]))
+    problem = problems.of(case)
+    e, boundary = read(case, problem)
+    mu = tuple(sp.nsimplify(case[k]) for k in problem.tensions)
     everything = [v for k in e for v in (e[k] if isinstance(e[k], list) else [e[k]])]
     funcs = [numeric(s) for s in switches(everything)]
     domain = Domain(case, path)
     failures, how = [], {"symbolic": 0, "numeric": 0}
-    count = check_interior(e, mu, domain, funcs, np.random.default_rng(1), failures, how)
-    check_boundary(e, domain, funcs, failures, how)
+    count = check_interior(e, mu, problem, domain, funcs, np.random.default_rng(1), failures, how)
+    check_continuity(e, problem, domain, funcs, np.random.default_rng(2), failures)
+    check_boundary(e, boundary, domain, funcs, failures, how)
     how["points"] = count
     return failures, how
 

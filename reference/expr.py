@@ -14,6 +14,8 @@ parser and the Rust one against random expressions evaluated from their syntax t
 import math
 import re
 
+from . import problems
+
 _TOKEN = re.compile(
     r"[ \t\n\r\f]*(?:(?P<num>(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)|(?P<name>[A-Za-z_][A-Za-z_0-9]*)"
     r"|(?P<op><=|>=|&&|\|\||[<>+\-*/^(),]))",
@@ -33,9 +35,6 @@ MAX_TOKENS = 10_000
 MAX_NESTING = 32
 STACK = 64
 MAX_NODES = 100_000
-# The keys of a case that hold expressions.
-CASE_KEYS = ("f1", "f2", "g")
-EXACT_KEYS = ("u1", "u2", "lambda", "grad_u1", "grad_u2")
 
 
 class ExprError(ValueError):
@@ -250,14 +249,17 @@ def parse_names(table):
 
 def parse_case(case):
     """The case (a dict from TOML) with every expression parsed to a tree, the [let] names
-    substituted, so that `to_numpy`, `to_ufl` and the helpers of common.py take them as they are."""
+    substituted, so that `to_numpy`, `to_ufl` and the helpers of common.py take them as they are.
+    The expression keys are those of the case's problem (reference/problems.py); an optional one
+    that is absent gets its default (g2 = 0)."""
+    problem = problems.of(case)
     names = parse_names(case.get("let", {}))
     out = dict(case)
-    for k in CASE_KEYS:
-        out[k] = parse(case[k], names)
+    for k in problem.expressions:
+        out[k] = parse(case[k] if k in case else problem.defaults[k], names)
     if "exact" in case:
         ex = out["exact"] = dict(case["exact"])
-        for k in EXACT_KEYS:
+        for k in problem.exact_keys:
             if k in ex:
                 ex[k] = [parse(c, names) for c in ex[k]] if k.startswith("grad") else parse(ex[k], names)
     return out
