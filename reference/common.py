@@ -11,14 +11,10 @@ import tomllib
 import h5py
 import numpy as np
 
-from . import expr
+from . import expr, problems
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-VERTEX_FIELDS = ("u1", "u2", "gap", "lambda", "lambda2", "contact")
-EXACT_FIELDS = ("u1_exact", "u2_exact", "lambda_exact")
 FLUX_FIELDS = ("t1_x", "t1_y", "div_t1", "t2_x", "t2_y", "div_t2")
-# Error norms: the attribute `error_<key>` of a Rust result and of a reference file.
-ERROR_KEYS = ("l2_u1", "l2_u2", "h1_u1", "h1_u2", "energy", "l2_lambda", "hminus1_lambda")
 
 
 def read_result(path):
@@ -34,7 +30,10 @@ def read_result(path):
             "cells": mesh["topology"][...].astype(np.int64),
             "attrs": {k: f.attrs[k] for k in f.attrs},
         }
-        out.update({k: mesh[k][...] for k in VERTEX_FIELDS + EXACT_FIELDS if k in mesh})
+        case = tomllib.loads(str(out["attrs"]["case_text"]))
+        problem = problems.of(case)
+        exact = tuple(k + "_exact" for k in problem.displacements + ("lambda",))
+        out.update({k: mesh[k][...] for k in problem.fields + exact if k in mesh})
         if "dual" in f:  # written by `solve --dual` or `--flux`
             dual = f["dual"]
             out.update({
@@ -46,13 +45,15 @@ def read_result(path):
             out.update({k: dual[k][...] for k in FLUX_FIELDS if k in dual})
     out["case_text"] = str(out["attrs"]["case_text"])
     # Expressions parsed once, with the names of the case's [let] table substituted.
-    out["case"] = expr.parse_case(tomllib.loads(out["case_text"]))
+    out["case"] = expr.parse_case(case)
+    out["problem"] = problem
     return out
 
 
-def rust_errors(result):
-    """{key: value} of the error norms a Rust result holds (NaN where not computed)."""
-    return {k: float(result["attrs"]["error_" + k]) for k in ERROR_KEYS if "error_" + k in result["attrs"]}
+def errors_of(attrs, problem):
+    """{key: value} of the error norms held by the attributes of a Rust result or a reference file
+    (the keys of `problem` that are present)."""
+    return {k: float(attrs["error_" + k]) for k in problem.error_keys if "error_" + k in attrs}
 
 
 def write_reference(path, result, fields, attrs):
@@ -170,25 +171,32 @@ def lu_solver(A=None, ksp=None):
     return ksp
 
 
-def dirichlet(W, spaces, case):
-    """Boundary conditions on the mixed space W whose collapsed subspaces are `spaces`: the first
-    component = g_h (the P1 interpolant of the case's g on the boundary), the others = 0. Returns
-    the bcs, the mask of boundary dofs (dofs of spaces[0]) and g_h."""
+def dirichlet(W, spaces, values):
+    """Boundary conditions on the space W whose collapsed subspaces are `spaces` (or on W alone,
+    spaces = [W], a space without subspaces): component i = the P1 interpolant of the case
+    expression values[i] on the boundary. Returns the bcs, the mask of boundary dofs (dofs of
+    spaces[0]) and the first component's boundary data as a function of spaces[0] (0 inside)."""
     from dolfinx import fem
     from dolfinx import mesh as dmesh
 
     domain = W.mesh
     domain.topology.create_connectivity(1, 2)
     facets = dmesh.exterior_facet_indices(domain.topology)
-    dofs = [fem.locate_dofs_topological((W.sub(i), V), 1, facets) for i, V in enumerate(spaces)]
-    coords = spaces[0].tabulate_dof_coordinates()
-    boundary = np.zeros(len(coords), bool)
-    boundary[dofs[0][1]] = True
-    g = fem.Function(spaces[0])
-    g.x.array[:] = np.where(boundary, at_points(case["g"], coords), 0.0)
-    bcs = [fem.dirichletbc(g, dofs[0], W.sub(0))]
-    bcs += [fem.dirichletbc(fem.Function(V), dofs[i], W.sub(i)) for i, V in enumerate(spaces) if i > 0]
-    return bcs, boundary, g
+    whole = spaces == [W]
+    subs = [W] if whole else [W.sub(i) for i in range(len(spaces))]
+    bcs, boundary, first = [], None, None
+    for sub, V, value in zip(subs, spaces, values):
+        dofs = fem.locate_dofs_topological(V if whole else (sub, V), 1, facets)
+        own = dofs if whole else dofs[1]  # the dofs of the collapsed space V
+        coords = V.tabulate_dof_coordinates()
+        data = fem.Function(V)
+        data.x.array[own] = at_points(value, coords[own])
+        bcs.append(fem.dirichletbc(data, dofs) if whole else fem.dirichletbc(data, dofs, sub))
+        if first is None:
+            boundary = np.zeros(len(coords), bool)
+            boundary[own] = True
+            first = data
+    return bcs, boundary, first
 
 
 def dolfinx_version():

@@ -82,21 +82,23 @@ class DualSubmesh:
         return l2, np.sqrt(max(scalar((lam - lh) * zh * dxs), 0.0))
 
 
-def all_errors(V, u1, u2, lam_cells, dual, exact, mu):
-    """Every norm of the Rust code's `Errors` (keys of common.ERROR_KEYS) for u1, u2 (dof values on
-    V), lambda_h on the dual cells, an exact solution (the case's [exact]) and mu = (mu1, mu2)."""
+def all_errors(V, displacements, lam_cells, dual, exact):
+    """Every norm of the Rust code's `Errors` (the keys of the problem's `error_keys`) for the
+    displacements {name: (dof values on V, tension)} (u1, u2 or u), lambda_h on the dual cells and
+    an exact solution (the case's [exact]); the energy norm (sum_i mu_i |u_i - u_ih|_H1^2)^1/2."""
     out = {}
-    for name, values in (("u1", u1), ("u2", u2)):
+    for name, (values, _) in displacements.items():
         out["l2_" + name], h1 = p1_errors(V, values, exact[name], exact.get("grad_" + name))
         if h1 is not None:
             out["h1_" + name] = h1
-    if "h1_u1" in out and "h1_u2" in out:
-        out["energy"] = np.sqrt(mu[0] * out["h1_u1"] ** 2 + mu[1] * out["h1_u2"] ** 2)
+    if all("h1_" + name in out for name in displacements):
+        out["energy"] = np.sqrt(sum(mu * out["h1_" + name] ** 2 for name, (_, mu) in displacements.items()))
     out["l2_lambda"], out["hminus1_lambda"] = dual.errors(lam_cells, exact["lambda"])
     return out
 
 
-def difference_norms(V, du1, du2, dlam_cells, dual, mu):
-    """The same norms of the difference of two discrete solutions (|e_A - e_B| <= these)."""
-    zero = {"u1": 0, "u2": 0, "lambda": 0, "grad_u1": [0, 0], "grad_u2": [0, 0]}
-    return all_errors(V, du1, du2, dlam_cells, dual, zero, mu)
+def difference_norms(V, differences, dlam_cells, dual):
+    """The same norms of the difference of two discrete solutions (|e_A - e_B| <= these);
+    differences = {name: (dof values on V, tension)}."""
+    zero = {"lambda": 0, **{n: 0 for n in differences}, **{"grad_" + n: [0, 0] for n in differences}}
+    return all_errors(V, differences, dlam_cells, dual, zero)
