@@ -1,8 +1,9 @@
 """Field-by-field comparison of a Rust result with a reference file, matched by vertex coordinates:
-max-norm and L2 differences of u1, u2, gap, lambda (membrane 1's action) and lambda2 (membrane
-2's), relative to the size of the displacements (for u1, u2, gap) or of the action (for lambda,
-lambda2: max |lambda|, |lambda2|, or max |f1|, |f2| at the vertices when there is no contact), so
-that a field that vanishes is compared at its natural scale.
+max-norm and L2 differences of the fields of the case's problem (reference/problems.py) -- u1,
+u2, gap, lambda (membrane 1's action) and lambda2 (membrane 2's); or u, gap, lambda for the
+obstacle problem -- relative to the size of the displacements (for u1, u2, u, gap) or of the
+action (for lambda, lambda2: their max, or the max of the loads at the vertices when there is no
+contact), so that a field that vanishes is compared at its natural scale.
 
 Usage (from the repository root):
     /usr/bin/python3 -m reference.compare RESULT_DIR REFERENCE.h5 [--tol 1e-8]
@@ -14,23 +15,20 @@ import numpy as np
 
 from . import common
 
-FIELDS = ("u1", "u2", "gap", "lambda", "lambda2")
-ACTIONS = ("lambda", "lambda2")
-
 
 def compare(rust, ref):
     """{field: (relative max difference, relative L2 difference)} and the contact mismatch count,
     for a Rust result (common.read_result) and a reference (common.read_reference)."""
-    pa = rust["points"]
+    pa, problem = rust["points"], rust["problem"]
     perm = common.match_points(pa, ref["points"])
     m = common.lumped_mass(pa, rust["cells"])
-    fields = {k: (rust[k], ref[k][perm]) for k in FIELDS}
-    loads = [np.abs(common.at_points(rust["case"][f], pa)).max() for f in ("f1", "f2")]
-    u_scale = max(np.abs(v).max() for k in ("u1", "u2") for v in fields[k])
-    lam_scale = max(*(np.abs(v).max() for k in ACTIONS for v in fields[k]), *loads)
+    fields = {k: (rust[k], ref[k][perm]) for k in problem.compared}
+    loads = [np.abs(common.at_points(rust["case"][f], pa)).max() for f in problem.loads]
+    u_scale = max(np.abs(v).max() for k in problem.displacements for v in fields[k])
+    lam_scale = max(*(np.abs(v).max() for k in problem.actions for v in fields[k]), *loads)
     out = {}
     for k, (x, y) in fields.items():
-        size = max(lam_scale if k in ACTIONS else u_scale, 1e-300)
+        size = max(lam_scale if k in problem.actions else u_scale, 1e-300)
         out[k] = (np.abs(x - y).max() / size, np.sqrt(np.sum(m * (x - y) ** 2) / np.sum(m)) / size)
     mismatch = int(np.sum(rust["contact"] != ref["contact"][perm]))
     return out, mismatch

@@ -7,8 +7,9 @@ import numpy as np
 from . import common
 
 # (key, label, the paper's rate on convex domains: Thm 9 for H1 (exact), Thm 21 for H-1 (at least))
-NORMS = (("h1_u1", "|u1-u1h|_H1", 1.0), ("h1_u2", "|u2-u2h|_H1", 1.0), ("l2_u1", "||u1-u1h||_L2", None),
-         ("l2_u2", "||u2-u2h||_L2", None), ("energy", "energy norm", None),
+NORMS = (("h1_u1", "|u1-u1h|_H1", 1.0), ("h1_u2", "|u2-u2h|_H1", 1.0), ("h1_u", "|u-uh|_H1", 1.0),
+         ("l2_u1", "||u1-u1h||_L2", None), ("l2_u2", "||u2-u2h||_L2", None), ("l2_u", "||u-uh||_L2", None),
+         ("energy", "energy norm", None),
          ("l2_lambda", "||lam-lamh||_L2", None), ("hminus1_lambda", "||lam-lamh||_H-1", 1.0))
 NEGLIGIBLE = 1e-10
 
@@ -39,16 +40,19 @@ def header(tol, eoc_agreement, theory_margin):
 
 
 def field_table(result):
-    lines = ["| level | vertices | max Δu1 | max Δu2 | max Δgap | max Δλ | max Δλ2 | contact mismatches | Rust it. "
-             "| SNES it. | mixed: max Δu | mixed: max Δλ, Δλ2 | mixed: mismatches | mixed it. |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    problem = result["levels"][0]["problem"]
+    names = {"lambda": "λ", "lambda2": "λ2"}
+    compared = " | ".join("max Δ%s" % names.get(k, k) for k in problem.compared)
+    lines = ["| level | vertices | %s | contact mismatches | Rust it. | SNES it. | mixed: max Δu | mixed: max Δ%s "
+             "| mixed: mismatches | mixed it. |" % (compared, ", Δ".join(names[k] for k in problem.actions)),
+             "|---" * (10 + len(problem.compared) - 1) + "|"]
     for lv in result["levels"]:
         d, md = lv["diffs"], lv["mixed_diffs"]
-        lines.append("| %s | %d | %s | %s | %s | %s | %s | %d | %d | %d | %s | %s | %d | %d |" % (
-            lv["n"], lv["vertices"], *(fmt(d[k][0]) for k in ("u1", "u2", "gap", "lambda", "lambda2")),
+        lines.append("| %s | %d | %s | %d | %d | %d | %s | %s | %d | %d |" % (
+            lv["n"], lv["vertices"], " | ".join(fmt(d[k][0]) for k in problem.compared),
             lv["mismatch"], lv["rust_iterations"], lv["snes_iterations"],
-            fmt(max(md[k][0] for k in ("u1", "u2", "gap"))), fmt(max(md[k][0] for k in ("lambda", "lambda2"))),
-            lv["mixed_mismatch"], lv["mixed_iterations"]))
+            fmt(max(md[k][0] for k in problem.displacements + ("gap",))),
+            fmt(max(md[k][0] for k in problem.actions)), lv["mixed_mismatch"], lv["mixed_iterations"]))
     return lines + [""]
 
 
@@ -90,7 +94,7 @@ def tables(result):
     lines = ["### %s — %s" % (result["name"], result["title"]), ""] + field_table(result)
     if any(k in result["rates"] for k, _, _ in NORMS):
         lines += error_table(result)
-    return lines + flux_table(result)
+    return lines + (flux_table(result) if result["levels"][0]["flux"] else [])
 
 
 def convergence_plot(result, out):
@@ -120,8 +124,9 @@ def fields_plot(result, out):
 
     finest = common.read_result(result["levels"][-1]["dir"])
     tri = mtri.Triangulation(finest["points"][:, 0], finest["points"][:, 1], finest["cells"])
-    fig, axes = plt.subplots(1, 4, figsize=(16, 3.6))
-    for ax, field in zip(axes, ("u1", "u2", "gap", "lambda")):
+    shown = finest["problem"].displacements + ("gap", "lambda")
+    fig, axes = plt.subplots(1, len(shown), figsize=(4 * len(shown), 3.6))
+    for ax, field in zip(axes, shown):
         im = ax.tripcolor(tri, finest[field], shading="gouraud")
         ax.set_aspect("equal")
         ax.set_title(field)

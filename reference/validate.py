@@ -1,13 +1,15 @@
 """`make validate`: every case marked for validation is solved by the Rust code and by two dolfinx
-references on the same meshes -- SNES-VI in (w, u2) (solve_reference) and a primal-dual
-active-set loop on the mixed (u1, u2, lambda) system (solve_mixed); fields are compared vertex
-by vertex, the written fluxes are checked, and for cases with an exact solution the error norms'
-values and their experimental orders of convergence (EOC) side by side.
+references on the same meshes -- SNES-VI with bounds (solve_reference: in (w, u2) for the
+membranes, in u >= psi_h for the obstacle problem) and a primal-dual active-set loop on the mixed
+system with lambda a multiplier (solve_mixed); fields are compared vertex by vertex, the written
+fluxes are checked (membranes), and for cases with an exact solution the error norms' values and
+their experimental orders of convergence (EOC) side by side. The fields and norms are those of
+the case's problem (reference/problems.py).
 
 Fails (exit 1) when
-  - u1, u2, gap, lambda or lambda2 differ by more than --tol (relative, max norm) from either
-    reference, or contact sets differ;
-  - an error norm's VALUE (L2, H1 of u1, u2, energy, L2 and H-1 of lambda) differs from the
+  - u1, u2, gap, lambda or lambda2 (obstacle problem: u, gap, lambda) differ by more than --tol
+    (relative, max norm) from either reference, or contact sets differ;
+  - an error norm's VALUE (L2, H1 of u1, u2 or of u, energy, L2 and H-1 of lambda) differs from the
     reference's by more than 2 d + 1e-9 e (+1e-15), d the same norm of the difference of the two
     codes' discrete fields: |e_Rust - e_ref| <= d exactly (triangle inequality; both codes use the
     same degree-10 rule, so the discrete norms are seminorms of the same quadrature), the factor 2
@@ -17,7 +19,7 @@ Fails (exit 1) when
   - the two codes' EOCs differ by more than 0.02, the Rust H1 EOC on a convex domain misses the
     paper's rate 1 (Theorem 9) by more than 0.1, or the H-1 EOC of the action falls below 1 - 0.1
     (Theorem 21);
-  - the written flux fields fail a check of reference/flux_checks.py: the normal jump on an
+  - the written flux fields (of the membranes) fail a check of reference/flux_checks.py: the normal jump on an
     interior edge of S_h exceeds 1e-12 of the flux scale (an identity: round-off only, ~2e-15
     measured); the local
     conservation (Lemma 17) with the reference's loads and lambda misses by more than
@@ -28,7 +30,7 @@ Fails (exit 1) when
     defect exceeds 1e-13;
   - an exact case fails its SymPy check (exact_cases), or ParaView cannot read a result in double
     precision (paraview_check);
-  - the a posteriori estimator (`solve --estimate`, on the first validation level of every case
+  - the a posteriori estimator (`solve --estimate`, on the first validation level of every membranes case
     and on the jittered mesh files) differs from its recomputation by reference/estimator.py
     (--compare: every attribute and cell field, 1e-9 of eta for the flux, oscillation and means,
     1e-7 for the boundary terms and what contains them), or eta < |||u - u_h||| on an exact case;
@@ -51,7 +53,7 @@ import time
 
 import numpy as np
 
-from . import common, compare, estimator, exact_cases, flux_checks, report, solve_mixed, solve_reference
+from . import common, compare, estimator, exact_cases, flux_checks, problems, report, solve_mixed, solve_reference
 from .report import NORMS, eocs
 
 AT_LEAST = {"hminus1_lambda"}
@@ -79,7 +81,8 @@ def run_level(path, name, level, binary, workdir, tol, failures, reuse=False):
     rust_dir = os.path.join(workdir, "rust-%s" % tag)
     t = time.perf_counter()
     if not (reuse and os.path.isdir(rust_dir)):
-        proc = subprocess.run([binary, "solve", path, option, str(value), "--hminus1", "--flux", "-o", rust_dir],
+        flux = ["--flux"] if problems.of(common.load_case(path)) is problems.MEMBRANES else ["--dual"]
+        proc = subprocess.run([binary, "solve", path, option, str(value), "--hminus1", *flux, "-o", rust_dir],
                               capture_output=True, text=True)
         if proc.returncode != 0:
             failures.append("%s %s: Rust solver failed: %s" % (name, label, proc.stderr.strip()))
@@ -95,6 +98,7 @@ def check_level(label, level, rust_dir, workdir, tol, failures, rust_seconds):
     summary = solve_reference.solve_file(rust_dir, ref_path)
     mixed = solve_mixed.solve_file(rust_dir, mixed_path)
     rust, ref = common.read_result(rust_dir), common.read_reference(ref_path)
+    membranes = rust["problem"] is problems.MEMBRANES
     diffs, mismatch = compare.compare(rust, ref)
     mixed_diffs, mixed_mismatch = compare.compare(rust, common.read_reference(mixed_path))
     field_failures(label, "", diffs, mismatch, tol, failures)
@@ -103,13 +107,13 @@ def check_level(label, level, rust_dir, workdir, tol, failures, rust_seconds):
              "diffs": diffs, "mismatch": mismatch, "rust_iterations": int(rust["attrs"]["iterations"]),
              "rust_seconds": rust_seconds, "snes_iterations": summary["snes_iterations"],
              "ref_seconds": summary["seconds"], "mixed_diffs": mixed_diffs, "mixed_mismatch": mixed_mismatch,
-             "mixed_iterations": mixed["iterations"], "rust": common.rust_errors(rust),
-             "ref": {k: float(ref["attrs"]["error_" + k]) for k in common.ERROR_KEYS
-                     if "error_" + k in ref["attrs"]},
-             "flux": flux_checks.check_level(rust, ref), "dir": rust_dir, "norm_checks": {}}
+             "mixed_iterations": mixed["iterations"], "rust": common.errors_of(rust["attrs"], rust["problem"]),
+             "ref": common.errors_of(ref["attrs"], rust["problem"]), "problem": rust["problem"],
+             "flux": flux_checks.check_level(rust, ref) if membranes else None, "dir": rust_dir, "norm_checks": {}}
     if "exact" in rust["case"]:
         level["norm_checks"] = norm_value_failures(label, level, ref["attrs"], failures)
-    flux_failures(label, level["flux"], rust["attrs"], failures)
+    if membranes:
+        flux_failures(label, level["flux"], rust["attrs"], failures)
     return level
 
 
@@ -124,7 +128,7 @@ def field_failures(label, which, diffs, mismatch, tol, failures):
 def norm_value_failures(label, level, ref_attrs, failures):
     """Every error norm's value against the reference's: {key: (relative difference, relative tolerance)}."""
     out = {}
-    for key in common.ERROR_KEYS:
+    for key in level["problem"].error_keys:
         if key not in level["ref"]:
             continue
         e_ref, e_rust = level["ref"][key], level["rust"].get(key, float("nan"))
@@ -174,7 +178,7 @@ def rate_failures(name, levels, convex, failures):
                 failures.append("%s: Rust EOC of %s is %.3f, the paper's rate is %s%.1f"
                                 % (name, label, er[-1], ">= " if key in AT_LEAST else "", theory))
     for i in (1, 2):
-        if "error_%d" % i in levels[0]["flux"]:
+        if levels[0]["flux"] and "error_%d" % i in levels[0]["flux"]:
             er = eocs(h, [lv["flux"]["error_%d" % i] for lv in levels])
             rates["flux_%d" % i] = (er, None)
             for k, a in enumerate(er):
@@ -219,7 +223,6 @@ ESTIMATOR_HEAD = ["### A posteriori estimator: Rust against `reference/estimator
 
 
 DIRECT_TOL = 1e-10  # multigrid (the default) against Cholesky: max |difference| / max |value|
-DIRECT_FIELDS = ("u1", "u2", "gap", "lambda")
 
 
 def direct_agreement(path, label, level, binary, workdir, failures, reuse=False):
@@ -236,10 +239,9 @@ def direct_agreement(path, label, level, binary, workdir, failures, reuse=False)
     a, b = common.read_result(default_dir), common.read_result(direct_dir)
     solver = str(a["attrs"]["linear_solver"])
     # λ is a residual: where it vanishes its round-off is measured against the loads' size.
-    load = np.max(np.abs(common.at_points(a["case"]["f1"], a["points"]))
-                  + np.abs(common.at_points(a["case"]["f2"], a["points"])))
+    load = np.max(sum(np.abs(common.at_points(a["case"][f], a["points"])) for f in a["problem"].loads))
     rel = {}
-    for k in DIRECT_FIELDS:
+    for k in direct_fields(a["problem"]):
         floor = load if k == "lambda" else 1e-300
         rel[k] = float(np.max(np.abs(a[k] - b[k])) / max(np.max(np.abs(b[k])), floor))
     mismatch = int(np.sum(a["contact"] != b["contact"]))
@@ -250,15 +252,19 @@ def direct_agreement(path, label, level, binary, workdir, failures, reuse=False)
     if mismatch:
         failures.append("%s: the contact sets of the default solver and Cholesky differ at %d vertices"
                         % (label, mismatch))
-    return "| %s | %s | %s | %d |" % (label, solver, " | ".join("%.1e" % rel[k] for k in DIRECT_FIELDS),
+    return "| %s | %s | %s | %d |" % (label, solver, ", ".join("%s %.1e" % (k, rel[k]) for k in rel),
                                       mismatch)
 
 
 DIRECT_HEAD = ["### The default linear solver against Cholesky (`--linear direct`), last level of each case", "",
                "Max |difference| relative to max |value| (for λ at least max |f1| + |f2| at the vertices); tolerance %.0e, "
                "contact sets equal." % DIRECT_TOL, "",
-               "| result | default solver | " + " | ".join(DIRECT_FIELDS) + " | contact mismatches |",
-               "|---" * (len(DIRECT_FIELDS) + 3) + "|"]
+               "| result | default solver | fields | contact mismatches |", "|---|---|---|---|"]
+
+
+def direct_fields(problem):
+    """The fields compared between the default linear solver and Cholesky."""
+    return problem.displacements + ("gap", "lambda")
 
 
 def run_case(path, binary, out, tol, failures, reuse=False):
@@ -267,7 +273,9 @@ def run_case(path, binary, out, tol, failures, reuse=False):
     workdir = os.path.join(out, name)
     os.makedirs(workdir, exist_ok=True)
     first = levels_of(case)[0]
-    estimate = estimator_check(path, "%s %s" % (name, first[2]), first, binary, workdir, failures, reuse)
+    estimate = None
+    if problems.of(case) is problems.MEMBRANES:  # reference/estimator.py is the two membranes' estimator
+        estimate = estimator_check(path, "%s %s" % (name, first[2]), first, binary, workdir, failures, reuse)
     levels = []
     for spec in levels_of(case):
         level = run_level(path, name, spec, binary, workdir, tol, failures, reuse)
@@ -332,7 +340,7 @@ def mesh_files(binary, out, tol, failures):
         if nv != count:
             failures.append("%s: %d vertices read, %d written" % (label, nv, count))
         field_failures(label, "", diffs, mismatch, tol, failures)
-        cols = " | ".join(report.fmt(diffs[k][0]) for k in compare.FIELDS)
+        cols = " | ".join(report.fmt(diffs[k][0]) for k in problems.MEMBRANES.compared)
         lines.append("| %s | %d | %s | %d |" % (writer, nv, cols, mismatch))
     return ["### Meshes read from files (meshio and dolfinx XDMF, jittered 20 × 20 square, default case data)",
             ""] + lines + [""], [e for e in estimates if e]
@@ -373,7 +381,7 @@ def adapted_meshes(binary, out, tol, failures):
             diffs, mismatch = compare.compare(rust, common.read_reference(ref_path))
             field_failures(label, "", diffs, mismatch, tol, failures)
             areas = np.abs(common.areas(rust["points"], rust["cells"]))
-            cols = " | ".join(report.fmt(diffs[k][0]) for k in compare.FIELDS)
+            cols = " | ".join(report.fmt(diffs[k][0]) for k in problems.MEMBRANES.compared)
             lines.append("| %s | %s | %d | %.1e | %s | %d |" % (name, step[5:], int(rust["attrs"]["vertices"]),
                                                                  areas.min() / areas.max(), cols, mismatch))
         views += paraview(adapt_dir, failures)
