@@ -9,17 +9,21 @@ repository root with Debian's /usr/bin/python3:
     /usr/bin/python3 -m reference.solve_mixed RESULT_DIR -o mixed.h5
     /usr/bin/python3 -m reference.compare RESULT_DIR reference.h5
     /usr/bin/python3 -m reference.exact_cases [CASE.toml ...]
+    /usr/bin/python3 -m reference.ball_check [--sizes 32 64 128]
     /usr/bin/python3 -m reference.paraview_check RESULT_DIR [...]
     /usr/bin/python3 -m reference.estimator --compare RESULT_DIR [...]   (results of solve --estimate)
     /usr/bin/python3 -m reference.random_expressions --seed 1 --count 10000 --out cases.json
 
 Modules:
+  problems         the problems a case states (two membranes, obstacle): their keys, fields and norms
   common           result files (Rust results read by `read_result`, reference files), vertex matching
                    by coordinates, lumped masses, case data and expressions
   expr             the case-file expression language, evaluated in NumPy and UFL
   random_expressions  random expressions with values from their syntax trees (tests/expressions.rs)
-  solve_reference  SNES-VI in (w = u1 - u2 >= 0, u2), lambda and lambda2 by (4.5), the loads
-  solve_mixed      the mixed (u1, u2, lambda) system by primal-dual active sets
+  solve_reference  SNES-VI in (w = u1 - u2 >= 0, u2), lambda and lambda2 by (4.5), the loads; the
+                   obstacle problem in u >= psi_h
+  solve_mixed      the mixed (u1, u2, lambda) or (u, lambda) system by primal-dual active sets
+  ball_check       the obstacle reference alone on the ball problem: rates against the exact solution
   norms            error norms with the Rust code's rules (L2, H1 on T_h; L2, H-1 on S_h)
   compare          vertex-by-vertex field comparison
   flux_checks      checks of the written flux fields t_1h, t_2h (continuity, conservation, rate)

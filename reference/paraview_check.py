@@ -9,12 +9,21 @@ Usage (from the repository root):
 """
 import os
 import sys
+import tomllib
 
+import h5py
 from paraview import servermanager
 from paraview.simple import Xdmf3ReaderS
 
-POINT_FIELDS = ("u1", "u2", "gap", "lambda", "lambda2", "contact")
+from .problems import of as problem_of
+
 VTK_DOUBLE = 11
+
+
+def point_fields(h5):
+    """The vertex fields of the problem of a result (its solution.h5): reference/problems.py."""
+    with h5py.File(h5, "r") as f:
+        return problem_of(tomllib.loads(str(f.attrs["case_text"]))).fields
 
 
 def read(path):
@@ -32,7 +41,7 @@ def check(path):
     `solve --dual` or `--flux`)."""
     mesh = read(os.path.join(path, "solution.xdmf"))
     problems = []
-    for name in POINT_FIELDS:
+    for name in point_fields(os.path.join(path, "solution.h5")):
         arr = mesh.GetPointData().GetArray(name)
         if arr is None:
             problems.append("point field %s missing" % name)
@@ -57,7 +66,6 @@ def check(path):
 
 def check_series(path):
     """Checks DIR/adapt.xdmf, the time series of an `adapt` run, step by step."""
-    import h5py
     steps = sorted(d for d in os.listdir(path) if d.startswith("step-"))
     reader = Xdmf3ReaderS(FileName=[os.path.abspath(os.path.join(path, "adapt.xdmf"))])
     reader.UpdatePipeline()
@@ -77,8 +85,9 @@ def check_series(path):
             problems.append("time %g: no double cell field estimator" % t)
         elif any(eta.GetValue(k) != own_eta[k] for k in range(len(own_eta))):
             problems.append("time %g: the indicators shown are not those of %s" % (t, step))
-        if data.GetPointData().GetArray("u1") is None:
-            problems.append("time %g: no point field u1" % t)
+        first = point_fields(os.path.join(path, step, "solution.h5"))[0]
+        if data.GetPointData().GetArray(first) is None:
+            problems.append("time %g: no point field %s" % (t, first))
     return problems
 
 
