@@ -1,8 +1,8 @@
 """`make bench-reference`: solve time and iterations of the dolfinx + SNES-VI reference beside the
 Rust solver's, on the same meshes, with the ratio, for two problems: the default case (two
 membranes) and the ball obstacle problem (data/cases/ball.toml, the benchmark of SNES-VI), each on
-N x N cells. The reference runs from a cold start (its bounded component on the bound: w = 0,
-u = psi_h inside) and with nested iteration (8^2, 16^2, ... N^2, each level started from the
+N x N cells. The reference runs from a cold start (zero raised to the bound: w = 0, u = max(0,
+psi_h) inside, as SNES-VI projects a zero iterate) and with nested iteration (8^2, 16^2, ... N^2, each level started from the
 previous solution, interpolated: PETSc's grid sequencing); its time is SNES plus the final
 polish solve, without mesh set-up, form compilation and assembly of the bounds.
 

@@ -98,9 +98,10 @@ class Bounded:
 
     def solve(self, guess=None, max_it=200):
         """SNES-VI solve, then polish. guess: arrays on the V dofs, one per component; the bounded
-        one is raised to l_h. Without it the bounded component starts on its bound (g_h on the
-        boundary), the others at 0."""
-        start = [np.where(self.boundary, self.g.x.array, self.lower.x.array)] + [0.0] * (len(self.maps) - 1)
+        one is raised to l_h. Without it, zero raised to the bound (SNES-VI's projection of a zero
+        iterate, as in Bueler's obstacle.c: w = 0, u = max(0, psi_h)) with the boundary values."""
+        start = [np.where(self.boundary, self.g.x.array, np.maximum(self.lower.x.array, 0.0))]
+        start += [0.0] * (len(self.maps) - 1)
         if guess is not None:
             start = [np.maximum(guess[0], self.lower.x.array)] + list(guess[1:])
         x = self.vector(start)
