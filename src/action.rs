@@ -30,7 +30,7 @@ const ROUNDOFF: f64 = 8.0 * f64::EPSILON;
 pub struct Action {
     /// λ_a from membrane 1 at each vertex (0 on ∂ω): λ_h of (4.5).
     pub lambda: Vec<f64>,
-    /// λ_a from membrane 2.
+    /// λ_a from membrane 2 (empty below a rigid obstacle).
     pub lambda2: Vec<f64>,
     /// ∫_ω λ_h = Σ_a λ_a meas(D_a): the total contact force.
     pub total: f64,
@@ -146,10 +146,11 @@ impl Action {
     /// ```
     pub fn compute(problem: &DiscreteProblem, solution: &Solution) -> Action {
         let (mesh, k) = (&problem.mesh, &problem.stiffness);
-        let (mu1, mu2) = (problem.data.mu1, problem.data.mu2);
+        let (mu1, mu2) = (problem.data.mu1, problem.data.mu2());
         let (u1, u2, gap) = (&solution.u1, &solution.u2, &solution.obstacle.gap);
         let n = mesh.n_vertices();
-        let (mut lambda, mut lambda2) = (vec![0.0; n], vec![0.0; n]);
+        // Below a rigid obstacle only membrane 1 has an equation: no λ2, no Prop. 12.
+        let (mut lambda, mut lambda2) = (vec![0.0; n], vec![0.0; if mu2.is_some() { n } else { 0 }]);
         let gap_scale = gap.iter().fold(f64::MIN_POSITIVE, |m, w| m.max(w.abs()));
         let mut checks = Checks {
             prop12: 0.0,
@@ -163,20 +164,19 @@ impl Action {
         let (mut total, mut contact_area) = (0.0, 0.0);
         for a in (0..n).filter(|&a| !mesh.on_boundary[a]) {
             let m = problem.mass[a];
-            let (k1, k2) = (mu1 * k.row_dot(a, u1), mu2 * k.row_dot(a, u2));
-            let (l1, l2) = ((k1 - problem.load1[a]) / m, (-k2 + problem.load2[a]) / m);
-            let size: f64 = k
-                .row(a)
-                .map(|(b, v)| (mu1 * v * u1[b]).abs() + (mu2 * v * u2[b]).abs())
-                .sum::<f64>()
-                + problem.load1[a].abs()
-                + problem.load2[a].abs();
+            let l1 = (mu1 * k.row_dot(a, u1) - problem.load1[a]) / m;
+            let terms = |mu: f64, u: &[f64]| k.row(a).map(|(b, v)| (mu * v * u[b]).abs()).sum::<f64>();
+            let mut size = terms(mu1, u1) + problem.load_size(a);
+            lambda[a] = l1;
+            let mut l2 = l1;
+            if let Some(mu2) = mu2 {
+                l2 = (-mu2 * k.row_dot(a, u2) + problem.load2[a]) / m;
+                size += terms(mu2, u2);
+                lambda2[a] = l2;
+            }
             let s = size.max(f64::MIN_POSITIVE);
             checks.noise = checks.noise.max(ROUNDOFF * size / m);
-            checks.loads = checks
-                .loads
-                .max((problem.load1[a].abs() + problem.load2[a].abs()) / m);
-            (lambda[a], lambda2[a]) = (l1, l2);
+            checks.loads = checks.loads.max(problem.load_size(a) / m);
             checks.prop12 = checks.prop12.max((l1 - l2).abs() * m / s);
             checks.negative_lambda = checks.negative_lambda.max(-l1 * m / s);
             checks.complementarity = checks
@@ -202,10 +202,11 @@ impl Action {
 
 impl Describe for Action {
     fn fields(&self) -> Vec<Field<'_>> {
-        vec![
-            Field::new("lambda", Place::Vertices, &self.lambda),
-            Field::new("lambda2", Place::Vertices, &self.lambda2),
-        ]
+        let mut fields = vec![Field::new("lambda", Place::Vertices, &self.lambda)];
+        if !self.lambda2.is_empty() {
+            fields.push(Field::new("lambda2", Place::Vertices, &self.lambda2));
+        }
+        fields
     }
 
     fn attributes(&self) -> Vec<Attribute> {
@@ -306,6 +307,7 @@ mod tests {
                 u1: u1.clone(),
                 u2: u2.clone(),
                 obstacle,
+                rigid: false,
             },
         );
         let k = &p.stiffness;

@@ -6,7 +6,7 @@ use crate::contact::{LinearSolver, SolverOptions};
 use crate::expr::{Expr, ExprError, Names};
 use crate::mesh::{self, Curves, Diagonal, Domain, Mesh, Postprocess};
 use crate::norms::Exact;
-use crate::problem::{self, Data};
+use crate::problem::{self, Data, Lower};
 use crate::result::{Attr, Attribute, Describe};
 use serde::Deserialize;
 use std::io::Read;
@@ -30,11 +30,18 @@ pub const COARSEST: usize = 8;
 struct CaseFile {
     #[serde(default)]
     title: String,
-    mu1: f64,
-    mu2: f64,
-    f1: Expression,
-    f2: Expression,
+    /// "membranes" (the default) or "obstacle".
+    #[serde(default)]
+    problem: Option<String>,
+    mu1: Option<f64>,
+    mu2: Option<f64>,
+    f1: Option<Expression>,
+    f2: Option<Expression>,
     g: Expression,
+    g2: Option<Expression>,
+    mu: Option<f64>,
+    f: Option<Expression>,
+    psi: Option<Expression>,
     /// Named values usable in every expression, in file order (toml's `preserve_order`).
     #[serde(default, rename = "let")]
     names: toml::Table,
@@ -62,14 +69,23 @@ enum Expression {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ExactFile {
-    u1: Expression,
-    u2: Expression,
+    u1: Option<Expression>,
+    u2: Option<Expression>,
+    u: Option<Expression>,
     lambda: Expression,
     #[serde(default)]
     grad_u1: Option<[Expression; 2]>,
     #[serde(default)]
     grad_u2: Option<[Expression; 2]>,
+    #[serde(default)]
+    grad_u: Option<[Expression; 2]>,
 }
+
+/// The problems a case may state, and the keys of each (beside `g` and the tables).
+const PROBLEMS: [(&str, &[&str]); 2] = [
+    ("membranes", &["mu1", "mu2", "f1", "f2", "g2"]),
+    ("obstacle", &["mu", "f", "psi"]),
+];
 
 /// The `[mesh]` table: every key of every kind, so that errors point at the key; which keys a
 /// kind takes is checked after.
@@ -323,7 +339,7 @@ impl Case {
         let err = |m: String| CaseError(format!("{origin}: {m}"));
         let file: CaseFile = toml::from_str(text).map_err(|e| err(toml_error(text, &e)))?;
         let names = let_names(&file.names).map_err(err)?;
-        let expr = |key: &str, e: &Expression| parse_expression(key, e, &names).map_err(err);
+        let parsed = |key: &str, e: &Expression| parse_expression(key, e, &names);
         let degree = file.quadrature.degree;
         if degree > Quadrature::MAX_DEGREE {
             return Err(err(format!(
@@ -343,31 +359,11 @@ impl Case {
                 ))
             })?,
         };
-        let data = Data::new(
-            [file.mu1, file.mu2],
-            expr("f1", &file.f1)?,
-            expr("f2", &file.f2)?,
-            expr("g", &file.g)?,
-            Quadrature { degree },
-        )
-        .map_err(|e| err(e.to_string()))?;
-        let exact = match &file.exact {
-            None => None,
-            Some(e) => {
-                let grad = |key: &str, g: &Option<[Expression; 2]>| -> Result<Option<[Expr; 2]>, CaseError> {
-                    g.as_ref()
-                        .map(|[gx, gy]| Ok([expr(key, gx)?, expr(key, gy)?]))
-                        .transpose()
-                };
-                Some(Exact {
-                    u1: expr("exact.u1", &e.u1)?,
-                    u2: expr("exact.u2", &e.u2)?,
-                    lambda: expr("exact.lambda", &e.lambda)?,
-                    grad_u1: grad("exact.grad_u1", &e.grad_u1)?,
-                    grad_u2: grad("exact.grad_u2", &e.grad_u2)?,
-                })
-            }
-        };
+        let data = problem_data(&file, &parsed, Quadrature { degree }).map_err(err)?;
+        let exact = (file.exact.as_ref())
+            .map(|e| exact_solution(e, &data, &parsed))
+            .transpose()
+            .map_err(err)?;
         let mesh = mesh_spec(&file.mesh).map_err(err)?;
         let validation = (file.validation.as_ref())
             .map(|v| validation_levels(v, &mesh))
@@ -419,6 +415,33 @@ impl Case {
                 self.origin,
                 self.kind()
             ))),
+        }
+    }
+
+    /// Fails for what a run cannot yet compute on this problem: the fluxes and the estimator above
+    /// a rigid obstacle, the estimator with a boundary value g2 of membrane 2 (its lifting of
+    /// g2 − g2_h is not in docs/a-posteriori.md).
+    pub fn check_options(&self, flux: bool, estimate: bool) -> Result<(), CaseError> {
+        let why = match &self.data.lower {
+            Lower::Rigid { .. } if flux || estimate => {
+                "the fluxes (--flux) and the estimator (--estimate, adapt) are of two membranes; \
+                 above a rigid obstacle (problem = \"obstacle\") they are not available yet"
+            }
+            Lower::Membrane { g2, .. } if estimate && g2.constant() != Some(0.0) => {
+                "the estimator (--estimate, adapt) takes u2 = 0 on ∂ω; with key 'g2' it is not \
+                 available yet"
+            }
+            _ => return Ok(()),
+        };
+        Err(CaseError(format!("{}: {why}", self.origin)))
+    }
+
+    /// The problem, as the key `problem` names it.
+    pub fn problem_name(&self) -> &'static str {
+        if self.data.is_obstacle() {
+            "obstacle"
+        } else {
+            "membranes"
         }
     }
 
@@ -708,10 +731,16 @@ impl Describe for Case {
             ("case_origin", Attr::Text(self.origin.clone())),
             ("case_text", Attr::Text(self.text.clone())),
             ("title", Attr::Text(self.title.clone())),
-            ("mu1", self.data.mu1.into()),
-            ("mu2", self.data.mu2.into()),
+            ("problem", Attr::Text(self.problem_name().into())),
+            (
+                if self.data.is_obstacle() { "mu" } else { "mu1" },
+                self.data.mu1.into(),
+            ),
             ("quadrature_degree", self.data.quadrature.degree.into()),
         ]
+        .into_iter()
+        .chain(self.data.mu2().map(|mu2| ("mu2", mu2.into())))
+        .collect()
     }
 }
 
@@ -748,6 +777,124 @@ fn toml_error(text: &str, e: &toml::de::Error) -> String {
         }
         None => message,
     }
+}
+
+/// The data of the case's problem (`problem` = "membranes", the default, or "obstacle"): its keys
+/// present, the other problem's keys absent.
+fn problem_data(
+    file: &CaseFile,
+    expr: &dyn Fn(&str, &Expression) -> Result<Expr, String>,
+    quadrature: Quadrature,
+) -> Result<Data, String> {
+    let problem = file.problem.as_deref().unwrap_or("membranes");
+    let present: [(&str, bool); 8] = [
+        ("mu1", file.mu1.is_some()),
+        ("mu2", file.mu2.is_some()),
+        ("f1", file.f1.is_some()),
+        ("f2", file.f2.is_some()),
+        ("g2", file.g2.is_some()),
+        ("mu", file.mu.is_some()),
+        ("f", file.f.is_some()),
+        ("psi", file.psi.is_some()),
+    ];
+    let Some((_, keys)) = PROBLEMS.iter().find(|(name, _)| *name == problem) else {
+        let names = PROBLEMS.map(|(n, _)| format!("\"{n}\"")).join(" or ");
+        return Err(format!("key 'problem' = \"{problem}\": expected {names}"));
+    };
+    if let Some((key, _)) = present.iter().find(|(k, there)| *there && !keys.contains(k)) {
+        let owner = PROBLEMS
+            .iter()
+            .find(|(_, ks)| ks.contains(key))
+            .map_or("", |(n, _)| n);
+        return Err(format!(
+            "key '{key}' belongs to problem = \"{owner}\", not to problem = \"{problem}\""
+        ));
+    }
+    let missing = |key: &str| format!("key '{key}' is missing (problem = \"{problem}\")");
+    let need = |key: &str, e: &Option<Expression>| -> Result<Expr, String> {
+        let e = e.as_ref().ok_or_else(|| missing(key))?;
+        expr(key, e)
+    };
+    let number = |key: &str, v: Option<f64>| v.ok_or_else(|| missing(key));
+    let g = expr("g", &file.g)?;
+    let data = match problem {
+        "obstacle" => Data::obstacle(
+            number("mu", file.mu)?,
+            need("f", &file.f)?,
+            need("psi", &file.psi)?,
+            g,
+            quadrature,
+        ),
+        _ => Data::new(
+            [number("mu1", file.mu1)?, number("mu2", file.mu2)?],
+            need("f1", &file.f1)?,
+            need("f2", &file.f2)?,
+            g,
+            quadrature,
+        ),
+    };
+    let data = data.map_err(|e| e.to_string())?;
+    match &file.g2 {
+        Some(g2) => Ok(data.with_g2(expr("g2", g2)?)),
+        None => Ok(data),
+    }
+}
+
+/// The `[exact]` table of the case's problem: u1, u2 (and their gradients) of the membranes, or
+/// u (and its gradient) above a rigid obstacle, whose u2 is ψ.
+fn exact_solution(
+    e: &ExactFile,
+    data: &Data,
+    expr: &dyn Fn(&str, &Expression) -> Result<Expr, String>,
+) -> Result<Exact, String> {
+    let one = |key: &str, v: &Option<Expression>| v.as_ref().map(|v| expr(key, v)).transpose();
+    let grad = |key: &str, g: &Option<[Expression; 2]>| -> Result<Option<[Expr; 2]>, String> {
+        let parse = |v| expr(key, v);
+        g.as_ref()
+            .map(|[gx, gy]| Ok([parse(gx)?, parse(gy)?]))
+            .transpose()
+    };
+    let (keys, other): (&[&str], &[&str]) = match data.lower {
+        Lower::Rigid { .. } => (&["u", "grad_u"], &["u1", "u2", "grad_u1", "grad_u2"]),
+        Lower::Membrane { .. } => (&["u1", "u2", "grad_u1", "grad_u2"], &["u", "grad_u"]),
+    };
+    let present = [
+        ("u1", e.u1.is_some()),
+        ("u2", e.u2.is_some()),
+        ("grad_u1", e.grad_u1.is_some()),
+        ("grad_u2", e.grad_u2.is_some()),
+        ("u", e.u.is_some()),
+        ("grad_u", e.grad_u.is_some()),
+    ];
+    if let Some((key, _)) = present.iter().find(|(k, there)| *there && other.contains(k)) {
+        return Err(format!(
+            "key 'exact.{key}' does not belong to this problem: its exact solution has {}",
+            keys.iter()
+                .map(|k| format!("'exact.{k}'"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
+    let missing = |key: &str| format!("key 'exact.{key}' is missing");
+    let lambda = expr("exact.lambda", &e.lambda)?;
+    Ok(match &data.lower {
+        Lower::Rigid { psi } => Exact {
+            u1: one("exact.u", &e.u)?.ok_or_else(|| missing("u"))?,
+            u2: psi.clone(),
+            lambda,
+            grad_u1: grad("exact.grad_u", &e.grad_u)?,
+            grad_u2: None,
+            rigid: true,
+        },
+        Lower::Membrane { .. } => Exact {
+            u1: one("exact.u1", &e.u1)?.ok_or_else(|| missing("u1"))?,
+            u2: one("exact.u2", &e.u2)?.ok_or_else(|| missing("u2"))?,
+            lambda,
+            grad_u1: grad("exact.grad_u1", &e.grad_u1)?,
+            grad_u2: grad("exact.grad_u2", &e.grad_u2)?,
+            rigid: false,
+        },
+    })
 }
 
 /// An expression of the case language, using the named values `names`.

@@ -125,9 +125,10 @@ impl Fluxes {
         action: &Action,
     ) -> Fluxes {
         let (mesh, d) = (&problem.mesh, &problem.data);
+        let mu2 = d.mu2().expect("the fluxes are reconstructed on two membranes");
         let membranes = [
             (&solution.u1, d.mu1, &problem.load1, 1.0),
-            (&solution.u2, d.mu2, &problem.load2, -1.0),
+            (&solution.u2, mu2, &problem.load2, -1.0),
         ];
         // The terms of μ_i ∫∇u_ih·∇φ_a cancel down to O(h²): round-off is relative to them, and
         // λ_a's to those of both membranes (it is computed from membrane 1, Prop. 12), so each
@@ -137,9 +138,9 @@ impl Fluxes {
             .filter(|&a| !mesh.on_boundary[a])
             .map(|a| {
                 let terms: f64 = (problem.stiffness.row(a))
-                    .map(|(b, k)| (d.mu1 * k * solution.u1[b]).abs() + (d.mu2 * k * solution.u2[b]).abs())
+                    .map(|(b, k)| (d.mu1 * k * solution.u1[b]).abs() + (mu2 * k * solution.u2[b]).abs())
                     .sum();
-                terms + problem.load1[a].abs() + problem.load2[a].abs()
+                terms + problem.load_size(a)
             })
             .fold(f64::MIN_POSITIVE, f64::max);
         let [(t1, c1), (t2, c2)] = membranes.map(|(u, mu, load, sign)| {

@@ -1,48 +1,119 @@
 //! The data of problem (1.1) and the discrete problem (3.4) they define on one mesh.
 //!
-//! (3.4): find (u1h, u2h) in X_h × X_h with u1h = g_h and u2h = 0 on ∂ω and u1h − u2h ≥ 0 at the
-//! vertices, minimising Σ_i μ_i/2 ∫|∇u_ih|² − (f_i, u_ih). On T_h it is given by the stiffness
-//! matrix K_ab = ∫∇φ_b·∇φ_a, the loads (f_i, φ_a), the masses m_a = ∫φ_a (which pair λ_h with
-//! the hat functions, Remark 11) and g_h, the Lagrange interpolant of g on ∂ω.
+//! (3.4): find (u1h, u2h) in X_h × X_h with u1h = g_h and u2h = g2_h on ∂ω and u1h − u2h ≥ 0 at
+//! the vertices, minimising Σ_i μ_i/2 ∫|∇u_ih|² − (f_i, u_ih). On T_h it is given by the
+//! stiffness matrix K_ab = ∫∇φ_b·∇φ_a, the loads (f_i, φ_a), the masses m_a = ∫φ_a (which pair
+//! λ_h with the hat functions, Remark 11) and g_h, g2_h, the Lagrange interpolants of g, g2 on ∂ω
+//! (the paper's g2 = 0 is the default).
+//!
+//! The classical obstacle problem is the same inequality with membrane 2 replaced by a rigid body:
+//! find u_h in X_h with u_h = g_h on ∂ω and u_h ≥ ψ_h at the vertices, minimising
+//! μ/2 ∫|∇u_h|² − (f, u_h), ψ_h the Lagrange interpolant of ψ. It is kept here as u1h = u_h with
+//! u2h = ψ_h fixed at every vertex, so that the gap w = u1h − u2h ≥ 0 and the action
+//! λ_a m_a = μ(K u1h)_a − (f, φ_a) are those of (3.4) and (4.5).
 
 use crate::assembly::{self, Quadrature, Stiffness};
 use crate::expr::Expr;
 use crate::mesh::Mesh;
 use std::fmt;
 
-/// The data of problem (1.1): tensions, loads and the boundary height of membrane 1.
+/// The data of problem (1.1), or of the obstacle problem: membrane 1's tension, load and boundary
+/// height, and what lies below it.
 #[derive(Debug, Clone)]
 pub struct Data {
-    /// μ1 > 0.
+    /// μ1 > 0 (the obstacle problem's μ).
     pub mu1: f64,
-    /// μ2 > 0.
-    pub mu2: f64,
-    /// The load on membrane 1.
+    /// The load on membrane 1 (the obstacle problem's f).
     pub f1: Expr,
-    /// The load on membrane 2.
-    pub f2: Expr,
     /// The height of membrane 1 on ∂ω.
     pub g: Expr,
+    /// Membrane 2 or a rigid obstacle.
+    pub lower: Lower,
     /// The rule for the loads (f_i, φ_a).
     pub quadrature: Quadrature,
 }
 
+/// What membrane 1 lies on.
+#[derive(Debug, Clone)]
+pub enum Lower {
+    /// Membrane 2 of (1.1).
+    Membrane {
+        /// μ2 > 0.
+        mu2: f64,
+        /// Its load.
+        f2: Expr,
+        /// Its height on ∂ω (0 in the paper).
+        g2: Expr,
+    },
+    /// A rigid obstacle u1 ≥ ψ: the classical obstacle problem.
+    Rigid {
+        /// ψ.
+        psi: Expr,
+    },
+}
+
 impl Data {
-    /// The data, with μ1, μ2 checked to be positive and finite.
+    /// The data of (1.1) with u2 = 0 on ∂ω, with μ1, μ2 checked to be positive and finite.
     pub fn new(mu: [f64; 2], f1: Expr, f2: Expr, g: Expr, quadrature: Quadrature) -> Result<Self, DataError> {
         for (name, value) in [("mu1", mu[0]), ("mu2", mu[1])] {
-            if !(value > 0.0 && value.is_finite()) {
-                return Err(DataError::Tension { name, value });
-            }
+            check_tension(name, value)?;
         }
+        let g2 = Expr::parse("0").expect("0 is an expression");
         Ok(Data {
             mu1: mu[0],
-            mu2: mu[1],
             f1,
-            f2,
             g,
+            lower: Lower::Membrane { mu2: mu[1], f2, g2 },
             quadrature,
         })
+    }
+
+    /// The same data with u2 = `g2` on ∂ω; no change below a rigid obstacle.
+    pub fn with_g2(mut self, height: Expr) -> Self {
+        if let Lower::Membrane { g2, .. } = &mut self.lower {
+            *g2 = height;
+        }
+        self
+    }
+
+    /// The data of the obstacle problem: μ (checked), f, the obstacle ψ and g.
+    pub fn obstacle(mu: f64, f: Expr, psi: Expr, g: Expr, quadrature: Quadrature) -> Result<Self, DataError> {
+        check_tension("mu", mu)?;
+        Ok(Data {
+            mu1: mu,
+            f1: f,
+            g,
+            lower: Lower::Rigid { psi },
+            quadrature,
+        })
+    }
+
+    /// μ2, when membrane 1 lies on membrane 2.
+    pub fn mu2(&self) -> Option<f64> {
+        match self.lower {
+            Lower::Membrane { mu2, .. } => Some(mu2),
+            Lower::Rigid { .. } => None,
+        }
+    }
+
+    /// f2, when membrane 1 lies on membrane 2.
+    pub fn f2(&self) -> Option<&Expr> {
+        match &self.lower {
+            Lower::Membrane { f2, .. } => Some(f2),
+            Lower::Rigid { .. } => None,
+        }
+    }
+
+    /// Whether membrane 1 lies on a rigid obstacle (the classical obstacle problem).
+    pub fn is_obstacle(&self) -> bool {
+        matches!(self.lower, Lower::Rigid { .. })
+    }
+}
+
+fn check_tension(name: &'static str, value: f64) -> Result<(), DataError> {
+    match value > 0.0 && value.is_finite() {
+        true => Ok(()),
+        false => Err(DataError::Tension { name, value }),
     }
 }
 
@@ -65,11 +136,15 @@ pub enum DataError {
         /// The value there.
         value: f64,
     },
-    /// g_h < 0 at a boundary vertex.
-    NegativeBoundaryHeight {
+    /// g_h below the height of what lies below (g2 or ψ) at a boundary vertex.
+    BoundaryBelowLower {
+        /// "g2" or "psi".
+        lower: &'static str,
         /// The vertex.
         point: [f64; 2],
         /// g there.
+        g: f64,
+        /// g2 or ψ there.
         value: f64,
     },
 }
@@ -85,10 +160,16 @@ impl fmt::Display for DataError {
                 "{name} is {value} at ({}, {}): every datum must be finite in ω",
                 point[0], point[1]
             ),
-            DataError::NegativeBoundaryHeight { point, value } => write!(
+            DataError::BoundaryBelowLower {
+                lower,
+                point,
+                g,
+                value,
+            } => write!(
                 f,
-                "g = {value} < 0 at the boundary vertex ({}, {}): (3.4) takes g_h, the interpolant of g, \
-                 which must be ≥ 0 at every boundary vertex of the mesh (g ≥ 0 on ∂ω)",
+                "g = {g} < {lower} = {value} at the boundary vertex ({}, {}): (3.4) takes g_h, the \
+                 interpolant of g, which must be ≥ {lower} at every boundary vertex of the mesh \
+                 (membrane 1 may not lie below what it rests on)",
                 point[0], point[1]
             ),
         }
@@ -110,16 +191,31 @@ pub struct DiscreteProblem {
     pub mass: Vec<f64>,
     /// (f1, φ_a) at every vertex.
     pub load1: Vec<f64>,
-    /// (f2, φ_a) at every vertex.
+    /// (f2, φ_a) at every vertex; empty below a rigid obstacle.
     pub load2: Vec<f64>,
     /// g_h: g at the boundary vertices, 0 inside.
     pub g_h: Vec<f64>,
+    /// The gap w = u1h − u2h at the boundary vertices (g − g2 or g − ψ), 0 inside.
+    pub gap_h: Vec<f64>,
+    /// ψ_h at every vertex below a rigid obstacle; empty below a membrane.
+    pub psi_h: Vec<f64>,
+}
+
+/// What the data fix at the vertices: g_h, the gap on ∂ω and ψ_h ([`DiscreteProblem`]'s fields).
+#[derive(Debug, Clone)]
+pub struct Heights {
+    /// g_h.
+    pub g: Vec<f64>,
+    /// The gap on ∂ω.
+    pub gap: Vec<f64>,
+    /// ψ_h, or empty.
+    pub psi: Vec<f64>,
 }
 
 impl DiscreteProblem {
     /// Assembles (3.4) on `mesh`; the loads by the data's quadrature rule.
     pub fn new(mesh: Mesh, data: &Data) -> Result<Self, DataError> {
-        let g_h = boundary_values(&mesh, data)?;
+        let heights = boundary_values(&mesh, data)?;
         let load = |name, f: &Expr| {
             assembly::load(&mesh, f, data.quadrature).map_err(|e| DataError::NotFinite {
                 name,
@@ -127,15 +223,19 @@ impl DiscreteProblem {
                 value: e.value,
             })
         };
-        let loads = [load("f1", &data.f1)?, load("f2", &data.f2)?];
-        Ok(Self::with_loads(mesh, data, g_h, loads))
+        let load2 = match &data.lower {
+            Lower::Membrane { f2, .. } => load("f2", f2)?,
+            Lower::Rigid { .. } => Vec::new(),
+        };
+        let loads = [load("f1", &data.f1)?, load2];
+        Ok(Self::with_loads(mesh, data, heights, loads))
     }
 
-    /// The problem on `mesh` with its boundary values `g_h` ([`boundary_values`]) and the loads
-    /// given. For the coarse levels of nested iteration, the loads restricted from a finer level
-    /// by Pᵀ ([`crate::mesh::Prolongation::restrict`]): exactly their own loads (with the finer
-    /// mesh's quadrature) when the meshes are nested, and no quadrature to evaluate.
-    pub fn with_loads(mesh: Mesh, data: &Data, g_h: Vec<f64>, [load1, load2]: [Vec<f64>; 2]) -> Self {
+    /// The problem on `mesh` with its `heights` ([`boundary_values`]) and the loads given. For
+    /// the coarse levels of nested iteration, the loads restricted from a finer level by Pᵀ
+    /// ([`crate::mesh::Prolongation::restrict`]): exactly their own loads (with the finer mesh's
+    /// quadrature) when the meshes are nested, and no quadrature to evaluate.
+    pub fn with_loads(mesh: Mesh, data: &Data, heights: Heights, [load1, load2]: [Vec<f64>; 2]) -> Self {
         let stiffness = Stiffness::assemble(&mesh);
         let mass = assembly::lumped_mass(&mesh);
         DiscreteProblem {
@@ -145,30 +245,79 @@ impl DiscreteProblem {
             mass,
             load1,
             load2,
-            g_h,
+            g_h: heights.g,
+            gap_h: heights.gap,
+            psi_h: heights.psi,
         }
+    }
+
+    /// The load (f_w, φ_a) of the obstacle problem for the gap w at vertex a, and its factor μ*
+    /// (μ* K w − f_w = λ m): (μ2 (f1, φ_a) − μ1 (f2, φ_a))/(μ1+μ2) with μ* = μ1μ2/(μ1+μ2) on
+    /// membrane 2; (f, φ_a) − μ (K ψ_h)_a with μ* = μ on a rigid obstacle.
+    pub fn gap_load(&self, a: usize) -> f64 {
+        match self.data.lower {
+            Lower::Membrane { mu2, .. } => {
+                let mu1 = self.data.mu1;
+                (mu2 * self.load1[a] - mu1 * self.load2[a]) / (mu1 + mu2)
+            }
+            Lower::Rigid { .. } => self.load1[a] - self.data.mu1 * self.stiffness.row_dot(a, &self.psi_h),
+        }
+    }
+
+    /// μ* of [`DiscreteProblem::gap_load`].
+    pub fn gap_tension(&self) -> f64 {
+        match self.data.lower {
+            Lower::Membrane { mu2, .. } => self.data.mu1 * mu2 / (self.data.mu1 + mu2),
+            Lower::Rigid { .. } => self.data.mu1,
+        }
+    }
+
+    /// |(f1, φ_a)| + |(f2, φ_a)|: the size of the loads at a.
+    pub fn load_size(&self, a: usize) -> f64 {
+        self.load1[a].abs() + self.load2.get(a).map_or(0.0, |l| l.abs())
     }
 }
 
-/// g_h: g at the boundary vertices (finite, ≥ 0), 0 inside. Only the vertex values enter (3.4),
-/// so they are what is checked.
-pub fn boundary_values(mesh: &Mesh, data: &Data) -> Result<Vec<f64>, DataError> {
-    let mut g_h = vec![0.0; mesh.n_vertices()];
+/// The heights on `mesh`: g_h and the gap at the boundary vertices (finite, g ≥ g2 or g ≥ ψ), 0
+/// inside, and ψ_h (finite) at every vertex below a rigid obstacle. Only the vertex values enter
+/// (3.4), so they are what is checked.
+pub fn boundary_values(mesh: &Mesh, data: &Data) -> Result<Heights, DataError> {
+    let n = mesh.n_vertices();
+    let finite = |name: &'static str, e: &Expr, p: &[f64; 2]| {
+        let value = e.eval(p[0], p[1]);
+        match value.is_finite() {
+            true => Ok(value),
+            false => Err(DataError::NotFinite {
+                name,
+                point: *p,
+                value,
+            }),
+        }
+    };
+    let psi = match &data.lower {
+        Lower::Rigid { psi } => (mesh.points.iter())
+            .map(|p| finite("psi", psi, p))
+            .collect::<Result<_, _>>()?,
+        Lower::Membrane { .. } => Vec::new(),
+    };
+    let (mut g_h, mut gap) = (vec![0.0; n], vec![0.0; n]);
     for (a, p) in mesh.points.iter().enumerate() {
         if mesh.on_boundary[a] {
-            let value = data.g.eval(p[0], p[1]);
-            if !value.is_finite() {
-                return Err(DataError::NotFinite {
-                    name: "g",
+            let g = finite("g", &data.g, p)?;
+            let (lower, value) = match &data.lower {
+                Lower::Membrane { g2, .. } => ("g2", finite("g2", g2, p)?),
+                Lower::Rigid { .. } => ("psi", psi[a]),
+            };
+            if g < value {
+                return Err(DataError::BoundaryBelowLower {
+                    lower,
                     point: *p,
+                    g,
                     value,
                 });
             }
-            if value < 0.0 {
-                return Err(DataError::NegativeBoundaryHeight { point: *p, value });
-            }
-            g_h[a] = value;
+            (g_h[a], gap[a]) = (g, g - value);
         }
     }
-    Ok(g_h)
+    Ok(Heights { g: g_h, gap, psi })
 }

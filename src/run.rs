@@ -88,6 +88,8 @@ pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
         estimate: options.estimate,
         hminus1: options.hminus1 && case.exact.is_some(),
     };
+    // Before the mesh is built: what this problem cannot compute fails at once.
+    case.check_options(options.flux, options.estimate)?;
     let (mesh, coarser) = case.hierarchy(multigrid || matches!(options.start, Start::Nested), after)?;
     case.check_on(&mesh)?;
     on_mesh(case, mesh, coarser, options, clock.elapsed().as_secs_f64())
@@ -102,6 +104,7 @@ pub fn on_mesh<'c>(
     options: &Options,
     mesh_seconds: f64,
 ) -> Result<Run<'c>, RunError> {
+    case.check_options(options.flux, options.estimate)?;
     let mut clock = Clock(Instant::now());
     progress::phase(|| format!("assembly: {} vertices", mesh.n_vertices()));
     let problem =
@@ -187,7 +190,16 @@ impl Run<'_> {
     /// corrections, CG iterations or factorizations) and why Cholesky ran in place of multigrid.
     pub fn summary(&self, verbose: bool) -> String {
         let mut out = self.mesh_line() + &self.solver_line(verbose) + &self.action_lines();
-        if let Some(e) = &self.errors {
+        if let Some(e) = self.errors.as_ref().filter(|_| self.solution.rigid) {
+            let show = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.4e}"));
+            out += &format!(
+                "errors      |u−uh|_H1 = {}, ‖u−uh‖_L2 = {:.4e}, ‖λ−λh‖_L2 = {:.4e}, ‖λ−λh‖_H⁻¹ = {}\n",
+                show(e.h1_u1),
+                e.l2_u1,
+                e.l2_lambda,
+                show(e.hminus1_lambda)
+            );
+        } else if let Some(e) = &self.errors {
             let show = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.4e}"));
             out += &format!(
                 "errors      |u1−u1h|_H1 = {}, |u2−u2h|_H1 = {}, ‖u1−u1h‖_L2 = {:.4e}, ‖u2−u2h‖_L2 = {:.4e}, ‖λ−λh‖_L2 = {:.4e}, ‖λ−λh‖_H⁻¹ = {}\n",
@@ -275,16 +287,22 @@ impl Run<'_> {
     /// The summary's lines on λ_h and the checks of the solution.
     fn action_lines(&self) -> String {
         let (a, c) = (&self.action, &self.action.checks);
+        let (same, gap) = match self.solution.rigid {
+            true => (String::new(), "u_h − ψ_h"),
+            false => (
+                format!("λ_h the same from either membrane {:.1e}, ", c.prop12),
+                "u1h − u2h",
+            ),
+        };
         format!(
             "action      ∫λ_h = {:.6e}, contact area = {:.6e}, max λ = {:.6e}\n\
-             checks      passed, each relative to the terms that cancel (tolerance {:.0e}): λ_h the same from \
-             either membrane {:.1e}, λ_h ≥ 0 {:.1e}, λ_h (u1h − u2h) = 0 {:.1e}, u1h − u2h ≥ 0 {:.1e}; \
+             checks      passed, each relative to the terms that cancel (tolerance {:.0e}): {same}\
+             λ_h ≥ 0 {:.1e}, λ_h ({gap}) = 0 {:.1e}, {gap} ≥ 0 {:.1e}; \
              round-off of λ_h {:.1e} of the loads (limit {:.0e})\n",
             a.total,
             a.contact_area,
             a.lambda.iter().copied().fold(0.0, f64::max),
             crate::action::TOLERANCE,
-            c.prop12,
             c.negative_lambda,
             c.complementarity,
             c.negative_gap,
@@ -302,7 +320,7 @@ impl Run<'_> {
         };
         format!(
             "seconds     mesh {:.3}, assembly {:.3}, contact solve {:.3} (coarser levels {:.3}, {} {:.3}, \
-             {} {:.3} + {} {:.3} summed over v and w), postprocess {:.3}{}, write {:.3}; on {} threads{}\n",
+             {} {:.3} + {} {:.3} {}), postprocess {:.3}{}, write {:.3}; on {} threads{}\n",
             t.mesh,
             t.assembly,
             s.wall_seconds,
@@ -313,6 +331,11 @@ impl Run<'_> {
             s.numeric_seconds,
             phases[2],
             s.solve_seconds,
+            if self.solution.rigid {
+                "of w"
+            } else {
+                "summed over v and w"
+            },
             t.postprocess,
             (self.estimate.as_ref()).map_or(String::new(), |_| format!(", estimate {:.3}", t.estimate)),
             t.write,

@@ -127,7 +127,7 @@ fn adaptivity_follows_the_true_error_in_and_out_of_contact() {
                 let d2 = [g[2][q] - uh[1][0], g[3][q] - uh[1][1]];
                 error[t] += p.weight
                     * (case.data.mu1 * (d1[0] * d1[0] + d1[1] * d1[1])
-                        + case.data.mu2 * (d2[0] * d2[0] + d2[1] * d2[1]));
+                        + case.data.mu2().unwrap() * (d2[0] * d2[0] + d2[1] * d2[1]));
             }
         },
     );

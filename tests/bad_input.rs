@@ -218,11 +218,89 @@ fn negative_tension() {
 #[test]
 fn negative_boundary_height() {
     let e = case_fails(&format!("{}{SQUARE}", GOOD.replace("0.1*x", "0.1*x - 0.05")));
-    contains(&e, "g = -0.05 < 0 at the boundary vertex (0, 0)");
+    contains(&e, "g = -0.05 < g2 = 0 at the boundary vertex (0, 0)");
     contains(
         &e,
-        "g_h, the interpolant of g, which must be ≥ 0 at every boundary vertex of the mesh",
+        "g_h, the interpolant of g, which must be ≥ g2 at every boundary vertex of the mesh",
     );
+}
+
+/// A good obstacle problem: μ, f, ψ and g, with ψ < g on ∂ω.
+const OBSTACLE: &str = "problem = \"obstacle\"\nmu = 1.0\nf = -5\npsi = \"0.1 - x*x\"\ng = 0.2\n";
+
+#[test]
+fn the_obstacle_problem_and_g2_run_and_their_keys_are_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, text) in [
+        ("obstacle", OBSTACLE.to_string()),
+        ("g2", format!("{GOOD}g2 = \"-0.1 + 0.01*y\"\n")),
+    ] {
+        let case = dir.path().join(format!("{name}.toml"));
+        std::fs::write(&case, format!("{text}{SQUARE}")).unwrap();
+        let out = dir.path().join(name);
+        let run = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+            .args(["solve", "--quiet"])
+            .arg(&case)
+            .arg("-o")
+            .arg(&out));
+        assert!(
+            run.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
+    let key = |e: &str, needle: &str| contains(&case_fails(&format!("{e}{SQUARE}")), needle);
+    key(
+        &OBSTACLE.replace("obstacle", "obstacles"),
+        "key 'problem' = \"obstacles\": expected \"membranes\" or \"obstacle\"",
+    );
+    key(
+        &format!("{OBSTACLE}mu1 = 2.0\n"),
+        "key 'mu1' belongs to problem = \"membranes\", not to problem = \"obstacle\"",
+    );
+    key(
+        &format!("{GOOD}psi = 0\n"),
+        "key 'psi' belongs to problem = \"obstacle\", not to problem = \"membranes\"",
+    );
+    key(
+        &OBSTACLE.replace("psi = \"0.1 - x*x\"\n", ""),
+        "key 'psi' is missing (problem = \"obstacle\")",
+    );
+    key(
+        &OBSTACLE.replace("mu = 1.0", "mu = -1.0"),
+        "key 'mu' = -1: the tension must be a positive number",
+    );
+    // g < ψ at (1, 0): ψ = 0.1 − x² there is −0.9, so lift ψ by 1.
+    key(
+        &OBSTACLE.replace("0.1 - x*x", "1.1 - x*x"),
+        "g = 0.2 < psi = 1.1 at the boundary vertex (0, 0)",
+    );
+    key(
+        &format!("{GOOD}g2 = 0.05\n"),
+        "g = 0 < g2 = 0.05 at the boundary vertex (0, 0)",
+    );
+    key(
+        &format!("{OBSTACLE}[exact]\nu1 = 0\nu2 = 0\nlambda = 0\n"),
+        "key 'exact.u1' does not belong to this problem",
+    );
+    key(
+        &format!("{OBSTACLE}[exact]\nlambda = 0\n"),
+        "key 'exact.u' is missing",
+    );
+    for option in ["--estimate", "--flux"] {
+        let e = fails(&format!("{OBSTACLE}{SQUARE}"), |_| {}, &[option], None);
+        contains(
+            &e,
+            "above a rigid obstacle (problem = \"obstacle\") they are not available yet",
+        );
+    }
+    let e = fails(
+        &format!("{GOOD}g2 = -0.1\n{SQUARE}"),
+        |_| {},
+        &["--estimate"],
+        None,
+    );
+    contains(&e, "with key 'g2' it is not available yet");
 }
 
 #[test]

@@ -90,8 +90,8 @@ pub(super) fn obstacle(
         // coarser levels' stop, and the set is confirmed by steps to the full one.
         solver.loosen(GUESS_STOP);
     }
-    let rhs = w_problem.rhs(system, &problem.g_h);
-    let data = [&rhs[..], &problem.g_h[..]];
+    let rhs = w_problem.rhs(system, &problem.gap_h);
+    let data = [&rhs[..], &problem.gap_h[..]];
     let (mut correcting, mut same_set) = (true, false);
     loop {
         if stats.iterations == options.max_iterations {
@@ -136,8 +136,8 @@ pub(super) fn obstacle(
     }
 }
 
-/// The active set the guess predicts; settled locally first (`settle`) with the guess (and g_h
-/// on ∂ω) as Dirichlet data, as the guess's free boundary is off by a few mesh sizes.
+/// The active set the guess predicts; settled locally first (`settle`) with the guess (and the
+/// gap's boundary values on ∂ω) as Dirichlet data, as the guess's free boundary is off by a few mesh sizes.
 fn first_set(
     w_problem: &mut WProblem,
     system: &InteriorSystem,
@@ -152,7 +152,7 @@ fn first_set(
     if !settle {
         return active;
     }
-    let data: Vec<f64> = (guess.gap.iter().zip(&problem.g_h).enumerate())
+    let data: Vec<f64> = (guess.gap.iter().zip(&problem.gap_h).enumerate())
         .map(|(a, (&w, &g))| if problem.mesh.on_boundary[a] { g } else { w })
         .collect();
     let seeds = interface(problem, system, &active);

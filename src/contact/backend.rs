@@ -184,7 +184,7 @@ impl Loads<'_> {
     /// (|(f1, φ_a)| + |(f2, φ_a)|)/scale: the sizes of the loads at vertex a that the checks
     /// count (see [`RESULT_BACKWARD`]).
     fn size(&self, a: usize) -> f64 {
-        (self.problem.load1[a].abs() + self.problem.load2[a].abs()) / self.scale
+        self.problem.load_size(a) / self.scale
     }
 }
 

@@ -58,6 +58,9 @@ pub struct Solution {
     pub u2: Vec<f64>,
     /// The obstacle problem's solution w = u1h − u2h, with its λ and contact set.
     pub obstacle: Obstacle,
+    /// Whether u2h is a rigid obstacle ψ_h (the classical obstacle problem): its fields are then
+    /// written as u = u1h and psi = u2h.
+    pub rigid: bool,
 }
 
 /// Solves (3.4): the Poisson problem for v beside the obstacle problem for w from the guess of
@@ -99,7 +102,13 @@ pub fn solve(
     let transfer_seconds = clock.elapsed().as_secs_f64();
     let guess = || initial_guess(problem, start, coarser, &prolongations, options);
     let analyse = || Analysis::new(problem, multigrid.then_some(&prolongations[..]));
-    let (analysis, v, obstacle) = if multigrid && problem.mesh.n_vertices() <= SIDE_BY_SIDE_LIMIT {
+    let side_by_side = multigrid && problem.mesh.n_vertices() <= SIDE_BY_SIDE_LIMIT;
+    let (analysis, v, obstacle) = if problem.data.is_obstacle() {
+        // Below a rigid obstacle there is no v: u1h = ψ_h + w.
+        let (analysis, started) = parallel::join(analyse, guess);
+        let w = started.and_then(|started| solve_w(problem, &analysis, started, options));
+        (analysis, Ok((Vec::new(), SolverStats::default())), w)
+    } else if side_by_side {
         let analysis = analyse();
         let (v, w) = parallel::join(
             || solve_v(problem, &analysis),
@@ -152,11 +161,17 @@ impl<'t> Analysis<'t> {
     }
 }
 
-/// v: (μ1+μ2) K v = F1 + F2 inside, v = μ1 g_h/(μ1+μ2) on ∂ω; at every vertex, with the work.
+/// v: (μ1+μ2) K v = F1 + F2 inside, v = (μ1 g_h + μ2 g2_h)/(μ1+μ2) = g_h − μ2/(μ1+μ2) w on ∂ω; at
+/// every vertex, with the work.
 fn solve_v(problem: &DiscreteProblem, analysis: &Analysis) -> Result<(Vec<f64>, SolverStats), SolveError> {
-    let (mu1, mu2) = (problem.data.mu1, problem.data.mu2);
+    let (mu1, mu2) = (
+        problem.data.mu1,
+        problem.data.mu2().expect("v is solved below membrane 2"),
+    );
     let system = &analysis.system;
-    let bc: Vec<f64> = problem.g_h.iter().map(|g| mu1 * g / (mu1 + mu2)).collect();
+    let bc: Vec<f64> = (problem.g_h.iter().zip(&problem.gap_h))
+        .map(|(g, w)| g - mu2 / (mu1 + mu2) * w)
+        .collect();
     let load = |a: usize| problem.load1[a] + problem.load2[a];
     let rhs = system.lifted_rhs(&problem.stiffness, load, mu1 + mu2, |a| bc[a]);
     let loads = Loads {
@@ -197,14 +212,29 @@ fn solve_w(
 }
 
 impl Solution {
-    /// u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w.
+    /// u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w; below a rigid obstacle u1 = ψ_h + w, u2 = ψ_h.
     fn of(problem: &DiscreteProblem, v: Vec<f64>, obstacle: Obstacle) -> Self {
-        let (mu1, mu2) = (problem.data.mu1, problem.data.mu2);
-        let (c1, c2) = (mu2 / (mu1 + mu2), mu1 / (mu1 + mu2));
         let w = &obstacle.gap;
+        let Some(mu2) = problem.data.mu2() else {
+            let psi = &problem.psi_h;
+            let u1 = psi.iter().zip(w).map(|(p, w)| p + w).collect();
+            return Solution {
+                u1,
+                u2: psi.clone(),
+                obstacle,
+                rigid: true,
+            };
+        };
+        let mu1 = problem.data.mu1;
+        let (c1, c2) = (mu2 / (mu1 + mu2), mu1 / (mu1 + mu2));
         let u1 = v.iter().zip(w).map(|(v, w)| v + c1 * w).collect();
         let u2 = v.iter().zip(w).map(|(v, w)| v - c2 * w).collect();
-        Solution { u1, u2, obstacle }
+        Solution {
+            u1,
+            u2,
+            obstacle,
+            rigid: false,
+        }
     }
 }
 
@@ -216,9 +246,10 @@ impl Describe for Solution {
             .iter()
             .map(|&c| f64::from(u8::from(c)))
             .collect();
+        let names = if self.rigid { ["u", "psi"] } else { ["u1", "u2"] };
         vec![
-            Field::new("u1", Place::Vertices, &self.u1),
-            Field::new("u2", Place::Vertices, &self.u2),
+            Field::new(names[0], Place::Vertices, &self.u1),
+            Field::new(names[1], Place::Vertices, &self.u2),
             Field::new("gap", Place::Vertices, &self.obstacle.gap),
             Field::owned("contact", Place::Vertices, contact),
         ]
@@ -471,7 +502,7 @@ mod tests {
         let (system, hierarchy) = analysed(&p, Some(&prolongations));
         let hierarchy = hierarchy.unwrap();
         let w_problem = WProblem::new(&p);
-        let rhs = w_problem.rhs(&system, &p.g_h);
+        let rhs = w_problem.rhs(&system, &p.gap_h);
         let loads = load_density(&p, &system, |a| w_problem.load(a), w_problem.mu_star);
         assert!((loads - 1.0).abs() < 1e-12, "{loads}");
         let density = |r: &dyn Fn(usize) -> f64| {

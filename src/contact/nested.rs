@@ -6,7 +6,7 @@ use super::active_set::{obstacle, Guess, Role};
 use super::backend::{analysed, GUESS_STOP};
 use super::options::{LinearSolver, SolveError, SolverOptions};
 use crate::mesh::{Mesh, Prolongation};
-use crate::problem::{boundary_values, DiscreteProblem};
+use crate::problem::{boundary_values, DiscreteProblem, Heights};
 use std::time::Instant;
 
 /// How the active-set method starts.
@@ -97,19 +97,22 @@ fn nested_guess(
     // The boundary values of each level (checked here, finest first) and its loads restricted
     // from the one above; each level's problem is assembled when it is solved and dropped once
     // solved.
-    let mut levels: Vec<(Mesh, Vec<f64>, [Vec<f64>; 2])> = Vec::new();
+    let mut levels: Vec<(Mesh, Heights, [Vec<f64>; 2])> = Vec::new();
     for (mesh, p) in coarser.into_iter().zip(prolongations) {
-        let g_h = boundary_values(&mesh, &problem.data).map_err(SolveError::CoarseData)?;
-        let [f1, f2] = levels
+        let heights = boundary_values(&mesh, &problem.data).map_err(SolveError::CoarseData)?;
+        let above = levels
             .last()
-            .map_or([&problem.load1, &problem.load2], |(_, _, [f1, f2])| [f1, f2]);
-        let loads = [p.restrict(f1), p.restrict(f2)];
-        levels.push((mesh, g_h, loads));
+            .map_or([&problem.load1, &problem.load2], |(_, _, loads)| {
+                [&loads[0], &loads[1]]
+            });
+        // Below a rigid obstacle there is no load on membrane 2 to restrict.
+        let loads = above.map(|f| if f.is_empty() { Vec::new() } else { p.restrict(f) });
+        levels.push((mesh, heights, loads));
     }
     let mut started = Started::from(None);
-    while let Some((mesh, g_h, loads)) = levels.pop() {
+    while let Some((mesh, heights, loads)) = levels.pop() {
         let k = levels.len();
-        let level = DiscreteProblem::with_loads(mesh, &problem.data, g_h, loads);
+        let level = DiscreteProblem::with_loads(mesh, &problem.data, heights, loads);
         // The coarsest level has no levels below: Cholesky.
         let below = (multigrid && k + 1 < prolongations.len()).then(|| &prolongations[k + 1..]);
         let (system, hierarchy) = analysed(&level, below);

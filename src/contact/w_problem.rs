@@ -29,19 +29,16 @@ pub(super) struct Step {
 
 impl<'p> WProblem<'p> {
     pub(super) fn new(problem: &'p DiscreteProblem) -> Self {
-        let (mu1, mu2) = (problem.data.mu1, problem.data.mu2);
         WProblem {
             problem,
-            mu_star: mu1 * mu2 / (mu1 + mu2),
+            mu_star: problem.gap_tension(),
             scratch: Vec::new(),
         }
     }
 
-    /// (f_w, φ_a) = (μ2 (f1, φ_a) − μ1 (f2, φ_a))/(μ1+μ2).
+    /// (f_w, φ_a) ([`DiscreteProblem::gap_load`]).
     pub(super) fn load(&self, a: usize) -> f64 {
-        let p = self.problem;
-        let (mu1, mu2) = (p.data.mu1, p.data.mu2);
-        (mu2 * p.load1[a] - mu1 * p.load2[a]) / (mu1 + mu2)
+        self.problem.gap_load(a)
     }
 
     /// The active-set rule at vertex a: λ_a m_a − μ* K_aa w_a > 0 (i.e. λ_a > c_a w_a with

@@ -76,7 +76,7 @@ impl Estimate {
         action: &Action,
     ) -> Estimate {
         let (mesh, data) = (&problem.mesh, &problem.data);
-        let mu = [data.mu1, data.mu2];
+        let mu = [data.mu1, data.mu2().expect("the estimator is of two membranes")];
         let alpha = mu[1] / (mu[0] + mu[1]);
         let patches = Patches::new(mesh);
         let loads = cell_loads(problem, dual, alpha);
@@ -184,8 +184,11 @@ fn cell_loads(problem: &DiscreteProblem, dual: &DualMesh, alpha: f64) -> Vec<Cel
     let mut loads = vec![CellLoads::default(); dual.n_cells()];
     parallel::map_mut(&mut loads, PIECE, |base, out| {
         let range = base..base + out.len();
-        data.quadrature
-            .visit(corners, range, [&data.f1, &data.f2], |s, points, [f1, f2]| {
+        data.quadrature.visit(
+            corners,
+            range,
+            [&data.f1, data.f2().expect("the estimator is of two membranes")],
+            |s, points, [f1, f2]| {
                 let frame = DualMesh::frame(s);
                 let mut l = CellLoads::default();
                 let f = |k: usize| [f1[k], f2[k], alpha * f1[k] - (1.0 - alpha) * f2[k]];
@@ -211,7 +214,8 @@ fn cell_loads(problem: &DiscreteProblem, dual: &DualMesh, alpha: f64) -> Vec<Cel
                     }
                 }
                 out[s - base] = l;
-            });
+            },
+        );
     });
     loads
 }
@@ -249,7 +253,10 @@ fn triangle_terms(
     loads: &[CellLoads],
 ) -> Vec<TriangleTerms> {
     let mesh = &problem.mesh;
-    let mu = [problem.data.mu1, problem.data.mu2];
+    let mu = [
+        problem.data.mu1,
+        problem.data.mu2().expect("the estimator is of two membranes"),
+    ];
     let alpha = mu[1] / (mu[0] + mu[1]);
     let u = [&solution.u1, &solution.u2];
     let part = |triangles: std::ops::Range<usize>| {

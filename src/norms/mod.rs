@@ -28,12 +28,22 @@ pub struct Exact {
     pub grad_u1: Option<[Expr; 2]>,
     /// ∇u2 as [∂x, ∂y].
     pub grad_u2: Option<[Expr; 2]>,
+    /// Whether u2 is a rigid obstacle ψ (the classical obstacle problem, whose exact u is u1):
+    /// then only u1's errors are reported, as u's.
+    pub rigid: bool,
 }
 
 impl Exact {
-    /// u1, u2 and λ interpolated at the vertices, for comparison in ParaView.
+    /// u1, u2 and λ interpolated at the vertices, for comparison in ParaView (u and λ above a
+    /// rigid obstacle).
     pub fn fields(&self, mesh: &Mesh) -> Vec<Field<'static>> {
         let at = |e: &Expr| mesh.points.iter().map(|p| e.eval(p[0], p[1])).collect();
+        if self.rigid {
+            return vec![
+                Field::owned("u_exact", Place::Vertices, at(&self.u1)),
+                Field::owned("lambda_exact", Place::Vertices, at(&self.lambda)),
+            ];
+        }
         vec![
             Field::owned("u1_exact", Place::Vertices, at(&self.u1)),
             Field::owned("u2_exact", Place::Vertices, at(&self.u2)),
@@ -59,6 +69,10 @@ pub struct Errors {
     pub l2_lambda: f64,
     /// ‖λ − λ_h‖_H⁻¹(ω) by [`hminus1_lambda`], when asked for (it costs a solve on S_h).
     pub hminus1_lambda: Option<f64>,
+    /// Whether u2 is a rigid obstacle ([`Exact::rigid`]): u1's errors are then u's, and u2's
+    /// (ψ's interpolation error) are not reported.
+    #[serde(skip)]
+    pub rigid: bool,
 }
 
 impl Errors {
@@ -87,9 +101,13 @@ impl Errors {
             });
             sum
         });
-        let energy = h1_u1
-            .zip(h1_u2)
-            .map(|(e1, e2)| (problem.data.mu1 * e1 * e1 + problem.data.mu2 * e2 * e2).sqrt());
+        let mu1 = problem.data.mu1;
+        let energy = match problem.data.mu2() {
+            Some(mu2) => h1_u1
+                .zip(h1_u2)
+                .map(|(e1, e2)| (mu1 * e1 * e1 + mu2 * e2 * e2).sqrt()),
+            None => h1_u1.map(|e1| mu1.sqrt() * e1),
+        };
         Errors {
             l2_u1,
             l2_u2,
@@ -98,6 +116,7 @@ impl Errors {
             energy,
             l2_lambda: l2_lambda.sqrt(),
             hminus1_lambda: hminus1.then(|| hminus1_lambda(dual, &action.lambda, &exact.lambda)),
+            rigid: exact.rigid,
         }
     }
 }
@@ -118,20 +137,26 @@ impl Errors {
 
 impl Describe for Errors {
     fn attributes(&self) -> Vec<Attribute> {
-        let mut attrs = vec![
-            ("error_l2_u1", self.l2_u1.into()),
-            ("error_l2_u2", self.l2_u2.into()),
-            ("error_l2_lambda", self.l2_lambda.into()),
+        // The names of membranes 1 and 2, and above a rigid obstacle (u's; ψ's none).
+        let named = [
+            ("error_l2_u1", "error_l2_u", Some(self.l2_u1)),
+            ("error_l2_u2", "", Some(self.l2_u2)),
+            ("error_l2_lambda", "error_l2_lambda", Some(self.l2_lambda)),
+            ("error_h1_u1", "error_h1_u", self.h1_u1),
+            ("error_h1_u2", "", self.h1_u2),
+            ("error_energy", "error_energy", self.energy),
+            (
+                "error_hminus1_lambda",
+                "error_hminus1_lambda",
+                self.hminus1_lambda,
+            ),
         ];
-        for (name, value) in [
-            ("error_h1_u1", self.h1_u1),
-            ("error_h1_u2", self.h1_u2),
-            ("error_energy", self.energy),
-            ("error_hminus1_lambda", self.hminus1_lambda),
-        ] {
-            attrs.extend(value.map(|v| (name, v.into())));
-        }
-        attrs
+        (named.into_iter())
+            .filter_map(|(two, one, value)| {
+                let name = if self.rigid { one } else { two };
+                value.filter(|_| !name.is_empty()).map(|v| (name, v.into()))
+            })
+            .collect()
     }
 }
 
