@@ -287,8 +287,8 @@ def region_identities(e, mu, problem):
     lap = lambda u: sp.diff(u, X, 2) + sp.diff(u, Y, 2)  # noqa: E731
     out = {"gap lambda": e["gap"] * e["lambda"]}
     for i, (u, f, m, t) in enumerate(zip(problem.displacements, problem.loads, mu, problem.tensions)):
-        sign = "+" if i == 0 else "-"
-        out["%s + %s lap %s %s lambda" % (f, t, u, sign)] = e[f] + m * lap(e[u]) + (e["lambda"] if i == 0 else -e["lambda"])
+        sign = 1 if i == 0 else -1
+        out["%s + %s lap %s %s lambda" % (f, t, u, "+-"[i > 0])] = e[f] + m * lap(e[u]) + sign * e["lambda"]
     for name in problem.displacements:
         for k, var in enumerate((X, Y)):
             if "grad_" + name in e:
