@@ -15,7 +15,6 @@ Usage (from the repository root):
 import argparse
 import os
 import subprocess
-import sys
 import tempfile
 import time
 
@@ -58,8 +57,8 @@ def reference(path, guess_from=None):
 
 
 def rows(binary, case, sizes, tmp):
-    """The table rows of one case: Rust, the reference cold and nested, at each of `sizes`."""
-    out = []
+    """The table rows of one case, as they are measured: Rust, the reference cold and nested, at
+    each of `sizes`."""
     nested_total, previous, n = 0.0, None, 8
     while n <= max(sizes):
         path = os.path.join(tmp, "rust-%s-%d" % (os.path.basename(case or "default"), n))
@@ -69,11 +68,8 @@ def rows(binary, case, sizes, tmp):
         if n in sizes:
             cold_seconds, cold_its, _ = reference(path)
             best = min(cold_seconds, nested_total)
-            out.append((n, rs["solve"], rs["iterations"], cold_seconds, cold_its, nested_total, its,
-                        best / rs["solve"]))
-            print("%s n=%d done" % (case or "default", n), file=sys.stderr, flush=True)
+            yield n, rs["solve"], rs["iterations"], cold_seconds, cold_its, nested_total, its, best / rs["solve"]
         n *= 2
-    return out
 
 
 def main():
