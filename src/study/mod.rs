@@ -237,7 +237,8 @@ pub fn run_levels(
                 start,
                 hminus1,
                 flux: false,
-                estimate: true,
+                // Where the problem has one (not above a rigid obstacle).
+                estimate: c.check_options(false, true).is_ok(),
                 dual: false,
             },
         )?;
@@ -284,6 +285,15 @@ fn write_text(path: &Path, text: &str) -> Result<(), OutputError> {
 /// The quantities tabulated for each level: (label, short name, value).
 pub(crate) fn quantities(level: &Level) -> Vec<(&'static str, &'static str, Option<f64>)> {
     let e = level.errors.as_ref();
+    if e.is_some_and(|e| e.rigid) {
+        return vec![
+            ("|u−uh|_H1", "h1_u", e.and_then(|e| e.h1_u1)),
+            ("energy", "energy", e.and_then(|e| e.energy)),
+            ("‖u−uh‖_L2", "l2_u", e.map(|e| e.l2_u1)),
+            ("‖λ−λh‖_L2", "l2_lambda", e.map(|e| e.l2_lambda)),
+            ("‖λ−λh‖_H⁻¹", "hminus1_lambda", e.and_then(|e| e.hminus1_lambda)),
+        ];
+    }
     vec![
         ("|u1−u1h|_H1", "h1_u1", e.and_then(|e| e.h1_u1)),
         ("|u2−u2h|_H1", "h1_u2", e.and_then(|e| e.h1_u2)),

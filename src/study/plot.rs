@@ -288,7 +288,7 @@ pub fn errors(path: &Path, title: &str, studies: &[(String, &[Level])]) -> Resul
             if guides.len() < 2 && series.len() < 8 {
                 let theory = match short {
                     "energy" => Some((1.0, "slope 1: H¹ rate of P1 (smooth u)")),
-                    "l2_u1" => Some((2.0, "slope 2: L² rate of P1 (smooth u)")),
+                    "l2_u1" | "l2_u" => Some((2.0, "slope 2: L² rate of P1 (smooth u)")),
                     _ => None,
                 };
                 if let Some((slope, text)) = theory.filter(|_| points.len() > 1) {
