@@ -43,7 +43,7 @@ fn agree(case: &Case) -> SolverStats {
     // λ is a residual: where it vanishes, its round-off is measured against the loads' size.
     let p = &d.problem;
     let load = (0..p.mass.len())
-        .map(|a| (p.load1[a].abs() + p.load2[a].abs()) / p.mass[a])
+        .map(|a| p.load_size(a) / p.mass[a])
         .fold(0.0, f64::max);
     for (name, a, b, tolerance, floor) in [
         ("u1", &ms.u1, &ds.u1, 1e-10, 0.0),
