@@ -76,6 +76,32 @@ fn convex_cases_show_the_rates_of_theorems_9_and_21() {
 }
 
 #[test]
+fn the_ball_obstacle_converges_at_the_rates_of_p1_in_few_iterations() {
+    // The field's benchmark (data/cases/ball.toml): u ∈ H^{2-ε}, so |u − u_h|_H¹ at rate 1 and
+    // ‖u − u_h‖_L² at about 2 (the measured values, not only the rates, against the closed form),
+    // and at most 4 active-set iterations per level after the first with nested iteration.
+    let case = Case::read(Path::new("data/cases/ball.toml")).unwrap();
+    let l = levels(&case, &[16, 32, 64, 128], false);
+    let h1 = |l: &Level| l.errors.as_ref().unwrap().h1_u1.unwrap();
+    for (rate, _) in eocs(&l, h1) {
+        assert!((0.95..1.1).contains(&rate), "H1 u, EOC {rate}");
+    }
+    for (rate, _) in eocs(&l, |l| l.errors.as_ref().unwrap().l2_u1) {
+        assert!((1.8..2.5).contains(&rate), "L2 u, EOC {rate}");
+    }
+    // |u − u_h|_H¹ ≈ 4.4e-3 · (1/h) with h = 4/n: 3.43e-2 at 128².
+    assert!((3.3e-2..3.6e-2).contains(&h1(&l[3])), "{}", h1(&l[3]));
+    assert!(
+        l.iter().skip(1).all(|l| l.iterations <= 4),
+        "{:?}",
+        l.iter().map(|l| l.iterations).collect::<Vec<_>>()
+    );
+    assert!(l
+        .iter()
+        .all(|l| l.errors.as_ref().unwrap().rigid && l.estimator.is_none()));
+}
+
+#[test]
 fn a_smooth_solution_on_a_non_convex_domain_keeps_rate_one() {
     // The L-shape with μ1 ≠ μ2 and g ≠ 0: H¹ at rate 1 (Theorem 9 needs no convexity for a smooth
     // solution); L² at least 4/3, the duality argument's rate on this corner.
