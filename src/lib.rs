@@ -59,6 +59,7 @@ pub mod atomic;
 pub mod case;
 pub mod cg;
 pub mod contact;
+pub mod datum;
 pub mod estimator;
 pub mod expr;
 pub mod flux;
