@@ -238,7 +238,8 @@ impl fmt::Display for DataError {
                 values,
             } => write!(
                 f,
-                "key '{name}': the groups '{}' and '{}' meet at the vertex ({}, {}) with {name} = {} and                  {}: a vertex value must agree (to 1e-12 relative) where groups meet",
+                "key '{name}': the groups '{}' and '{}' meet at the vertex ({}, {}) with {name} = {} and \
+                 {}: a vertex value must agree (to 1e-12 relative) where groups meet",
                 groups[0], groups[1], point[0], point[1], values[0], values[1]
             ),
         }

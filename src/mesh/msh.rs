@@ -50,7 +50,8 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>), FileErro
             [] => Ok(None),
             [t] => Ok(Some(*t)),
             _ => Err(err(format!(
-                "the {} entity {entity} belongs to the physical groups {tags:?}: each element may                  belong to one physical group only",
+                "the {} entity {entity} belongs to the physical groups {tags:?}: each element may \
+                 belong to one physical group only",
                 if dim == 1 { "curve" } else { "surface" }
             ))),
         }
