@@ -145,9 +145,12 @@ impl Mesh {
     }
 }
 
+/// A physical name: (dimension, tag) and the name.
+pub(super) type PhysicalName = ((i32, i32), String);
+
 /// The physical names of a `$PhysicalNames` section (ASCII, also in binary files): (dimension,
 /// tag) → name. Names are quoted; a file without the section has none.
-pub(super) fn physical_names(bytes: &[u8]) -> Result<Vec<((i32, i32), String)>, String> {
+pub(super) fn physical_names(bytes: &[u8]) -> Result<Vec<PhysicalName>, String> {
     let marker = b"$PhysicalNames";
     let Some(at) = bytes.windows(marker.len()).position(|w| w == marker) else {
         return Ok(Vec::new());
