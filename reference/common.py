@@ -44,6 +44,9 @@ def read_result(path):
             })
             out.update({k: dual[k][...] for k in FLUX_FIELDS if k in dual})
     out["case_text"] = str(out["attrs"]["case_text"])
+    from . import groups
+
+    groups.use(path, case, str(out["attrs"]["case_origin"]))
     # Expressions parsed once, with the names of the case's [let] table substituted.
     out["case"] = expr.parse_case(case)
     out["problem"] = problem

@@ -221,6 +221,8 @@ def parse(source, names=None):
     named values to their trees (see `parse_names`)."""
     if isinstance(source, tuple):
         return source
+    if isinstance(source, dict):  # a table per physical group (reference/groups.py)
+        return ("table", {k: parse(v, names) for k, v in source.items()})
     if isinstance(source, (int, float)):
         return ("const", float(source))
     tree = _parse_tree(source, names or {}, ())
@@ -268,6 +270,8 @@ def parse_case(case):
 def _build(tree, x, y, lib):
     b = lambda t: _build(t, x, y, lib)  # noqa: E731
     k = tree[0]
+    if k == "table":
+        return lib["table"](tree[1], b)
     if k == "const":
         return lib["const"](tree[1])
     if k == "x":
@@ -309,6 +313,14 @@ def _minimum_number(np, smaller):
     return f
 
 
+def _groups():
+    from . import groups
+
+    if groups.CURRENT is None:
+        raise RuntimeError("a table per physical group, but no mesh file with groups was read")
+    return groups.CURRENT
+
+
 def to_numpy(tree, x, y):
     """The expression at points (x, y) (NumPy arrays)."""
     import numpy as np
@@ -333,6 +345,7 @@ def to_numpy(tree, x, y):
         "max": _minimum_number(np, False),
         "atan2": np.arctan2,
         "if": np.where,
+        "table": lambda entries, b: _groups().numpy(entries, x, y, b),
     }
     with np.errstate(all="ignore"):
         return np.asarray(_build(tree, np.asarray(x, float), np.asarray(y, float), lib), float)
@@ -372,6 +385,7 @@ def to_ufl(tree, mesh):
 
     X = ufl.SpatialCoordinate(mesh)
     lib = {
+        "table": lambda entries, b: _groups().ufl(entries, mesh, b),
         "const": lambda v: ufl.as_ufl(v),
         "cmp": lambda op, a, c: {"<": ufl.lt, "<=": ufl.le, ">": ufl.gt, ">=": ufl.ge}[op](a, c),
         "and": ufl.And,

@@ -244,6 +244,44 @@ pub fn load(mesh: &Mesh, f: &Expr, quad: Quadrature) -> Result<Vec<f64>, NotFini
     }))
 }
 
+/// The load vector (f, φ_a) of a datum resolved on `mesh` ([`crate::datum::Pieces`]): [`load`]
+/// for one expression; for a table per group, each triangle integrated by the quadrature with the
+/// expression of its own group, so that the load jumps where the groups meet.
+pub fn load_pieces(mesh: &Mesh, f: &crate::datum::Pieces, quad: Quadrature) -> Result<Vec<f64>, NotFinite> {
+    if let Some(e) = f.single() {
+        return load(mesh, e, quad);
+    }
+    let mut local = vec![0.0; 3 * mesh.n_triangles()];
+    let piece = crate::parallel::PIECE;
+    let parts = crate::parallel::map_mut(&mut local, 3 * piece, |base, local| {
+        let (first, range) = (base / 3, base / 3..base / 3 + local.len() / 3);
+        let mut bad = None;
+        crate::datum::visit(
+            &quad,
+            |t| mesh.corners(t),
+            |t| t,
+            range,
+            [f],
+            |t, points, [values]| {
+                for (p, &v) in points.iter().zip(values) {
+                    if !v.is_finite() && bad.is_none() {
+                        bad = Some(NotFinite { point: p.x, value: v });
+                    }
+                    for (out, b) in local[3 * (t - first)..][..3].iter_mut().zip(p.barycentric) {
+                        *out += p.weight * v * b;
+                    }
+                }
+            },
+        );
+        bad.map_or(Ok(()), Err)
+    });
+    parts.into_iter().collect::<Result<(), NotFinite>>()?;
+    let stars = Stars::new(mesh);
+    Ok(crate::parallel::collect(mesh.n_vertices(), |a| {
+        stars.corners(a).map(|c| local[c]).sum()
+    }))
+}
+
 /// The contributions (f, φ_k)_T of the `triangles` T to their corners k, into `local` (corner
 /// 3 (t − first) + k).
 fn load_part(

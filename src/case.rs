@@ -3,6 +3,7 @@
 
 use crate::assembly::Quadrature;
 use crate::contact::{LinearSolver, SolverOptions};
+use crate::datum::Datum;
 use crate::expr::{Expr, ExprError, Names};
 use crate::mesh::{self, Curves, Diagonal, Domain, Mesh, Postprocess};
 use crate::norms::Exact;
@@ -58,13 +59,19 @@ struct CaseFile {
     adapt: AdaptTable,
 }
 
-/// An expression: a string in the case language, or a plain number.
+/// An expression: a string in the case language, or a plain number; for the data that may be
+/// given per physical group (f1, f2, f, psi per surface, g, g2 per curve), a table of them keyed
+/// by the groups' names.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(untagged)]
 enum Expression {
     Number(f64),
     Text(String),
+    Table(toml::Table),
 }
+
+/// The keys whose values may be tables per physical group.
+const PER_GROUP: &str = "f1, f2, f and psi (per physical surface), g and g2 (per physical curve)";
 
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -811,12 +818,12 @@ fn problem_data(
         ));
     }
     let missing = |key: &str| format!("key '{key}' is missing (problem = \"{problem}\")");
-    let need = |key: &str, e: &Option<Expression>| -> Result<Expr, String> {
+    let need = |key: &str, e: &Option<Expression>| -> Result<Datum, String> {
         let e = e.as_ref().ok_or_else(|| missing(key))?;
-        expr(key, e)
+        parse_datum(key, e, expr)
     };
     let number = |key: &str, v: Option<f64>| v.ok_or_else(|| missing(key));
-    let g = expr("g", &file.g)?;
+    let g = parse_datum("g", &file.g, expr)?;
     let data = match problem {
         "obstacle" => Data::obstacle(
             number("mu", file.mu)?,
@@ -835,7 +842,7 @@ fn problem_data(
     };
     let data = data.map_err(|e| e.to_string())?;
     match &file.g2 {
-        Some(g2) => Ok(data.with_g2(expr("g2", g2)?)),
+        Some(g2) => Ok(data.with_g2(parse_datum("g2", g2, expr)?)),
         None => Ok(data),
     }
 }
@@ -880,7 +887,10 @@ fn exact_solution(
     Ok(match &data.lower {
         Lower::Rigid { psi } => Exact {
             u1: one("exact.u", &e.u)?.ok_or_else(|| missing("u"))?,
-            u2: psi.clone(),
+            u2: (psi.expr().cloned()).ok_or(
+                "key 'psi' is a table per physical group: with an [exact] \
+                 solution, whose u2 is ψ, give ψ as one expression",
+            )?,
             lambda,
             grad_u1: grad("exact.grad_u", &e.grad_u)?,
             grad_u2: None,
@@ -902,8 +912,47 @@ fn parse_expression(key: &str, e: &Expression, names: &Names) -> Result<Expr, St
     let source = match e {
         Expression::Number(v) => format!("{v:?}"),
         Expression::Text(s) => s.clone(),
+        Expression::Table(_) => {
+            return Err(format!(
+                "key '{key}' is a table: need an expression (a string or a number); only {PER_GROUP} \
+                 may be tables per physical group"
+            ))
+        }
     };
     Expr::parse_with(&source, names).map_err(|error| quote(key, &source, &error))
+}
+
+/// A datum: an expression, or a table of expressions keyed by the names of physical groups
+/// (`{ loaded = "-20", free = 0 }`), in file order.
+fn parse_datum(
+    key: &str,
+    e: &Expression,
+    expr: &dyn Fn(&str, &Expression) -> Result<Expr, String>,
+) -> Result<Datum, String> {
+    let Expression::Table(table) = e else {
+        return expr(key, e).map(Datum::Expr);
+    };
+    if table.is_empty() {
+        return Err(format!(
+            "key '{key}' is an empty table: give an expression per physical group, e.g. \
+             {key} = {{ loaded = \"-20\", free = 0 }}"
+        ));
+    }
+    let entries = table.iter().map(|(group, value)| {
+        let path = format!("{key}.{group}");
+        let entry = match value {
+            toml::Value::String(s) => Expression::Text(s.clone()),
+            toml::Value::Float(v) => Expression::Number(*v),
+            toml::Value::Integer(v) => Expression::Number(*v as f64),
+            other => {
+                return Err(format!(
+                    "key '{path}' = {other}: need an expression (a string or a number)"
+                ))
+            }
+        };
+        Ok((group.clone(), expr(&path, &entry)?))
+    });
+    entries.collect::<Result<Vec<_>, _>>().map(Datum::Table)
 }
 
 /// The `[let]` table: each name may use the names above it (file order), which rules out cycles.

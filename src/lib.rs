@@ -20,6 +20,7 @@
 //! |---|---|
 //! | μ1, μ2, f1, f2, g | `Data::{mu1, mu2, f1, f2, g}` |
 //! | T_h, ∂ω | `Mesh`, `Mesh::on_boundary` |
+//! | data per physical group of a Gmsh mesh | `Datum`, `Pieces` ([`datum`]), `Groups` |
 //! | S_h, D_a (Section 4.2) | `DualMesh`, its cells with `DualMesh::owner` = a |
 //! | K_ab = ∫∇φ_b·∇φ_a | `DiscreteProblem::stiffness` |
 //! | m_a = ∫φ_a = meas(D_a) | `DiscreteProblem::mass` |
@@ -59,6 +60,7 @@ pub mod atomic;
 pub mod case;
 pub mod cg;
 pub mod contact;
+pub mod datum;
 pub mod estimator;
 pub mod expr;
 pub mod flux;

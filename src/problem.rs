@@ -13,6 +13,7 @@
 //! λ_a m_a = μ(K u1h)_a − (f, φ_a) are those of (3.4) and (4.5).
 
 use crate::assembly::{self, Quadrature, Stiffness};
+use crate::datum::{self, Datum, On};
 use crate::expr::Expr;
 use crate::mesh::Mesh;
 use std::fmt;
@@ -23,10 +24,11 @@ use std::fmt;
 pub struct Data {
     /// μ1 > 0 (the obstacle problem's μ).
     pub mu1: f64,
-    /// The load on membrane 1 (the obstacle problem's f).
-    pub f1: Expr,
-    /// The height of membrane 1 on ∂ω.
-    pub g: Expr,
+    /// The load on membrane 1 (the obstacle problem's f), one expression or one per physical
+    /// surface.
+    pub f1: Datum,
+    /// The height of membrane 1 on ∂ω, one expression or one per physical curve.
+    pub g: Datum,
     /// Membrane 2 or a rigid obstacle.
     pub lower: Lower,
     /// The rule for the loads (f_i, φ_a).
@@ -40,52 +42,90 @@ pub enum Lower {
     Membrane {
         /// μ2 > 0.
         mu2: f64,
-        /// Its load.
-        f2: Expr,
-        /// Its height on ∂ω (0 in the paper).
-        g2: Expr,
+        /// Its load (per physical surface, or one expression).
+        f2: Datum,
+        /// Its height on ∂ω (0 in the paper; per physical curve, or one expression).
+        g2: Datum,
     },
     /// A rigid obstacle u1 ≥ ψ: the classical obstacle problem.
     Rigid {
-        /// ψ.
-        psi: Expr,
+        /// ψ (per physical surface, or one expression).
+        psi: Datum,
     },
 }
 
 impl Data {
     /// The data of (1.1) with u2 = 0 on ∂ω, with μ1, μ2 checked to be positive and finite.
-    pub fn new(mu: [f64; 2], f1: Expr, f2: Expr, g: Expr, quadrature: Quadrature) -> Result<Self, DataError> {
+    pub fn new(
+        mu: [f64; 2],
+        f1: impl Into<Datum>,
+        f2: impl Into<Datum>,
+        g: impl Into<Datum>,
+        quadrature: Quadrature,
+    ) -> Result<Self, DataError> {
         for (name, value) in [("mu1", mu[0]), ("mu2", mu[1])] {
             check_tension(name, value)?;
         }
-        let g2 = Expr::parse("0").expect("0 is an expression");
+        let g2 = Expr::parse("0").expect("0 is an expression").into();
         Ok(Data {
             mu1: mu[0],
-            f1,
-            g,
-            lower: Lower::Membrane { mu2: mu[1], f2, g2 },
+            f1: f1.into(),
+            g: g.into(),
+            lower: Lower::Membrane {
+                mu2: mu[1],
+                f2: f2.into(),
+                g2,
+            },
             quadrature,
         })
     }
 
     /// The same data with u2 = `g2` on ∂ω; no change below a rigid obstacle.
-    pub fn with_g2(mut self, height: Expr) -> Self {
+    pub fn with_g2(mut self, height: impl Into<Datum>) -> Self {
         if let Lower::Membrane { g2, .. } = &mut self.lower {
-            *g2 = height;
+            *g2 = height.into();
         }
         self
     }
 
     /// The data of the obstacle problem: μ (checked), f, the obstacle ψ and g.
-    pub fn obstacle(mu: f64, f: Expr, psi: Expr, g: Expr, quadrature: Quadrature) -> Result<Self, DataError> {
+    pub fn obstacle(
+        mu: f64,
+        f: impl Into<Datum>,
+        psi: impl Into<Datum>,
+        g: impl Into<Datum>,
+        quadrature: Quadrature,
+    ) -> Result<Self, DataError> {
         check_tension("mu", mu)?;
         Ok(Data {
             mu1: mu,
-            f1: f,
-            g,
-            lower: Lower::Rigid { psi },
+            f1: f.into(),
+            g: g.into(),
+            lower: Lower::Rigid { psi: psi.into() },
             quadrature,
         })
+    }
+
+    /// Checks every datum given per group against the groups of `mesh`: a mesh with groups, the
+    /// table's names among them, an entry for the group of every triangle (boundary edge).
+    pub fn check_groups(&self, mesh: &Mesh) -> Result<(), DataError> {
+        let (first, second) = match &self.lower {
+            Lower::Membrane { f2, g2, .. } => (("f2", f2, On::Surfaces), ("g2", g2, On::Curves)),
+            Lower::Rigid { psi } => (("psi", psi, On::Surfaces), ("psi", psi, On::Surfaces)),
+        };
+        let (f1, g) = match &self.lower {
+            Lower::Membrane { .. } => ("f1", "g"),
+            Lower::Rigid { .. } => ("f", "g"),
+        };
+        for (name, datum, on) in [
+            (f1, &self.f1, On::Surfaces),
+            (g, &self.g, On::Curves),
+            first,
+            second,
+        ] {
+            datum.pieces(name, mesh, on)?;
+        }
+        Ok(())
     }
 
     /// μ2, when membrane 1 lies on membrane 2.
@@ -97,7 +137,7 @@ impl Data {
     }
 
     /// f2, when membrane 1 lies on membrane 2.
-    pub fn f2(&self) -> Option<&Expr> {
+    pub fn f2(&self) -> Option<&Datum> {
         match &self.lower {
             Lower::Membrane { f2, .. } => Some(f2),
             Lower::Rigid { .. } => None,
@@ -147,6 +187,24 @@ pub enum DataError {
         /// g2 or ψ there.
         value: f64,
     },
+    /// A datum given per physical group that does not fit the mesh's groups.
+    Group {
+        /// The datum's key.
+        name: &'static str,
+        /// What does not fit: a missing or unknown group, a mesh without groups.
+        why: String,
+    },
+    /// A vertex value (g, g2 or ψ) that two groups meeting at a vertex give differently.
+    Jump {
+        /// The datum's key.
+        name: &'static str,
+        /// The vertex.
+        point: [f64; 2],
+        /// The two groups.
+        groups: [String; 2],
+        /// Their values there.
+        values: [f64; 2],
+    },
 }
 
 impl fmt::Display for DataError {
@@ -171,6 +229,18 @@ impl fmt::Display for DataError {
                  interpolant of g, which must be ≥ {lower} at every boundary vertex of the mesh \
                  (membrane 1 may not lie below what it rests on)",
                 point[0], point[1]
+            ),
+            DataError::Group { name, why } => write!(f, "key '{name}': {why}"),
+            DataError::Jump {
+                name,
+                point,
+                groups,
+                values,
+            } => write!(
+                f,
+                "key '{name}': the groups '{}' and '{}' meet at the vertex ({}, {}) with {name} = {} and \
+                 {}: a vertex value must agree (to 1e-12 relative) where groups meet",
+                groups[0], groups[1], point[0], point[1], values[0], values[1]
             ),
         }
     }
@@ -216,8 +286,9 @@ impl DiscreteProblem {
     /// Assembles (3.4) on `mesh`; the loads by the data's quadrature rule.
     pub fn new(mesh: Mesh, data: &Data) -> Result<Self, DataError> {
         let heights = boundary_values(&mesh, data)?;
-        let load = |name, f: &Expr| {
-            assembly::load(&mesh, f, data.quadrature).map_err(|e| DataError::NotFinite {
+        let load = |name, f: &Datum| {
+            let pieces = f.pieces(name, &mesh, On::Surfaces)?;
+            assembly::load_pieces(&mesh, &pieces, data.quadrature).map_err(|e| DataError::NotFinite {
                 name,
                 point: e.point,
                 value: e.value,
@@ -227,7 +298,8 @@ impl DiscreteProblem {
             Lower::Membrane { f2, .. } => load("f2", f2)?,
             Lower::Rigid { .. } => Vec::new(),
         };
-        let loads = [load("f1", &data.f1)?, load2];
+        let f1 = if data.is_obstacle() { "f" } else { "f1" };
+        let loads = [load(f1, &data.f1)?, load2];
         Ok(Self::with_loads(mesh, data, heights, loads))
     }
 
@@ -282,31 +354,26 @@ impl DiscreteProblem {
 /// inside, and ψ_h (finite) at every vertex below a rigid obstacle. Only the vertex values enter
 /// (3.4), so they are what is checked.
 pub fn boundary_values(mesh: &Mesh, data: &Data) -> Result<Heights, DataError> {
+    data.check_groups(mesh)?;
     let n = mesh.n_vertices();
-    let finite = |name: &'static str, e: &Expr, p: &[f64; 2]| {
-        let value = e.eval(p[0], p[1]);
-        match value.is_finite() {
-            true => Ok(value),
-            false => Err(DataError::NotFinite {
-                name,
-                point: *p,
-                value,
-            }),
-        }
-    };
-    let psi = match &data.lower {
-        Lower::Rigid { psi } => (mesh.points.iter())
-            .map(|p| finite("psi", psi, p))
-            .collect::<Result<_, _>>()?,
+    let psi: Vec<f64> = match &data.lower {
+        Lower::Rigid { psi } => (datum::vertex_values("psi", psi, mesh, On::Surfaces)?.into_iter())
+            .map(|v| v.expect("ψ at every vertex"))
+            .collect(),
         Lower::Membrane { .. } => Vec::new(),
+    };
+    let g = datum::vertex_values("g", &data.g, mesh, On::Curves)?;
+    let g2 = match &data.lower {
+        Lower::Membrane { g2, .. } => Some(datum::vertex_values("g2", g2, mesh, On::Curves)?),
+        Lower::Rigid { .. } => None,
     };
     let (mut g_h, mut gap) = (vec![0.0; n], vec![0.0; n]);
     for (a, p) in mesh.points.iter().enumerate() {
         if mesh.on_boundary[a] {
-            let g = finite("g", &data.g, p)?;
-            let (lower, value) = match &data.lower {
-                Lower::Membrane { g2, .. } => ("g2", finite("g2", g2, p)?),
-                Lower::Rigid { .. } => ("psi", psi[a]),
+            let g = g[a].expect("g at every boundary vertex");
+            let (lower, value) = match &g2 {
+                Some(g2) => ("g2", g2[a].expect("g2 at every boundary vertex")),
+                None => ("psi", psi[a]),
             };
             if g < value {
                 return Err(DataError::BoundaryBelowLower {

@@ -154,6 +154,9 @@ fn write_in_chunks(
     attrs: &[Attribute],
     chunk: usize,
 ) -> Result<(), String> {
+    // A mesh with physical groups: the cell field `group` and the names of the groups.
+    let (fields, attrs) = (with_group_field(mesh, fields), with_group_names(mesh, attrs));
+    let (fields, attrs) = (&fields[..], &attrs[..]);
     let mut grids = vec![Grid {
         name: "mesh",
         xdmf: "solution.xdmf",
@@ -173,6 +176,70 @@ fn write_in_chunks(
         std::fs::write(dir.join(g.xdmf), text).map_err(|e| format!("{}: {e}", g.xdmf))?;
     }
     Ok(())
+}
+
+/// `fields` and, on a mesh with physical groups, the cell field `group`: the index of each
+/// triangle's physical surface in the attribute `surface_groups` (−1 for none).
+fn with_group_field<'a>(mesh: &Mesh, fields: &[Field<'a>]) -> Vec<Field<'a>> {
+    let mut all = fields.to_vec();
+    if let Some(groups) = mesh.groups() {
+        let index = (groups.triangle_groups().iter())
+            .map(|&g| {
+                if g == crate::mesh::groups::NONE {
+                    -1.0
+                } else {
+                    f64::from(g)
+                }
+            })
+            .collect();
+        all.push(Field::owned("group", Place::Cells, index));
+    }
+    all
+}
+
+/// `attrs` and, on a mesh with physical groups, `surface_groups` and `curve_groups`: the names of
+/// the groups in the order of their indices (a JSON list), and `groups_source`, the mesh file.
+fn with_group_names(mesh: &Mesh, attrs: &[Attribute]) -> Vec<Attribute> {
+    let mut all = attrs.to_vec();
+    if let Some(groups) = mesh.groups() {
+        let list = |names: &[String]| Attr::Text(serde_json::to_string(names).expect("strings"));
+        all.push(("surface_groups", list(&groups.surfaces)));
+        all.push(("curve_groups", list(&groups.curves)));
+        all.push(("groups_source", Attr::Text(groups.source.clone())));
+    }
+    all
+}
+
+/// Writes `/mesh/boundary_edges` (the boundary edges of T_h, two vertices each, sorted) and
+/// `/mesh/boundary_group` (the index of each one's physical curve in `curve_groups`, −1 for none).
+fn write_boundary_groups(group: &hdf5::Group, mesh: &Mesh, chunk: usize) -> hdf5::Result<()> {
+    let Some(groups) = mesh.groups() else {
+        return Ok(());
+    };
+    let edges: Vec<((usize, usize), u32)> = groups.boundary_edges().collect();
+    let ends = Dataset {
+        name: "boundary_edges",
+        rows: edges.len(),
+        columns: 2,
+    };
+    ends.write(group, chunk, |rows, out: &mut Vec<i32>| {
+        out.extend(edges[rows].iter().flat_map(|((a, b), _)| [*a as i32, *b as i32]))
+    })?;
+    let curve = Dataset {
+        name: "boundary_group",
+        rows: edges.len(),
+        columns: 1,
+    };
+    curve.write(group, chunk, |rows, out: &mut Vec<i32>| {
+        let index = |g: u32| {
+            if g == crate::mesh::groups::NONE {
+                -1
+            } else {
+                g as i32
+            }
+        };
+        out.extend(edges[rows].iter().map(|(_, g)| index(*g)))
+    })
 }
 
 /// A triangle grid as written to one HDF5 group and one XDMF file.
@@ -357,6 +424,9 @@ fn write_hdf5(
         topology
             .write(&group, chunk, |rows, out| grid.topology(rows, out))
             .map_err(named)?;
+        if let Triangulation::Mesh(mesh) = grid.triangulation {
+            write_boundary_groups(&group, mesh, chunk).map_err(named)?;
+        }
         for f in grid.fields(fields) {
             assert_eq!(
                 f.values.len(),

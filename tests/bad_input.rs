@@ -1121,3 +1121,65 @@ fn numerical_failures_name_the_case_file() {
     let e = fails(&text, |_| {}, &["--cold"], None);
     named(&e, "the active-set method did not converge in 1 iterations");
 }
+
+/// A case on a copy of the shipped two-region mesh (surfaces "loaded", "free"; curves "clamped",
+/// "rim") with `f1` and `g` as given.
+fn two_regions_fails(f1: &str, g: &str) -> String {
+    let text = format!(
+        "mu1 = 1.0\nmu2 = 1.0\nf1 = {f1}\nf2 = 5\ng = {g}\n[mesh]\nkind = \"file\"\npath = \"two.msh\"\n"
+    );
+    let mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/data/meshes/two_regions.msh");
+    fails(
+        &text,
+        move |dir| {
+            std::fs::copy(mesh, dir.join("two.msh")).unwrap();
+        },
+        &[],
+        None,
+    )
+}
+
+#[test]
+fn tables_per_group_name_the_group_that_does_not_fit() {
+    let good_g = "{ clamped = 0.05, rim = \"0.05 + y*(1 - y)\" }";
+    let e = two_regions_fails("{ lodaed = -20, free = 0 }", good_g);
+    contains(&e, "key 'f1': 'lodaed' is not a physical surface of ");
+    contains(&e, "two.msh (its physical surfaces: 'loaded', 'free')");
+    let e = two_regions_fails("{ loaded = -20 }", good_g);
+    contains(
+        &e,
+        "key 'f1': the table has no entry for the physical surface 'free' of ",
+    );
+    let e = two_regions_fails("{ loaded = -20, free = 0 }", "{ clamped = 0.05 }");
+    contains(
+        &e,
+        "key 'g': the table has no entry for the physical curve 'rim' of ",
+    );
+    let e = two_regions_fails("{ loaded = -20, free = 0 }", "{ clamped = 0.05, rimm = 0 }");
+    contains(&e, "key 'g': 'rimm' is not a physical curve of ");
+    // The rim meets the clamped sides at (2, 0) and (2, 1): g must agree there.
+    let e = two_regions_fails("{ loaded = -20, free = 0 }", "{ clamped = 0.05, rim = 0.1 }");
+    contains(
+        &e,
+        "key 'g': the groups 'clamped' and 'rim' meet at the vertex (2, 0) with g = 0.05 and 0.1",
+    );
+    // A table needs a mesh with groups: not the built-in square.
+    let e = case_fails(&format!(
+        "{}{SQUARE}",
+        GOOD.replace("f1 = -5", "f1 = { loaded = -5 }")
+    ));
+    contains(
+        &e,
+        "key 'f1': a table per physical group needs a Gmsh mesh (.msh) with physical groups",
+    );
+    // Only the data may be tables.
+    let e = case_fails(&format!(
+        "{GOOD}[exact]\nu1 = {{ a = 1 }}\nu2 = 0\nlambda = 0\n{SQUARE}"
+    ));
+    contains(&e, "key 'exact.u1' is a table");
+    let e = case_fails(&format!(
+        "{}{SQUARE}",
+        GOOD.replace("f1 = -5", "f1 = { loaded = [1] }")
+    ));
+    contains(&e, "key 'f1.loaded' = [1]: need an expression");
+}

@@ -117,7 +117,7 @@ fn let_table_in_file_order() {
     let case =
         case_with_lets("r = \"sqrt((x-0.5)^2 + (y-0.5)^2)\"\nC = \"sqrt(2)/(sqrt(2)-1) + r - r\"").unwrap();
     let c = 2f64.sqrt() / (2f64.sqrt() - 1.0);
-    assert!((case.data.f1.eval(0.5, 1.5) - (1.0 + c)).abs() < 1e-15);
+    assert!((case.data.f1.expr().unwrap().eval(0.5, 1.5) - (1.0 + c)).abs() < 1e-15);
     // The same names in the other order: C uses r before it is defined.
     let err = case_with_lets("C = \"sqrt(2)/(sqrt(2)-1) + r - r\"\nr = \"sqrt((x-0.5)^2 + (y-0.5)^2)\"")
         .unwrap_err();

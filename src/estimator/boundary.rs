@@ -13,6 +13,7 @@
 //! The integrals in τ: Gauss–Legendre on [0, ½] and [½, 1] (s* has a kink at ½).
 
 use crate::assembly::gradients;
+use crate::datum::Pieces;
 use crate::expr::Expr;
 use crate::mesh::Mesh;
 
@@ -35,7 +36,7 @@ pub struct OnTriangle {
 pub fn lifting(
     mesh: &Mesh,
     neighbour: &[[usize; 3]],
-    g: &Expr,
+    g: &Pieces,
     lambda: &[f64],
     gap: &[f64],
 ) -> Vec<OnTriangle> {
@@ -43,7 +44,9 @@ pub fn lifting(
     (0..mesh.n_triangles())
         .map(|t| {
             let on_boundary: Vec<usize> = (0..3).filter(|&j| neighbour[t][j] == usize::MAX).collect();
-            let edge = |j: usize| on_edge(mesh, t, j, g, lambda, &rule);
+            let tri = mesh.triangle(t);
+            // g of the edge's physical curve (one expression without groups).
+            let edge = |j: usize| on_edge(mesh, t, j, g.on_edge(tri[j], tri[(j + 1) % 3]), lambda, &rule);
             match on_boundary[..] {
                 [] => OnTriangle::default(),
                 [j] => edge(j).0,
@@ -174,7 +177,9 @@ mod tests {
         );
         let neighbour = [[usize::MAX, 0, 0]];
         let g = Expr::parse("x^2").unwrap();
-        let on = lifting(&mesh, &neighbour, &g, &[0.0, 0.0, 2.0], &[0.0; 3]);
+        let datum = crate::datum::Datum::from(g.clone());
+        let pieces = datum.pieces("g", &mesh, crate::datum::On::Curves).unwrap();
+        let on = lifting(&mesh, &neighbour, &pieces, &[0.0, 0.0, 2.0], &[0.0; 3]);
         assert!(
             (on[0].grad_norm.powi(2) - 4.0 / 15.0).abs() < 1e-12,
             "{}",

@@ -21,6 +21,7 @@ pub mod equilibration;
 use crate::action::Action;
 use crate::assembly::gradients;
 use crate::contact::Solution;
+use crate::datum::{self, On};
 use crate::flux::Flux;
 use crate::mesh::{DualMesh, Mesh};
 use crate::parallel::{self, PIECE};
@@ -97,10 +98,12 @@ impl Estimate {
             on_dual_cell: &on_dual_cell[i],
         });
         let tau = equilibrate(mesh, dual, &patches, [&membranes[0], &membranes[1]]);
+        let g = (data.g.pieces("g", mesh, On::Curves))
+            .expect("the data fit the mesh's groups (checked by DiscreteProblem::new)");
         let psi = boundary::lifting(
             mesh,
             &patches.neighbour,
-            &data.g,
+            &g,
             &action.lambda,
             &solution.obstacle.gap,
         );
@@ -181,13 +184,22 @@ fn quadrature_defects(problem: &DiscreteProblem, loads: &[CellLoads]) -> [Vec<f6
 fn cell_loads(problem: &DiscreteProblem, dual: &DualMesh, alpha: f64) -> Vec<CellLoads> {
     let data = &problem.data;
     let corners = |s: usize| dual.corners(s);
+    let mesh = &problem.mesh;
+    let fit = "the data fit the mesh's groups (checked by DiscreteProblem::new)";
+    let f1 = data.f1.pieces("f1", mesh, On::Surfaces).expect(fit);
+    let f2 = (data.f2().expect("the estimator is of two membranes"))
+        .pieces("f2", mesh, On::Surfaces)
+        .expect(fit);
     let mut loads = vec![CellLoads::default(); dual.n_cells()];
     parallel::map_mut(&mut loads, PIECE, |base, out| {
         let range = base..base + out.len();
-        data.quadrature.visit(
+        // The cell s of S_h lies in the triangle s / 6 of T_h: its loads are that triangle's.
+        datum::visit(
+            &data.quadrature,
             corners,
+            |s| s / 6,
             range,
-            [&data.f1, data.f2().expect("the estimator is of two membranes")],
+            [&f1, &f2],
             |s, points, [f1, f2]| {
                 let frame = DualMesh::frame(s);
                 let mut l = CellLoads::default();

@@ -34,7 +34,9 @@ impl Mesh {
                 [t[k], t[(k + 1) % 3], t[(k + 2) % 3]]
             })
             .collect();
-        Mesh::from_parts(self.points.clone(), triangles, self.on_boundary.clone())
+        let mut labelled = Mesh::from_parts(self.points.clone(), triangles, self.on_boundary.clone());
+        labelled.groups = self.groups.clone();
+        labelled
     }
 
     /// Newest-vertex bisection of the `marked` triangles (one flag per triangle) and of as many
@@ -60,20 +62,45 @@ impl Mesh {
             });
         }
         let mut triangles = Vec::with_capacity(self.n_triangles() + 2 * (points.len() - self.n_vertices()));
-        for (t, &[bc, ca, ab]) in self.triangles().zip(&edges.of_triangle) {
-            let Some(m) = mid[bc] else {
-                triangles.push(t);
-                continue;
-            };
-            let [first, second] = children(t, m);
-            for (child, e) in [(first, ca), (second, ab)] {
-                match mid[e] {
-                    Some(m) => triangles.extend(children(child, m)),
-                    None => triangles.push(child),
+        // The triangle of `self` each new triangle lies in, for the physical groups.
+        let mut parent = Vec::new();
+        for (k, (t, &[bc, ca, ab])) in self.triangles().zip(&edges.of_triangle).enumerate() {
+            let before = triangles.len();
+            match mid[bc] {
+                None => triangles.push(t),
+                Some(m) => {
+                    let [first, second] = children(t, m);
+                    for (child, e) in [(first, ca), (second, ab)] {
+                        match mid[e] {
+                            Some(m) => triangles.extend(children(child, m)),
+                            None => triangles.push(child),
+                        }
+                    }
                 }
             }
+            if self.groups.is_some() {
+                parent.extend(std::iter::repeat_n(k, triangles.len() - before));
+            }
         }
-        Mesh::new(points, triangles)
+        let mesh = Mesh::new(points, triangles)?;
+        Ok(match self.groups() {
+            None => mesh,
+            Some(groups) => {
+                // A boundary edge of the new mesh is a boundary edge of `self` or half of one.
+                let halves: Vec<((usize, usize), (usize, usize))> = (0..edges.ends.len())
+                    .filter(|&e| edges.on_boundary(e))
+                    .flat_map(|e| {
+                        let (a, b) = edges.ends[e];
+                        match mid[e] {
+                            None => vec![((a, b), (a, b))],
+                            Some(m) => vec![((a, m), (a, b)), ((m, b), (a, b))],
+                        }
+                    })
+                    .collect();
+                let derived = groups.derived(parent.into_iter(), halves.into_iter());
+                mesh.with_groups(derived)
+            }
+        })
     }
 }
 
@@ -260,6 +287,7 @@ mod tests {
                 points: vec![[0.0, 0.0], [1.0, 0.0], [0.5, 2.0]],
                 triangles: vec![triangle],
                 on_boundary: vec![true; 3],
+                groups: None,
             };
             assert_eq!(isosceles.longest_edge_labelled().triangles, [[1, 2, 0]]);
         }

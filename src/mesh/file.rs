@@ -80,7 +80,14 @@ pub fn read(path: &Path) -> Result<Mesh, FileError> {
     let (points, cells) = match extension {
         "xdmf" => read_xdmf(path)?,
         "h5" | "hdf5" => read_h5_mesh(path)?,
-        "msh" => super::msh::read(path)?,
+        "msh" => {
+            let (raw, groups) = super::msh::read(path)?;
+            let mesh = Mesh::new(raw.0, raw.1).map_err(|e| FileError(format!("{}: {e}", path.display())))?;
+            return Ok(match groups {
+                None => mesh,
+                Some(g) => with_msh_groups(mesh, g, path),
+            });
+        }
         _ => {
             return Err(FileError(format!(
                 "{}: unknown mesh file extension '{extension}': the mesh files read are {ACCEPTED}",
@@ -89,6 +96,32 @@ pub fn read(path: &Path) -> Result<Mesh, FileError> {
         }
     };
     Mesh::new(points, cells).map_err(|e| FileError(format!("{}: {e}", path.display())))
+}
+
+/// The mesh with the physical groups of its MSH file: the surface of each triangle, and the
+/// curve of each boundary edge that a line element of a physical curve covers (lines inside ω
+/// are not on a boundary edge and are left aside).
+fn with_msh_groups(mesh: Mesh, raw: super::msh::RawGroups, path: &Path) -> Mesh {
+    let mut lines: Vec<((usize, usize), u32)> = (raw.lines.iter())
+        .map(|&([a, b], g)| ((a.min(b), a.max(b)), g))
+        .collect();
+    lines.sort_unstable();
+    let edges = mesh.boundary_edges().into_iter().map(|e| {
+        let i = lines.partition_point(|l| l.0 < e);
+        let g = lines
+            .get(i)
+            .filter(|l| l.0 == e)
+            .map_or(super::groups::NONE, |l| l.1);
+        (e, g)
+    });
+    let groups = super::Groups::new(
+        path.display().to_string(),
+        raw.surfaces,
+        raw.curves,
+        raw.triangle,
+        edges,
+    );
+    mesh.with_groups(groups)
 }
 
 /// The files a mesh file reads: itself and, for XDMF, the HDF5 files its data items name.

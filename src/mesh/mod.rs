@@ -9,6 +9,7 @@ pub mod builtin;
 pub mod domain;
 pub mod dual;
 pub mod file;
+pub mod groups;
 mod msh;
 pub mod refine;
 pub mod transfer;
@@ -16,6 +17,7 @@ pub mod transfer;
 pub use builtin::Diagonal;
 pub use domain::{Curves, Domain};
 pub use dual::{DualMesh, Edges};
+pub use groups::Groups;
 pub use transfer::Prolongation;
 
 use buckets::Buckets;
@@ -31,6 +33,8 @@ pub struct Mesh {
     triangles: Vec<[u32; 3]>,
     /// `on_boundary[a]`: vertex a lies on ∂ω (an endpoint of an edge with one triangle).
     pub on_boundary: Vec<bool>,
+    /// The physical groups of a Gmsh file, kept through refinement ([`Mesh::groups`]).
+    groups: Option<Box<Groups>>,
 }
 
 /// Why a set of points and triangles is not a valid mesh.
@@ -314,6 +318,7 @@ impl Mesh {
             points,
             triangles,
             on_boundary,
+            groups: None,
         }
     }
 

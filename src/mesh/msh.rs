@@ -1,7 +1,9 @@
 //! Gmsh MSH files, format 4.1 (ASCII or binary, read by the `mshio` crate). ω is the union of
-//! all linear triangles of the file, whatever their entity or physical group; points and lines
-//! (physical or not) are ignored, since ∂ω is the boundary of the triangulation itself. Other
-//! surface elements (quadrilaterals, curved triangles) and volume elements are refused.
+//! all linear triangles of the file, whatever their entity or physical group; points are ignored,
+//! and ∂ω is the boundary of the triangulation itself. Other surface elements (quadrilaterals,
+//! curved triangles) and volume elements are refused. The physical groups are kept
+//! ([`RawGroups`]): the physical surface of each triangle and the physical curve of each line
+//! (2-node) element, with the names of `$PhysicalNames` (or the tag, for a group without a name).
 
 use super::file::{FileError, RawMesh};
 use mshio::mshfile::ElementType;
@@ -11,8 +13,20 @@ use std::path::Path;
 /// The only MSH version read (Gmsh's default since 4.1).
 const VERSION: &str = "4.1";
 
-/// Reads the triangles of a MSH 4.1 file and the nodes they use (in the order of their tags).
-pub(super) fn read(path: &Path) -> Result<RawMesh, FileError> {
+/// The physical groups of a file as read: the names of the physical surfaces and curves, the
+/// surface of each triangle ([`super::groups::NONE`] for none) and the line elements with
+/// their curve (in the vertex numbers of the mesh).
+#[derive(Debug, Clone, PartialEq)]
+pub(super) struct RawGroups {
+    pub surfaces: Vec<String>,
+    pub curves: Vec<String>,
+    pub triangle: Vec<u32>,
+    pub lines: Vec<([usize; 2], u32)>,
+}
+
+/// Reads the triangles of a MSH 4.1 file and the nodes they use (in the order of their tags), and
+/// the physical groups, if the file has any.
+pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>), FileError> {
     let err = |m: String| FileError(format!("{}: {m}", path.display()));
     // A file larger than the memory available could not be read, let alone solved on; the header
     // is checked first, so that a file of another format is not read whole.
@@ -25,15 +39,42 @@ pub(super) fn read(path: &Path) -> Result<RawMesh, FileError> {
         err(format!("not a readable MSH {VERSION} file: {}", kinds.join(": ")))
     })?;
     let mut triangles = Vec::new();
+    // The physical tag of each triangle and each line, by its entity.
+    let physical = |dim: i32, entity: i32| -> Result<Option<i32>, FileError> {
+        let tags: &[i32] = match (&msh.data.entities, dim) {
+            (Some(e), 1) => (e.curves.iter().find(|c| c.tag == entity)).map_or(&[], |c| &c.physical_tags),
+            (Some(e), _) => (e.surfaces.iter().find(|c| c.tag == entity)).map_or(&[], |c| &c.physical_tags),
+            (None, _) => &[],
+        };
+        match tags {
+            [] => Ok(None),
+            [t] => Ok(Some(*t)),
+            _ => Err(err(format!(
+                "the {} entity {entity} belongs to the physical groups {tags:?}: each element may \
+                 belong to one physical group only",
+                if dim == 1 { "curve" } else { "surface" }
+            ))),
+        }
+    };
+    let (mut triangle_tag, mut lines) = (Vec::new(), Vec::new());
     for block in msh.data.elements.iter().flat_map(|e| &e.element_blocks) {
         match (block.entity_dim, block.element_type) {
+            (1, ElementType::Lin2) => {
+                if let Some(tag) = physical(1, block.entity_tag)? {
+                    lines.extend(block.elements.iter().map(|e| ([e.nodes[0], e.nodes[1]], tag)));
+                }
+            }
             (0 | 1, _) => {}
-            (2, ElementType::Tri3) => triangles.extend(
-                block
-                    .elements
-                    .iter()
-                    .map(|e| [e.nodes[0], e.nodes[1], e.nodes[2]]),
-            ),
+            (2, ElementType::Tri3) => {
+                let tag = physical(2, block.entity_tag)?;
+                triangle_tag.extend(std::iter::repeat_n(tag, block.elements.len()));
+                triangles.extend(
+                    block
+                        .elements
+                        .iter()
+                        .map(|e| [e.nodes[0], e.nodes[1], e.nodes[2]]),
+                )
+            }
             (2, ElementType::Qua4 | ElementType::Qua8 | ElementType::Qua9) => {
                 return Err(err(format!(
                     "quadrilateral elements ({:?}, surface {}): the mesh must be made of triangles",
@@ -76,9 +117,45 @@ pub(super) fn read(path: &Path) -> Result<RawMesh, FileError> {
             ))),
         })
         .collect::<Result<Vec<_>, _>>()?;
+    let names = super::groups::physical_names(&bytes).map_err(err)?;
+    let has_groups = triangle_tag.iter().any(Option::is_some) || !lines.is_empty();
+    let groups = has_groups.then(|| {
+        // Groups numbered by increasing tag, named by $PhysicalNames or by their tag.
+        let numbering = |dim: i32, tags: &mut dyn Iterator<Item = i32>| {
+            let mut tags: Vec<i32> = tags.collect();
+            tags.sort_unstable();
+            tags.dedup();
+            let name = |t: i32| {
+                (names.iter().find(|((d, tag), _)| *d == dim && *tag == t))
+                    .map_or_else(|| t.to_string(), |(_, n)| n.clone())
+            };
+            let names: Vec<String> = tags.iter().map(|&t| name(t)).collect();
+            (tags, names)
+        };
+        let (surface_tags, surfaces) = numbering(2, &mut triangle_tag.iter().flatten().copied());
+        let (curve_tags, curves) = numbering(1, &mut lines.iter().map(|l| l.1));
+        let group = |tags: &[i32], t: i32| tags.binary_search(&t).expect("a tag numbered") as u32;
+        RawGroups {
+            surfaces,
+            curves,
+            triangle: (triangle_tag.iter())
+                .map(|t| t.map_or(super::groups::NONE, |t| group(&surface_tags, t)))
+                .collect(),
+            // Lines on nodes that no triangle uses are not on ω.
+            lines: (lines.iter())
+                .filter_map(|(l, t)| {
+                    let [a, b] = l.map(|tag| index.get(&tag).copied());
+                    Some(([a?, b?], group(&curve_tags, *t)))
+                })
+                .collect(),
+        }
+    });
     Ok((
-        points,
-        triangles.iter().map(|t| t.map(|tag| index[&tag])).collect(),
+        (
+            points,
+            triangles.iter().map(|t| t.map(|tag| index[&tag])).collect(),
+        ),
+        groups,
     ))
 }
 
@@ -251,8 +328,8 @@ mod tests {
 
     #[test]
     fn ascii_and_binary_files_give_the_same_mesh() {
-        let (p, t) = read(Path::new("data/meshes/square.msh")).unwrap();
-        let (q, s) = read(Path::new("tests/data/square-binary.msh")).unwrap();
+        let (p, t) = read(Path::new("data/meshes/square.msh")).unwrap().0;
+        let (q, s) = read(Path::new("tests/data/square-binary.msh")).unwrap().0;
         assert_eq!((p.len(), t.len()), (98, 162));
         // Gmsh writes 16 significant digits in ASCII, the full double in binary.
         assert_eq!(t, s);
@@ -270,7 +347,7 @@ mod tests {
             "tests/data/square-resaved.msh",
             "tests/data/square-resaved-binary.msh",
         ] {
-            let (r, u) = read(Path::new(again)).unwrap();
+            let (r, u) = read(Path::new(again)).unwrap().0;
             let triangles = |points: &[[f64; 2]], t: &[[usize; 3]]| {
                 let mut k: Vec<[[u64; 2]; 3]> = (t.iter())
                     .map(|t| t.map(|a| points[a].map(|x| (x * 1e12).round() as u64)))

@@ -32,7 +32,20 @@ impl Mesh {
             let (ab, bc, ca) = (mid(a, b), mid(b, c), mid(c, a));
             triangles.extend([[a, ab, ca], [ab, b, bc], [ca, bc, c], [ab, bc, ca]]);
         }
-        Mesh::new(points, triangles)
+        let fine = Mesh::new(points, triangles)?;
+        Ok(match self.groups() {
+            None => fine,
+            Some(groups) => {
+                // Each child keeps its parent's surface, each half of a boundary edge its curve.
+                let halves = (groups.boundary_edges()).flat_map(|((a, b), _)| {
+                    let m = mid(a, b);
+                    [((a, m), (a, b)), ((m, b), (a, b))]
+                });
+                let parent = (0..4 * self.n_triangles()).map(|t| t / 4);
+                let derived = groups.derived(parent, halves);
+                fine.with_groups(derived)
+            }
+        })
     }
 }
 
@@ -57,13 +70,21 @@ impl Mesh {
         for (i, &a) in order.iter().enumerate() {
             new[a] = i;
         }
-        let mut triangles: Vec<[usize; 3]> = self.triangles().map(|t| t.map(|a| new[a])).collect();
-        triangles.sort_by_key(|t| (*t.iter().min().expect("three vertices"), t[0], t[1]));
-        Mesh::from_parts(
+        let renamed: Vec<[usize; 3]> = self.triangles().map(|t| t.map(|a| new[a])).collect();
+        let mut by_triangle: Vec<usize> = (0..renamed.len()).collect();
+        by_triangle.sort_by_key(|&t| {
+            let t = renamed[t];
+            (*t.iter().min().expect("three vertices"), t[0], t[1])
+        });
+        let mut mesh = Mesh::from_parts(
             order.iter().map(|&a| self.points[a]).collect(),
-            triangles,
+            by_triangle.iter().map(|&t| renamed[t]).collect(),
             order.iter().map(|&a| self.on_boundary[a]).collect(),
-        )
+        );
+        if let Some(groups) = self.groups() {
+            mesh = mesh.with_groups(groups.renumbered(&new, &by_triangle));
+        }
+        mesh
     }
 }
 

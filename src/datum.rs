@@ -1,0 +1,329 @@
+//! A datum of the case: one expression on all of ω (or ∂ω), or one expression per physical group
+//! of a Gmsh mesh ([`crate::mesh::Groups`]): per physical surface for the loads and ψ, per
+//! physical curve for the boundary values g and g2.
+//!
+//! On a mesh, a datum resolves to its [`Pieces`]: the expression of every triangle (or boundary
+//! edge). The loads are integrated triangle by triangle with the expression of the triangle's
+//! group ([`visit`]), so a jump between groups on the edges of the mesh is integrated exactly as
+//! the quadrature integrates each side: nothing is smeared across the interface. Vertex values
+//! (g and g2 at the boundary vertices, ψ at every vertex) are taken from the groups around the
+//! vertex, which must agree there ([`vertex_values`]).
+
+use crate::assembly::{Quadrature, QuadraturePoint};
+use crate::expr::Expr;
+use crate::mesh::groups::NONE;
+use crate::mesh::Mesh;
+use crate::problem::DataError;
+
+/// One expression, or one per group name (in the order the case gives them).
+#[derive(Debug, Clone)]
+pub enum Datum {
+    /// The same expression everywhere.
+    Expr(Expr),
+    /// An expression per physical group, by name.
+    Table(Vec<(String, Expr)>),
+}
+
+impl From<Expr> for Datum {
+    fn from(e: Expr) -> Self {
+        Datum::Expr(e)
+    }
+}
+
+/// Which kind of physical group a datum is given on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum On {
+    /// Physical surfaces: one expression per triangle.
+    Surfaces,
+    /// Physical curves: one expression per boundary edge.
+    Curves,
+}
+
+impl On {
+    fn noun(self) -> &'static str {
+        match self {
+            On::Surfaces => "physical surface",
+            On::Curves => "physical curve",
+        }
+    }
+}
+
+impl Datum {
+    /// The value when the datum is one constant expression.
+    pub fn constant(&self) -> Option<f64> {
+        match self {
+            Datum::Expr(e) => e.constant(),
+            Datum::Table(_) => None,
+        }
+    }
+
+    /// The expression, when the datum is one.
+    pub fn expr(&self) -> Option<&Expr> {
+        match self {
+            Datum::Expr(e) => Some(e),
+            Datum::Table(_) => None,
+        }
+    }
+
+    /// Whether the datum is a table per group.
+    pub fn is_table(&self) -> bool {
+        matches!(self, Datum::Table(_))
+    }
+
+    /// The datum `name` on `mesh`: the expression of every triangle (`On::Surfaces`) or boundary
+    /// edge (`On::Curves`). A table needs a mesh with groups, names that are groups of the mesh
+    /// and an entry for the group of every triangle (boundary edge).
+    pub fn pieces<'a>(&'a self, name: &'static str, mesh: &'a Mesh, on: On) -> Result<Pieces<'a>, DataError> {
+        let table = match self {
+            Datum::Expr(e) => {
+                return Ok(Pieces {
+                    exprs: vec![e],
+                    of_group: Vec::new(),
+                    mesh,
+                    on,
+                })
+            }
+            Datum::Table(table) => table,
+        };
+        let group_error = |why: String| DataError::Group { name, why };
+        let Some(groups) = mesh.groups() else {
+            return Err(group_error(
+                "a table per physical group needs a Gmsh mesh (.msh) with physical groups; this mesh has none"
+                    .into(),
+            ));
+        };
+        let names = match on {
+            On::Surfaces => &groups.surfaces,
+            On::Curves => &groups.curves,
+        };
+        let listed = || {
+            names
+                .iter()
+                .map(|n| format!("'{n}'"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        for (key, _) in table {
+            if !names.contains(key) {
+                return Err(group_error(format!(
+                    "'{key}' is not a {} of {} (its {}s: {})",
+                    on.noun(),
+                    groups.source,
+                    on.noun(),
+                    listed()
+                )));
+            }
+        }
+        let exprs: Vec<&Expr> = table.iter().map(|(_, e)| e).collect();
+        // Group index → entry of the table.
+        let entry: Vec<u32> = (names.iter())
+            .map(|n| table.iter().position(|(k, _)| k == n).map_or(NONE, |i| i as u32))
+            .collect();
+        let missing = |g: u32, what: String| {
+            let why = match g {
+                NONE => format!(
+                    "{what} belongs to no {} of {}: with a table, every one must",
+                    on.noun(),
+                    groups.source
+                ),
+                g => format!(
+                    "the table has no entry for the {} '{}' of {} ({what} belongs to it)",
+                    on.noun(),
+                    names[g as usize],
+                    groups.source
+                ),
+            };
+            group_error(why)
+        };
+        let of_group = match on {
+            On::Surfaces => (groups.triangle_groups().iter().enumerate())
+                .map(|(t, &g)| match entry.get(g as usize) {
+                    Some(&e) if e != NONE => Ok(e),
+                    _ => {
+                        let c = centroid(mesh.corners(t));
+                        Err(missing(g, format!("the triangle at ({}, {})", c[0], c[1])))
+                    }
+                })
+                .collect::<Result<Vec<u32>, _>>()?,
+            On::Curves => (groups.boundary_edges())
+                .map(|((a, b), g)| match entry.get(g as usize) {
+                    Some(&e) if e != NONE => Ok(e),
+                    _ => {
+                        let (p, q) = (mesh.points[a], mesh.points[b]);
+                        Err(missing(
+                            g,
+                            format!("the boundary edge ({}, {})–({}, {})", p[0], p[1], q[0], q[1]),
+                        ))
+                    }
+                })
+                .collect::<Result<Vec<u32>, _>>()?,
+        };
+        Ok(Pieces {
+            exprs,
+            of_group,
+            mesh,
+            on,
+        })
+    }
+}
+
+fn centroid([p, q, r]: [[f64; 2]; 3]) -> [f64; 2] {
+    [(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0]
+}
+
+/// A datum resolved on a mesh: the expression of every triangle or boundary edge.
+#[derive(Debug, Clone)]
+pub struct Pieces<'a> {
+    /// The distinct expressions.
+    exprs: Vec<&'a Expr>,
+    /// The entry of `exprs` of each triangle (or boundary edge, in the order of
+    /// [`crate::mesh::Groups::boundary_edges`]); empty for one expression.
+    of_group: Vec<u32>,
+    mesh: &'a Mesh,
+    on: On,
+}
+
+impl<'a> Pieces<'a> {
+    /// The one expression, when there is no table.
+    pub fn single(&self) -> Option<&'a Expr> {
+        self.of_group.is_empty().then(|| self.exprs[0])
+    }
+
+    /// The entry of `exprs` on triangle t (surfaces).
+    #[inline]
+    fn entry(&self, t: usize) -> usize {
+        self.of_group.get(t).map_or(0, |&e| e as usize)
+    }
+
+    /// The expression on triangle t.
+    pub fn on_triangle(&self, t: usize) -> &'a Expr {
+        debug_assert_eq!(self.on, On::Surfaces);
+        self.exprs[self.entry(t)]
+    }
+
+    /// The expression on the boundary edge (a, b) (either order).
+    pub fn on_edge(&self, a: usize, b: usize) -> &'a Expr {
+        debug_assert_eq!(self.on, On::Curves);
+        if self.of_group.is_empty() {
+            return self.exprs[0];
+        }
+        let groups = self
+            .mesh
+            .groups()
+            .expect("a table is resolved on a mesh with groups");
+        let i = groups.edge_index(a, b).expect("a boundary edge");
+        self.exprs[self.of_group[i] as usize]
+    }
+
+    /// The group name of entry e of a table (for messages), or "" for one expression.
+    fn name_of(&self, datum: &Datum, e: usize) -> String {
+        match datum {
+            Datum::Table(t) => t[e].0.clone(),
+            Datum::Expr(_) => String::new(),
+        }
+    }
+}
+
+/// Visits the triangles (or cells) `range` with the fields evaluated at their quadrature points,
+/// as [`Quadrature::visit`], each field by the expression of the triangle `triangle(s)` the cell
+/// s lies in: runs of cells with the same expressions are evaluated together.
+pub fn visit<const E: usize>(
+    quadrature: &Quadrature,
+    corners: impl Fn(usize) -> [[f64; 2]; 3],
+    triangle: impl Fn(usize) -> usize,
+    range: std::ops::Range<usize>,
+    fields: [&Pieces; E],
+    mut visit: impl FnMut(usize, &[QuadraturePoint], [&[f64]; E]),
+) {
+    if let Some(single) = fields.iter().map(|p| p.single()).collect::<Option<Vec<_>>>() {
+        let exprs: [&Expr; E] = std::array::from_fn(|e| single[e]);
+        return quadrature.visit(corners, range, exprs, visit);
+    }
+    let key = |s: usize| fields.map(|p| p.entry(triangle(s)));
+    let mut start = range.start;
+    while start < range.end {
+        let k = key(start);
+        let mut end = start + 1;
+        while end < range.end && key(end) == k {
+            end += 1;
+        }
+        let exprs: [&Expr; E] = std::array::from_fn(|e| fields[e].exprs[k[e]]);
+        quadrature.visit(&corners, start..end, exprs, &mut visit);
+        start = end;
+    }
+}
+
+/// The values of `datum` (named `name`) at the vertices: at every vertex for surfaces (ψ), at the
+/// boundary vertices for curves (g, g2; `None` inside). Each value must be finite; with a table, a
+/// vertex shared by two groups takes their common value, which must agree to
+/// 1e-12 · max(1, |value|).
+pub fn vertex_values(
+    name: &'static str,
+    datum: &Datum,
+    mesh: &Mesh,
+    on: On,
+) -> Result<Vec<Option<f64>>, DataError> {
+    let pieces = datum.pieces(name, mesh, on)?;
+    let finite = |e: &Expr, p: [f64; 2]| {
+        let value = e.eval(p[0], p[1]);
+        match value.is_finite() {
+            true => Ok(value),
+            false => Err(DataError::NotFinite {
+                name,
+                point: p,
+                value,
+            }),
+        }
+    };
+    let n = mesh.n_vertices();
+    if let Some(e) = pieces.single() {
+        return (0..n)
+            .map(|a| match on == On::Surfaces || mesh.on_boundary[a] {
+                true => finite(e, mesh.points[a]).map(Some),
+                false => Ok(None),
+            })
+            .collect();
+    }
+    // The first group seen at each vertex and its value.
+    let mut first: Vec<Option<(usize, f64)>> = vec![None; n];
+    let mut at = |a: usize, entry: usize| -> Result<(), DataError> {
+        let p = mesh.points[a];
+        match first[a] {
+            Some((e, _)) if e == entry => Ok(()),
+            Some((e, v)) => {
+                let w = finite(pieces.exprs[entry], p)?;
+                match (w - v).abs() <= 1e-12 * v.abs().max(1.0) {
+                    true => Ok(()),
+                    false => Err(DataError::Jump {
+                        name,
+                        point: p,
+                        groups: [pieces.name_of(datum, e), pieces.name_of(datum, entry)],
+                        values: [v, w],
+                    }),
+                }
+            }
+            None => {
+                first[a] = Some((entry, finite(pieces.exprs[entry], p)?));
+                Ok(())
+            }
+        }
+    };
+    match on {
+        On::Surfaces => {
+            for (t, tri) in mesh.triangles().enumerate() {
+                for a in tri {
+                    at(a, pieces.entry(t))?;
+                }
+            }
+        }
+        On::Curves => {
+            let groups = mesh.groups().expect("a table is resolved on a mesh with groups");
+            for (i, ((a, b), _)) in groups.boundary_edges().enumerate() {
+                let entry = pieces.of_group[i] as usize;
+                at(a, entry)?;
+                at(b, entry)?;
+            }
+        }
+    }
+    Ok(first.into_iter().map(|f| f.map(|(_, v)| v)).collect())
+}

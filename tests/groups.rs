@@ -1,0 +1,190 @@
+//! Data per physical group of a Gmsh mesh: the shipped two-region mesh (data/meshes/two_regions.msh:
+//! the surfaces "loaded" (x < 1) and "free" (x > 1) of the rectangle (0, 2) × (0, 1), the curves
+//! "rim" (x = 2) and "clamped" (the other sides)). A table load is the load of the same function
+//! written with `if`, integrated per triangle (no smearing across the interface), and the groups
+//! follow the mesh through refinement, bisection and renumbering.
+
+use membrane_contact::assembly::Quadrature;
+use membrane_contact::case::Case;
+use membrane_contact::datum::Datum;
+use membrane_contact::expr::Expr;
+use membrane_contact::mesh::{file, Curves, Mesh};
+use membrane_contact::problem::{Data, DiscreteProblem};
+use std::path::Path;
+
+const MESH: &str = "data/meshes/two_regions.msh";
+
+fn two_regions() -> Mesh {
+    file::read(Path::new(MESH)).unwrap()
+}
+
+fn e(s: &str) -> Expr {
+    Expr::parse(s).unwrap()
+}
+
+fn table(entries: &[(&str, &str)]) -> Datum {
+    Datum::Table(entries.iter().map(|(k, v)| (k.to_string(), e(v))).collect())
+}
+
+fn centroid(mesh: &Mesh, t: usize) -> [f64; 2] {
+    let [p, q, r] = mesh.corners(t);
+    [(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0]
+}
+
+/// The groups of `mesh` are the geometric ones: "loaded" ⇔ the triangle lies in x < 1, "rim" ⇔
+/// the boundary edge lies on x = 2.
+fn assert_geometric_groups(mesh: &Mesh) {
+    let groups = mesh.groups().expect("groups");
+    assert_eq!(groups.surfaces, ["loaded", "free"]);
+    assert_eq!(groups.curves, ["clamped", "rim"]);
+    for t in 0..mesh.n_triangles() {
+        let name = &groups.surfaces[groups.surface(t).expect("every triangle in a group")];
+        let left = centroid(mesh, t)[0] < 1.0;
+        assert_eq!(name == "loaded", left, "triangle {t} at {:?}", centroid(mesh, t));
+    }
+    let edges = mesh.boundary_edges();
+    assert_eq!(groups.boundary_edges().len(), edges.len());
+    for (a, b) in edges {
+        let curve = &groups.curves[groups.curve(a, b).expect("every boundary edge on a curve")];
+        let rim = mesh.points[a][0] == 2.0 && mesh.points[b][0] == 2.0;
+        assert_eq!(
+            curve == "rim",
+            rim,
+            "edge {:?}–{:?}",
+            mesh.points[a],
+            mesh.points[b]
+        );
+    }
+}
+
+fn loads(mesh: &Mesh, f1: impl Into<Datum>, degree: usize) -> Vec<f64> {
+    let data = Data::new([1.0, 1.0], f1, e("0"), e("0"), Quadrature { degree }).unwrap();
+    DiscreteProblem::new(mesh.clone(), &data).unwrap().load1
+}
+
+#[test]
+fn the_shipped_mesh_has_its_groups() {
+    let mesh = two_regions();
+    assert_eq!((mesh.n_vertices(), mesh.n_triangles()), (153, 256));
+    assert_geometric_groups(&mesh);
+}
+
+#[test]
+fn a_table_load_is_the_load_of_the_same_function_by_if() {
+    // The interface x = 1 lies on mesh edges: every quadrature point of a triangle is on its
+    // triangle's side, so `if` picks the triangle's group's expression at every point.
+    let mut mesh = two_regions();
+    for level in 0..3 {
+        for degree in [1, 4, 8] {
+            let tabled = loads(
+                &mesh,
+                table(&[("loaded", "-20*(1 + y) + sin(3*x)"), ("free", "3*x*y")]),
+                degree,
+            );
+            let by_if = loads(&mesh, e("if(x < 1, -20*(1 + y) + sin(3*x), 3*x*y)"), degree);
+            let scale = by_if.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+            for (a, (t, i)) in tabled.iter().zip(&by_if).enumerate() {
+                assert!(
+                    (t - i).abs() <= 1e-12 * scale,
+                    "level {level}, degree {degree}, vertex {a}: {t} vs {i}"
+                );
+            }
+        }
+        mesh = mesh.refined(&Curves::default()).unwrap().renumbered();
+    }
+}
+
+#[test]
+fn a_piecewise_constant_load_is_integrated_per_group_without_smearing() {
+    // (f, φ_a) = Σ_{T ∋ a} c_T |T| / 3 exactly for f = c_T on each triangle T: the vertices on the
+    // interface x = 1 get −20 |T|/3 from their left triangles and 3 |T|/3 from their right ones.
+    let mesh = two_regions().refined(&Curves::default()).unwrap();
+    let groups = mesh.groups().unwrap();
+    let value = |t: usize| match groups.surfaces[groups.surface(t).unwrap()].as_str() {
+        "loaded" => -20.0,
+        _ => 3.0,
+    };
+    let mut closed_form = vec![0.0; mesh.n_vertices()];
+    for (t, tri) in mesh.triangles().enumerate() {
+        for a in tri {
+            closed_form[a] += value(t) * mesh.area(t) / 3.0;
+        }
+    }
+    for degree in [0, 2, 5] {
+        let tabled = loads(&mesh, table(&[("free", "3"), ("loaded", "-20")]), degree);
+        for (a, (t, c)) in tabled.iter().zip(&closed_form).enumerate() {
+            assert!(
+                (t - c).abs() <= 1e-13 * 20.0,
+                "degree {degree}, vertex {a}: {t} vs {c}"
+            );
+        }
+        // ∫f = −20 |left| + 3 |right| = −17: nothing crosses the interface.
+        let total: f64 = tabled.iter().sum();
+        assert!((total + 17.0).abs() < 1e-12, "{total}");
+    }
+    // An interface vertex gets both sides' loads: it is neither −20 m_a nor 3 m_a.
+    let on_interface = (0..mesh.n_vertices())
+        .find(|&a| mesh.points[a][0] == 1.0 && !mesh.on_boundary[a])
+        .unwrap();
+    let tabled = loads(&mesh, table(&[("free", "3"), ("loaded", "-20")]), 2);
+    let m: f64 = (mesh.triangles().enumerate())
+        .filter(|(_, tri)| tri.contains(&on_interface))
+        .map(|(t, _)| mesh.area(t) / 3.0)
+        .sum();
+    let l = tabled[on_interface];
+    assert!(l > -20.0 * m * 0.9 && l < 3.0 * m * 0.9, "{l} vs m_a = {m}");
+}
+
+#[test]
+fn groups_survive_refinement_bisection_and_renumbering() {
+    let mesh = two_regions();
+    let refined = mesh.refined(&Curves::default()).unwrap();
+    assert_eq!(refined.n_triangles(), 4 * mesh.n_triangles());
+    // Each child keeps its parent's group: the four children of t are 4t..4t+3.
+    let (coarse, fine) = (mesh.groups().unwrap(), refined.groups().unwrap());
+    for t in 0..refined.n_triangles() {
+        assert_eq!(fine.surface(t), coarse.surface(t / 4), "child {t}");
+    }
+    assert_geometric_groups(&refined);
+    assert_geometric_groups(&refined.renumbered());
+    // Newest-vertex bisection of the triangles near the interface and near the rim, twice.
+    let mut adapted = mesh.longest_edge_labelled();
+    assert_geometric_groups(&adapted);
+    for _ in 0..2 {
+        let marked: Vec<bool> = (0..adapted.n_triangles())
+            .map(|t| {
+                let c = centroid(&adapted, t);
+                (c[0] - 1.0).abs() < 0.2 || c[0] > 1.85
+            })
+            .collect();
+        let before = adapted.n_triangles();
+        adapted = adapted.bisected(&marked, &Curves::default()).unwrap();
+        assert!(adapted.n_triangles() > before);
+        assert_geometric_groups(&adapted);
+    }
+}
+
+#[test]
+fn the_shipped_case_solves_with_tables_through_refinement() {
+    let case = Case::read(Path::new("data/cases/two_regions.toml")).unwrap();
+    assert!(case.data.f1.is_table() && case.data.g.is_table());
+    let (mesh, coarser) = case.hierarchy(true, Default::default()).unwrap();
+    assert_geometric_groups(&mesh);
+    for level in &coarser {
+        if level.groups().is_some() {
+            assert_geometric_groups(level);
+        }
+    }
+    let problem = DiscreteProblem::new(mesh, &case.data).unwrap();
+    // g_h: 0.05 on the clamped sides, 0.05 + 0.4 y (1 − y) on the rim.
+    for (a, p) in problem.mesh.points.iter().enumerate() {
+        if problem.mesh.on_boundary[a] {
+            let g = if p[0] == 2.0 {
+                0.05 + 0.4 * p[1] * (1.0 - p[1])
+            } else {
+                0.05
+            };
+            assert!((problem.g_h[a] - g).abs() < 1e-15, "{p:?}");
+        }
+    }
+}
