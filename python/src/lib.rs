@@ -120,12 +120,8 @@ impl CaseSource {
     /// The case, on the given mesh if any (which replaces the case's `[mesh]`, or stands for it
     /// when the case has none).
     fn case(&self, mesh: Option<Arrays>) -> Result<Case, CaseError> {
-        let without_mesh = |text: &str| {
-            mesh.is_some()
-                && text
-                    .parse::<toml::Table>()
-                    .is_ok_and(|t| !t.contains_key("mesh"))
-        };
+        let without_mesh =
+            |text: &str| mesh.is_some() && text.parse::<toml::Table>().is_ok_and(|t| !t.contains_key("mesh"));
         let mut case = match self.kind.as_str() {
             "default" => Case::default_case(),
             "path" => {
@@ -166,9 +162,8 @@ impl CaseSource {
                     Ok(out)
                 })
                 .collect::<Result<Vec<_>, CaseError>>()?;
-            let mesh = Mesh::new(points, triangles).map_err(|e| {
-                CaseError(format!("{}: the given mesh is not valid: {e}", case.origin))
-            })?;
+            let mesh = Mesh::new(points, triangles)
+                .map_err(|e| CaseError(format!("{}: the given mesh is not valid: {e}", case.origin)))?;
             case.set_mesh(mesh);
         }
         Ok(case)
@@ -393,8 +388,11 @@ fn study(
         let mut out = Vec::new();
         for (label, cases) in study::variants(&case, &options)? {
             let mut parts = Vec::new();
-            let levels =
-                study::run_levels(&cases, &options, |_, _, r| parts.push(PyParts { parts: r.parts(false) }))?;
+            let levels = study::run_levels(&cases, &options, |_, _, r| {
+                parts.push(PyParts {
+                    parts: r.parts(false),
+                })
+            })?;
             let json = serde_json::to_string(&levels).expect("levels serialise");
             out.push((label, json, parts));
         }
@@ -437,7 +435,9 @@ fn adapt(
         settings.check(str::to_string).map_err(CaseError)?;
         let mut parts = Vec::new();
         let steps = adapt::steps(&case, &settings, |_, r, _| {
-            parts.push(PyParts { parts: r.parts(false) });
+            parts.push(PyParts {
+                parts: r.parts(false),
+            });
             Ok(())
         })?;
         let json = serde_json::to_string(&steps).expect("steps serialise");
@@ -519,9 +519,7 @@ fn read_parts(dir: &Path) -> Result<Parts, String> {
         } else if dtype.is::<i64>() {
             Attr::Int(attr.read_scalar::<i64>().map_err(named)?)
         } else {
-            let text = attr
-                .read_scalar::<hdf5::types::VarLenUnicode>()
-                .map_err(named)?;
+            let text = attr.read_scalar::<hdf5::types::VarLenUnicode>().map_err(named)?;
             Attr::Text(text.as_str().to_string())
         };
         attributes.push((intern(&name), value));
