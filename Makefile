@@ -58,7 +58,7 @@ python: deps
 	$(VENV)/bin/python -m maturin --version >/dev/null 2>&1 || \
 		$(VENV)/bin/python -m pip install --quiet "$(MATURIN)"
 	rm -rf target/wheels
-	$(VENV)/bin/python -m maturin build --release --strip -m python/Cargo.toml -i $(VENV)/bin/python
+	$(VENV)/bin/python -m maturin build --release --strip --auditwheel skip -m python/Cargo.toml -i $(VENV)/bin/python
 	$(VENV)/bin/python -m pip install --quiet --no-deps --force-reinstall target/wheels/membrane_contact-*.whl
 
 python-test: python build

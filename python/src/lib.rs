@@ -66,7 +66,7 @@ fn wait<T: Send + 'static>(
     work: impl FnOnce() -> Result<T, RunError> + Send + 'static,
 ) -> PyResult<T> {
     progress::resume();
-    let (send, receive) = mpsc::channel();
+    let (send, mut receive) = mpsc::channel();
     let handle = std::thread::Builder::new()
         .name("membrane-contact".into())
         .spawn(move || {
@@ -74,7 +74,10 @@ fn wait<T: Send + 'static>(
         })
         .map_err(|e| SolverError::new_err(format!("cannot start the run's thread: {e}")))?;
     loop {
-        match py.allow_threads(|| receive.recv_timeout(POLL)) {
+        // The receiver goes in and out of the GIL-free closure (it is not Sync).
+        let (got, back) = py.allow_threads(move || (receive.recv_timeout(POLL), receive));
+        receive = back;
+        match got {
             Ok(result) => {
                 let _ = handle.join();
                 return result.map_err(run_error);
@@ -350,8 +353,9 @@ fn solve(
 #[pyfunction]
 #[pyo3(signature = (case, origin, points=None, triangles=None, *, levels=None, refine=None,
     cold=false, grading=None, hminus1_max=512, linear=None))]
+#[pyo3(name = "study")]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
-fn study(
+fn run_study(
     py: Python<'_>,
     case: (String, String),
     origin: String,
@@ -405,8 +409,9 @@ fn study(
 #[pyfunction]
 #[pyo3(signature = (case, origin, points=None, triangles=None, *, n=None, theta=None,
     target=None, max_vertices=None, steps=None))]
+#[pyo3(name = "adapt")]
 #[allow(clippy::too_many_arguments)]
-fn adapt(
+fn run_adapt(
     py: Python<'_>,
     case: (String, String),
     origin: String,
@@ -634,8 +639,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("OutputError", m.py().get_type_bound::<OutputError>())?;
     m.add_class::<PyParts>()?;
     m.add_function(wrap_pyfunction!(solve, m)?)?;
-    m.add_function(wrap_pyfunction!(study, m)?)?;
-    m.add_function(wrap_pyfunction!(adapt, m)?)?;
+    m.add_function(wrap_pyfunction!(run_study, m)?)?;
+    m.add_function(wrap_pyfunction!(run_adapt, m)?)?;
     m.add_function(wrap_pyfunction!(read, m)?)?;
     m.add_function(wrap_pyfunction!(dict_to_toml, m)?)?;
     m.add_function(wrap_pyfunction!(default_case, m)?)?;
