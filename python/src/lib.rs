@@ -84,11 +84,11 @@ fn wait<T: Send + 'static>(
             }
             Err(RecvTimeoutError::Timeout) => {
                 if let Err(interrupt) = py.check_signals() {
+                    // The run stops at its next check (before an active-set iteration, between
+                    // phases); it is waited for a second at most, then left to stop by itself
+                    // (the next run's `resume` lets one still inside a long phase finish).
                     progress::cancel();
-                    py.allow_threads(|| {
-                        let _ = handle.join();
-                    });
-                    progress::resume();
+                    let _ = py.allow_threads(move || receive.recv_timeout(Duration::from_secs(1)));
                     return Err(interrupt);
                 }
             }
