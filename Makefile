@@ -1,5 +1,6 @@
 # membrane-contact: `make run` solves the built-in default case, `make test` runs every test
-# (cargo test + make validate). Missing Debian packages are installed on first use: the solver's
+# (cargo test + make validate + the Python package's tests), `make python` builds the Python
+# package into .venv/. Missing Debian packages are installed on first use: the solver's
 # own for `make build` and `make run`, the dolfinx reference stack too for the tests.
 
 SHELL := /bin/bash
@@ -11,7 +12,11 @@ export HDF5_DIR := /usr/lib/x86_64-linux-gnu/hdf5/serial
 SOLVER_PACKAGES := libhdf5-dev pkg-config fonts-dejavu-core
 # What the tests and the reference need beside it.
 REFERENCE_PACKAGES := python3-dolfinx python3-petsc4py python3-meshio python3-h5py python3-paraview \
-	python3-matplotlib python3-sympy
+	python3-matplotlib python3-sympy python3-venv python3-pytest
+# The Python package's virtual environment: Debian's python3 with its packages (dolfinx, numpy,
+# meshio, h5py, pytest), and maturin from PyPI to build the wheel.
+VENV := .venv
+MATURIN ?= maturin>=1.5,<2
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 BENCH_SIZES ?= 256 512 1024 disk-6
 # Multigrid only (Cholesky would not fit): 16.8M vertices, about 6 GB.
@@ -23,7 +28,7 @@ BENCH_REPEAT ?= 3
 # and output size of the process, beside the phases it prints. 4096² takes minutes and about 6 GB.
 BENCH_WHOLE ?= 1024 1024:--estimate 4096
 
-.PHONY: all deps solver-deps build run test cargo-test validate bench bench-reference study fuzz lint mutants expr-property clean
+.PHONY: all deps solver-deps build run test cargo-test validate python python-test bench bench-reference study fuzz lint mutants expr-property clean
 
 all: build
 
@@ -43,7 +48,21 @@ build: solver-deps
 run: build
 	$(BIN) solve
 
-test: cargo-test validate
+test: cargo-test validate python-test
+
+# The Python package membrane_contact (python/), built by maturin as an abi3 wheel and installed
+# into .venv, made with --system-site-packages so that dolfinx and the package share one
+# interpreter (Debian's python3 refuses a plain pip install).
+python: deps
+	[ -x $(VENV)/bin/python ] || $(PY) -m venv --system-site-packages $(VENV)
+	$(VENV)/bin/python -m maturin --version >/dev/null 2>&1 || \
+		$(VENV)/bin/python -m pip install --quiet "$(MATURIN)"
+	rm -rf target/wheels
+	$(VENV)/bin/python -m maturin build --release --strip --auditwheel skip -m python/Cargo.toml -i $(VENV)/bin/python
+	$(VENV)/bin/python -m pip install --quiet --no-deps --force-reinstall target/wheels/membrane_contact-*.whl
+
+python-test: python build
+	$(VENV)/bin/python -m pytest python/tests -q
 
 cargo-test: deps
 	cargo test --release
@@ -102,8 +121,9 @@ mutants: deps
 lint:
 	cargo fmt --all -- --check
 	cargo clippy --all-targets -- -D warnings -W clippy::too_many_lines
+	cargo clippy -p membrane-contact-python -- -D warnings
 	RUSTDOCFLAGS="-D warnings" cargo doc --no-deps
 
 clean:
 	cargo clean
-	rm -rf results validation
+	rm -rf results validation $(VENV)

@@ -92,62 +92,18 @@ pub fn dorfler(indicator: &[f64], theta: f64) -> Vec<bool> {
 /// Runs the adaptive loop on `case` with `settings` and writes everything into the directory
 /// `target`, whole or not at all.
 pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapted, RunError> {
-    // The adapted meshes have no coarser levels (Cholesky solves them) and are estimated: the
-    // largest one allowed must fit, before anything is built.
-    let after = Postprocess {
-        flux: false,
-        estimate: true,
-        hminus1: false,
-    };
-    let price = mesh::DIRECT_BYTES_PER_VERTEX.max(after.bytes_per_vertex());
-    mesh::check_memory(settings.max_vertices, price).map_err(|e| {
-        CaseError(format!(
-            "{}: [adapt] max_vertices = {}: {e}",
-            case.origin, settings.max_vertices
-        ))
-    })?;
+    check_memory(case, settings)?;
     let inputs = case.inputs();
     let staging = Staging::new(target, &inputs, "adapt")?;
-    let curves = case.curves();
-    let mut clock = Instant::now();
-    let mut r = run::run(case, &estimating(Start::Nested))?;
-    let mut adaptive = Vec::new();
     let mut grids = Vec::new();
-    for step in 0.. {
-        let eta = r.estimate.as_ref().expect("estimated").total;
-        let done = step == settings.steps || settings.target.is_some_and(|t| eta <= t);
-        let marked = if done {
-            None
-        } else {
-            crate::progress::phase(|| format!("adapt step {step}: marking and refining"));
-            let marks = dorfler(&r.estimate.as_ref().expect("estimated").indicator, settings.theta);
-            // Meshes made by bisection carry their labels; the first one gets them here.
-            let labelled;
-            let mesh = if step == 0 {
-                labelled = r.problem.mesh.longest_edge_labelled();
-                &labelled
-            } else {
-                &r.problem.mesh
-            };
-            let fine = mesh.bisected(&marks, &curves).map_err(|e| mesh_error(case, &e))?;
-            let count = marks.iter().filter(|&&m| m).count();
-            (fine.n_vertices() <= settings.max_vertices).then_some((fine, count))
-        };
-        let seconds = clock.elapsed().as_secs_f64();
-        adaptive.push(Step::new(&r, marked.as_ref().map_or(0, |m| m.1), seconds));
-        progress(&adaptive);
+    let adaptive = steps(case, settings, |step, r, steps| {
+        progress(steps);
         let dir = format!("step-{step:03}");
         crate::progress::phase(|| format!("writing {dir}"));
-        write_step(&staging, &dir, &r)?;
+        write_step(&staging, &dir, r)?;
         grids.push(result::step_grid(&dir, step as f64, &r.problem.mesh, &r.fields()));
-        let Some((fine, _)) = marked else { break };
-        clock = Instant::now();
-        let start = Start::From {
-            mesh: &r.problem.mesh,
-            obstacle: &r.solution.obstacle,
-        };
-        r = run::on_mesh(case, fine, Vec::new(), &estimating(start), 0.0)?;
-    }
+        Ok(())
+    })?;
     let last = adaptive.last().map_or(0, |s| s.vertices);
     crate::progress::phase(|| "uniform refinement, for comparison".into());
     let uniform = uniform(case, last)?;
@@ -183,6 +139,71 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
     .map_err(OutputError)?;
     staging.commit(&inputs)?;
     Ok(adapted)
+}
+
+/// The adapted meshes have no coarser levels (Cholesky solves them) and are estimated: the
+/// largest one allowed must fit, before anything is built.
+fn check_memory(case: &Case, settings: &Adaptivity) -> Result<(), RunError> {
+    let after = Postprocess {
+        flux: false,
+        estimate: true,
+        hminus1: false,
+    };
+    let price = mesh::DIRECT_BYTES_PER_VERTEX.max(after.bytes_per_vertex());
+    mesh::check_memory(settings.max_vertices, price).map_err(|e| {
+        CaseError(format!(
+            "{}: [adapt] max_vertices = {}: {e}",
+            case.origin, settings.max_vertices
+        ))
+    })?;
+    Ok(())
+}
+
+/// The adaptive loop on `case` with `settings`, writing nothing: solve → estimate → mark →
+/// refine → solve …, calling `each(step, its run, the steps so far)` after each step (the last of
+/// the steps is that step's); the steps.
+pub fn steps(
+    case: &Case,
+    settings: &Adaptivity,
+    mut each: impl FnMut(usize, &Run, &[Step]) -> Result<(), RunError>,
+) -> Result<Vec<Step>, RunError> {
+    check_memory(case, settings)?;
+    let curves = case.curves();
+    let mut clock = Instant::now();
+    let mut r = run::run(case, &estimating(Start::Nested))?;
+    let mut adaptive = Vec::new();
+    for step in 0.. {
+        let eta = r.estimate.as_ref().expect("estimated").total;
+        let done = step == settings.steps || settings.target.is_some_and(|t| eta <= t);
+        let marked = if done {
+            None
+        } else {
+            crate::progress::phase(|| format!("adapt step {step}: marking and refining"));
+            let marks = dorfler(&r.estimate.as_ref().expect("estimated").indicator, settings.theta);
+            // Meshes made by bisection carry their labels; the first one gets them here.
+            let labelled;
+            let mesh = if step == 0 {
+                labelled = r.problem.mesh.longest_edge_labelled();
+                &labelled
+            } else {
+                &r.problem.mesh
+            };
+            let fine = mesh.bisected(&marks, &curves).map_err(|e| mesh_error(case, &e))?;
+            let count = marks.iter().filter(|&&m| m).count();
+            (fine.n_vertices() <= settings.max_vertices).then_some((fine, count))
+        };
+        let seconds = clock.elapsed().as_secs_f64();
+        adaptive.push(Step::new(&r, marked.as_ref().map_or(0, |m| m.1), seconds));
+        each(step, &r, &adaptive)?;
+        let Some((fine, _)) = marked else { break };
+        clock = Instant::now();
+        let start = Start::From {
+            mesh: &r.problem.mesh,
+            obstacle: &r.solution.obstacle,
+        };
+        r = run::on_mesh(case, fine, Vec::new(), &estimating(start), 0.0)?;
+    }
+    Ok(adaptive)
 }
 
 /// A run with the estimator, its result with S_h (the validation compares λ_h on it).

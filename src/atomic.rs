@@ -141,6 +141,14 @@ pub fn exit_as_signalled() {
     }
 }
 
+/// Installs no signal handlers, now or later: for a library inside another program (the Python
+/// package, whose interpreter handles Ctrl-C), where SIGINT, SIGTERM and SIGHUP must keep that
+/// program's handling. An interrupted run there drops its [`Staging`], which removes what it
+/// wrote. Without this call the first [`Staging::new`] installs them.
+pub fn leave_signals_alone() {
+    HANDLER.call_once(|| {});
+}
+
 /// The write end of the pipe on which [`on_signal`] passes the signal's number to the thread that
 /// removes the temporaries: a signal handler may do little more than write(2).
 static SIGNAL_PIPE: AtomicI32 = AtomicI32::new(-1);

@@ -199,6 +199,12 @@ pub enum MeshSpec {
         /// The path.
         path: PathBuf,
     },
+    /// A mesh given in memory ([`Case::set_mesh`], the Python package's `mesh=`): solved on as a
+    /// file mesh is, in its own vertex numbering.
+    Given {
+        /// The mesh.
+        mesh: std::sync::Arc<Mesh>,
+    },
 }
 
 /// The levels of a study or a validation: cells per side of a built-in mesh, or numbers of
@@ -463,7 +469,17 @@ impl Case {
             } => "polygon",
             MeshSpec::Domain { .. } => "disk",
             MeshSpec::File { .. } => "file",
+            MeshSpec::Given { .. } => "given",
         }
+    }
+
+    /// Replaces the case's mesh by `mesh`, checked already ([`Mesh::new`]), as a mesh file of
+    /// the same triangles would: it keeps its vertex numbering, `refine` refines it, and the
+    /// coarser levels of nested iteration are its domain meshed coarser.
+    pub fn set_mesh(&mut self, mesh: Mesh) {
+        self.mesh = MeshSpec::Given {
+            mesh: std::sync::Arc::new(mesh),
+        };
     }
 
     /// Sets the grading exponent of an L-shaped mesh.
@@ -489,7 +505,7 @@ impl Case {
         match &self.mesh {
             MeshSpec::Rectangle { n, .. } => Some(refined(n[0].max(n[1]))),
             MeshSpec::Lshape { n, .. } => Some(refined(*n)),
-            MeshSpec::Domain { .. } | MeshSpec::File { .. } => None,
+            MeshSpec::Domain { .. } | MeshSpec::File { .. } | MeshSpec::Given { .. } => None,
         }
     }
 
@@ -568,7 +584,7 @@ impl Case {
     /// L-shape read back), where Cholesky solves such meshes in less time.
     pub fn linear_solver(&self) -> LinearSolver {
         match self.mesh {
-            MeshSpec::File { .. } if self.refine == 0 => LinearSolver::Direct,
+            MeshSpec::File { .. } | MeshSpec::Given { .. } if self.refine == 0 => LinearSolver::Direct,
             _ => self.solver.linear,
         }
     }
@@ -609,6 +625,12 @@ impl Case {
                     .map_err(|e| err(format!("{}{refine}: {e}", path.display())))?;
                 return Ok(mesh);
             }
+            MeshSpec::Given { mesh } => {
+                let refined = mesh.n_vertices().saturating_mul(self.refinement_factor());
+                mesh::check_memory(refined, self.bytes_per_vertex(after))
+                    .map_err(|e| err(format!("the given mesh{refine}: {e}")))?;
+                return Ok(Mesh::clone(mesh));
+            }
         };
         if let MeshSpec::Domain { domain, h } = &self.mesh {
             domain.check_size(*h).map_err(|e| err(format!("[mesh] h: {e}")))?;
@@ -624,7 +646,7 @@ impl Case {
                 Mesh::l_shape(*n, *diagonal, *grading).map(|m| geometric(m, *diagonal))
             }
             MeshSpec::Domain { domain, h } => domain.mesh(*h).map(|m| m.renumbered()),
-            MeshSpec::File { .. } => unreachable!("read above"),
+            MeshSpec::File { .. } | MeshSpec::Given { .. } => unreachable!("read above"),
         };
         built.map_err(|e| err(format!("{keys}: the mesh is not valid: {e}")))
     }
@@ -638,7 +660,7 @@ impl Case {
     fn coarser_generated(&self, given: &Mesh) -> Vec<Mesh> {
         let (domain, h) = match &self.mesh {
             MeshSpec::Domain { domain, h } => (domain.clone(), *h),
-            MeshSpec::File { .. } => match Domain::of_mesh(given) {
+            MeshSpec::File { .. } | MeshSpec::Given { .. } => match Domain::of_mesh(given) {
                 Some(domain) => domain,
                 None => return Vec::new(),
             },
@@ -723,6 +745,7 @@ impl Case {
             MeshSpec::Lshape { n, .. } => n.saturating_add(2).saturating_mul(n.saturating_add(2)),
             MeshSpec::Domain { domain, h } => domain.estimated_vertices(*h),
             MeshSpec::File { .. } => 0,
+            MeshSpec::Given { mesh } => mesh.n_vertices(),
         };
         given.saturating_mul(self.refinement_factor())
     }

@@ -304,10 +304,7 @@ fn study(
     output: Option<PathBuf>,
 ) -> Result<(), Failure> {
     let (case, name) = read_case(&case_path, linear)?;
-    let levels = (levels.or_else(|| case.validation.clone())).unwrap_or_else(|| match case.cells() {
-        Some(_) => Levels::Cells(vec![8, 16, 32, 64]),
-        None => Levels::Refine(vec![0, 1, 2, 3]),
-    });
+    let levels = levels.unwrap_or_else(|| study::default_levels(&case));
     let dir = output_dir(output, "study", &name)?;
     let options = StudyOptions {
         levels,

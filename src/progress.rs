@@ -7,6 +7,7 @@
 
 use indicatif::{ProgressBar, ProgressStyle};
 use std::io::IsTerminal;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
@@ -62,4 +63,25 @@ pub fn finish() {
     if let Some(Display::Live(bar)) = DISPLAY.get() {
         bar.finish_and_clear();
     }
+}
+
+/// Whether the runs of this process are asked to stop ([`cancel`]).
+static CANCELLED: AtomicBool = AtomicBool::new(false);
+
+/// Asks the runs of this process to stop: the active-set method checks before each iteration and
+/// fails with [`crate::contact::SolveError::Cancelled`], and so does a run between its phases.
+/// The command line never calls it (its signals end the process, [`crate::atomic`]); the Python
+/// package does on Ctrl-C. Process-wide: every run under way stops, until [`resume`].
+pub fn cancel() {
+    CANCELLED.store(true, Ordering::SeqCst);
+}
+
+/// Lets runs go on again after [`cancel`] (before a new one starts).
+pub fn resume() {
+    CANCELLED.store(false, Ordering::SeqCst);
+}
+
+/// Whether [`cancel`] was called since the last [`resume`].
+pub fn cancelled() -> bool {
+    CANCELLED.load(Ordering::Relaxed)
 }

@@ -82,6 +82,28 @@ impl<'a> Field<'a> {
         }
     }
 
+    /// The same field owning its values (a copy of borrowed ones), free of what it borrowed: to
+    /// hand a run's fields out once the run is gone (the Python package's `Result`).
+    pub fn into_owned(self) -> Field<'static> {
+        let values = match self.values {
+            Values::Items(v) => Values::Items(Cow::Owned(v.into_owned())),
+            Values::PerVertex(v) => Values::PerVertex(Cow::Owned(v.into_owned())),
+        };
+        Field {
+            name: self.name,
+            place: self.place,
+            values,
+        }
+    }
+
+    /// The values held: one per item of the field's place, or for [`Values::PerVertex`] one per
+    /// vertex of T_h.
+    pub fn values(&self) -> &[f64] {
+        match &self.values {
+            Values::Items(v) | Values::PerVertex(v) => v,
+        }
+    }
+
     /// The field Σ_a v_a χ_{D_a} of S_h, constant on each dual cell D_a, by its values v_a at the
     /// vertices of T_h.
     pub fn on_dual_cells(name: &'static str, per_vertex: impl Into<Cow<'a, [f64]>>) -> Self {

@@ -119,6 +119,9 @@ pub fn on_mesh<'c>(
     let solution = (contact::solve(&problem, options.start, coarser, solver))
         .map_err(|e| RunError::Solve(case.origin.clone(), e))?;
     clock.lap();
+    if progress::cancelled() {
+        return Err(RunError::Solve(case.origin.clone(), SolveError::Cancelled));
+    }
     progress::phase(|| {
         let errors = if case.exact.is_some() { ", error norms" } else { "" };
         let flux = if options.flux { ", fluxes" } else { "" };
@@ -171,19 +174,32 @@ impl Run<'_> {
     /// Writes the result into `staging` and puts it in place.
     pub fn write(&mut self, staging: Staging, inputs: &[PathBuf]) -> Result<(), RunError> {
         let t = Instant::now();
-        progress::phase(|| format!("writing {}", staging.target().display()));
         let dual = self.writes_dual.then(|| self.dual());
-        result::write(
-            staging.path(),
+        write_staged(
+            staging,
+            inputs,
             &self.problem.mesh,
             dual.as_ref(),
             &self.fields(),
             &self.attributes(),
-        )
-        .map_err(|e| OutputError(format!("{}: {e}", staging.target().display())))?;
-        staging.commit(inputs)?;
+        )?;
         self.timings.write = t.elapsed().as_secs_f64();
         Ok(())
+    }
+
+    /// The run's result as owned parts, free of the case and of the run: what [`Run::write`]
+    /// writes (the same fields and attributes, copied, with the mesh and S_h's edges) and the
+    /// summary, for a caller that keeps the result after the run is gone (the Python package).
+    pub fn parts(&self, verbose: bool) -> Parts {
+        Parts {
+            fields: self.fields().into_iter().map(Field::into_owned).collect(),
+            attributes: self.attributes(),
+            summary: self.summary(verbose),
+            inputs: self.case.inputs(),
+            writes_dual: self.writes_dual,
+            mesh: self.problem.mesh.clone(),
+            edges: self.edges.clone(),
+        }
     }
 
     /// A short human-readable summary; `verbose` adds the solver's details (coarser levels, local
@@ -396,6 +412,56 @@ impl Describe for Run<'_> {
         attrs.extend(self.timings.attributes());
         attrs
     }
+}
+
+/// A finished run's result, owned ([`Run::parts`]).
+pub struct Parts {
+    /// T_h.
+    pub mesh: Mesh,
+    /// Its edges, which with T_h are S_h.
+    pub edges: Edges,
+    /// The fields of the result files ([`Describe::fields`] of the run).
+    pub fields: Vec<Field<'static>>,
+    /// Their attributes.
+    pub attributes: Vec<Attribute>,
+    /// The summary ([`Run::summary`]; its write time 0).
+    pub summary: String,
+    /// The files the case read, which writing must not replace.
+    pub inputs: Vec<PathBuf>,
+    /// Whether the result holds S_h.
+    pub writes_dual: bool,
+}
+
+impl Parts {
+    /// Writes the result directory `target` whole, as [`solve`] does.
+    pub fn write(&self, target: &Path) -> Result<(), RunError> {
+        let staging = Staging::new(target, &self.inputs, "solution")?;
+        let dual = self.writes_dual.then(|| DualMesh::new(&self.mesh, &self.edges));
+        write_staged(
+            staging,
+            &self.inputs,
+            &self.mesh,
+            dual.as_ref(),
+            &self.fields,
+            &self.attributes,
+        )
+    }
+}
+
+/// Writes a result into `staging` and puts it in place.
+fn write_staged(
+    staging: Staging,
+    inputs: &[PathBuf],
+    mesh: &Mesh,
+    dual: Option<&DualMesh>,
+    fields: &[Field],
+    attributes: &[Attribute],
+) -> Result<(), RunError> {
+    progress::phase(|| format!("writing {}", staging.target().display()));
+    result::write(staging.path(), mesh, dual, fields, attributes)
+        .map_err(|e| OutputError(format!("{}: {e}", staging.target().display())))?;
+    staging.commit(inputs)?;
+    Ok(())
 }
 
 /// Wall-clock seconds of the phases outside the contact solve (whose own are in its statistics).

@@ -21,7 +21,7 @@ fn levels(case: &Case, sizes: &[usize], cold: bool) -> Vec<Level> {
             c
         })
         .collect();
-    study::run_levels(&cases, &options, |_, _| {}).unwrap()
+    study::run_levels(&cases, &options, |_, _, _| {}).unwrap()
 }
 
 /// The EOCs (against h, and against N^(−1/2)) of `error` between every pair of successive levels

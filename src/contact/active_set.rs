@@ -94,6 +94,9 @@ pub(super) fn obstacle(
     let data = [&rhs[..], &problem.gap_h[..]];
     let (mut correcting, mut same_set) = (true, false);
     loop {
+        if crate::progress::cancelled() {
+            return Err(SolveError::Cancelled);
+        }
         if stats.iterations == options.max_iterations {
             return Err(SolveError::IterationCap {
                 iterations: stats.iterations,

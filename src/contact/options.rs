@@ -20,6 +20,8 @@ pub enum SolveError {
     CoarseData(DataError),
     /// Multigrid-preconditioned CG did not converge (cannot happen for a valid mesh).
     NotConverged(NotConverged),
+    /// Stopped by [`crate::progress::cancel`] (Ctrl-C in the Python package).
+    Cancelled,
 }
 
 impl fmt::Display for SolveError {
@@ -40,6 +42,7 @@ impl fmt::Display for SolveError {
                  {:.1e} wanted); try [solver] linear = \"direct\"",
                 e.iterations, e.residual, e.target
             ),
+            SolveError::Cancelled => write!(f, "the solve was interrupted"),
         }
     }
 }

@@ -24,7 +24,7 @@ use buckets::Buckets;
 use std::fmt;
 
 /// A triangle mesh with counter-clockwise triangles and its boundary vertices.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Mesh {
     /// The vertices.
     pub points: Vec<[f64; 2]>,

@@ -116,7 +116,7 @@ pub fn study(
         } else {
             format!("{name}, {label}")
         };
-        let result = run_levels(levels, options, |k, l| {
+        let result = run_levels(levels, options, |k, l, _| {
             crate::progress::phase(|| {
                 format!(
                     "study {title}: level {}/{} ({}) solved, {} active-set iterations",
@@ -165,8 +165,18 @@ pub fn study(
     Ok(series)
 }
 
-/// The cases of each variant and level, after checking every level's mesh and data.
-fn variants(case: &Case, options: &StudyOptions) -> Result<Vec<(String, Vec<Case>)>, CaseError> {
+/// The levels of a study of `case` when none are given: the case's `[validation]` levels, else
+/// 8, 16, 32, 64 cells per side of a built-in mesh and 0, 1, 2, 3 refinements of any other.
+pub fn default_levels(case: &Case) -> Levels {
+    case.validation.clone().unwrap_or_else(|| match case.cells() {
+        Some(_) => Levels::Cells(vec![8, 16, 32, 64]),
+        None => Levels::Refine(vec![0, 1, 2, 3]),
+    })
+}
+
+/// The cases of each variant (its label: empty, or `grading g`) and level, after checking every
+/// level's mesh and data.
+pub fn variants(case: &Case, options: &StudyOptions) -> Result<Vec<(String, Vec<Case>)>, CaseError> {
     let (option, levels) = match &options.levels {
         Levels::Cells(l) => ("--levels", l),
         Levels::Refine(l) => ("--refine", l),
@@ -214,11 +224,11 @@ fn variants(case: &Case, options: &StudyOptions) -> Result<Vec<(String, Vec<Case
 }
 
 /// Solves the `levels` (one case per level, finer and finer), each warm-started from the
-/// previous one, calling `progress(level index, level)` after each.
+/// previous one, calling `progress(level index, level, its run)` after each.
 pub fn run_levels(
     levels: &[Case],
     options: &StudyOptions,
-    mut progress: impl FnMut(usize, &Level),
+    mut progress: impl FnMut(usize, &Level, &run::Run),
 ) -> Result<Vec<Level>, RunError> {
     let mut out = Vec::new();
     let mut previous: Option<run::Run> = None;
@@ -271,7 +281,7 @@ pub fn run_levels(
             cold_iterations,
             seconds: stats.wall_seconds + r.timings.assembly + r.timings.mesh,
         };
-        progress(i, &level);
+        progress(i, &level, &r);
         out.push(level);
         previous = Some(r);
     }

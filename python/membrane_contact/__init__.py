@@ -1,0 +1,319 @@
+"""membrane_contact: the unilateral contact between two elastic membranes (and the classical
+obstacle problem) by P1 finite elements, with numpy arrays in and out.
+
+The solver is the Rust library of the `membrane-contact` command line, called in process: the
+arrays of a `Result` are the very values the command line writes to `solution.h5`.
+
+    import membrane_contact as mc
+    r = mc.solve("data/cases/default.toml", estimate=True)
+    r.u1, r.lambda_, r.contact, r.eta, r.summary()
+
+A case is a path, a TOML string or a dict of the case file's keys (docs: data/cases/README.md);
+a mesh is a meshio.Mesh, a (points, triangles) pair or a dolfinx mesh. Errors are `InputError`
+(a ValueError), `SolverError` (a RuntimeError) and `OutputError` (an OSError), with the command
+line's one-line messages. Ctrl-C stops a run.
+"""
+
+import json
+import os
+
+import numpy as np
+
+from . import _core
+from ._core import InputError, OutputError, SolverError
+
+__all__ = [
+    "solve",
+    "study",
+    "adapt",
+    "read",
+    "Result",
+    "InputError",
+    "SolverError",
+    "OutputError",
+    "default_case",
+]
+
+__version__ = _core.version
+
+
+def default_case():
+    """The built-in default case, as the text of a case file."""
+    return _core.default_case()
+
+
+def _case(case):
+    """((kind, value), origin) of a case: None (the default case), a path, TOML text or a dict."""
+    if case is None:
+        return ("default", ""), "built-in default case"
+    if isinstance(case, dict):
+        return ("text", _core.dict_to_toml(case)), "case dict"
+    if isinstance(case, os.PathLike):
+        path = os.fspath(case)
+        return ("path", os.fsdecode(path)), path
+    if isinstance(case, bytes):
+        case = case.decode()
+    if isinstance(case, str):
+        # A string naming a file, or one line ending in .toml, is a path; anything else is TOML.
+        single = "\n" not in case and "=" not in case
+        if single and (case.endswith(".toml") or os.path.isfile(case)):
+            return ("path", case), case
+        return ("text", case), "case text"
+    raise InputError(
+        f"case: need a path, a TOML string or a dict, got {type(case).__name__}"
+    )
+
+
+def _mesh(mesh):
+    """(points float64 (N, 2), triangles int64 (M, 3)) of a mesh, or (None, None)."""
+    if mesh is None:
+        return None, None
+    if hasattr(mesh, "cells_dict") and hasattr(mesh, "points"):  # meshio.Mesh
+        if "triangle" not in mesh.cells_dict:
+            kinds = ", ".join(sorted(mesh.cells_dict)) or "none"
+            raise InputError(f"mesh: a meshio mesh needs 'triangle' cells (it has {kinds})")
+        points, triangles = mesh.points, mesh.cells_dict["triangle"]
+    elif hasattr(mesh, "geometry") and hasattr(mesh, "topology"):  # a dolfinx mesh
+        points = mesh.geometry.x
+        dofmap = mesh.geometry.dofmap
+        # dolfinx 0.5–0.6: an adjacency list; later versions: an array.
+        cells = dofmap.array if hasattr(dofmap, "array") else dofmap
+        triangles = np.asarray(cells).reshape(-1, 3)
+    elif isinstance(mesh, (tuple, list)) and len(mesh) == 2:
+        points, triangles = mesh
+    else:
+        raise InputError(
+            "mesh: need a meshio.Mesh, a (points, triangles) pair or a dolfinx mesh, "
+            f"got {type(mesh).__name__}"
+        )
+    points = np.asarray(points)
+    triangles = np.asarray(triangles)
+    if points.ndim != 2 or points.shape[1] not in (2, 3):
+        raise InputError(f"mesh: points need shape (N, 2) or (N, 3), got {points.shape}")
+    if not np.issubdtype(points.dtype, np.number):
+        raise InputError(f"mesh: points need numbers, got dtype {points.dtype}")
+    if points.shape[1] == 3:
+        if np.any(points[:, 2] != 0):
+            raise InputError("mesh: the points have z ≠ 0: a plane mesh (z = 0) is needed")
+        points = points[:, :2]
+    if triangles.ndim != 2 or triangles.shape[1] != 3:
+        raise InputError(f"mesh: triangles need shape (M, 3), got {triangles.shape}")
+    if not np.issubdtype(triangles.dtype, np.integer):
+        raise InputError(f"mesh: triangles need integer vertex numbers, got dtype {triangles.dtype}")
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    triangles = np.ascontiguousarray(triangles, dtype=np.int64)
+    return points, triangles
+
+
+class Result:
+    """A solved case: the mesh, the fields and the summary's figures.
+
+    Arrays: `points` (N, 2), `triangles` (M, 3), and per vertex `u1`, `u2`, `gap` (u1 − u2),
+    `lambda_` (λ_h; the file's `lambda`), `lambda2` (λ_h from membrane 2), `contact` (bool); above
+    an obstacle `u`, `psi`, `gap`, `lambda_`, `contact`; with an exact solution `u1_exact`, …;
+    with `estimate=True` per triangle `estimator` and its terms. `fields` maps the file's names to
+    the arrays, `places` to "vertices" or "cells".
+
+    Figures: every attribute of `solution.h5` (`iterations`, `check_*`, `error_*`, `estimator`,
+    `effectivity`, …) is an attribute of the result and in `attributes`; `eta` is η.
+    """
+
+    def __init__(self, parts):
+        self._parts = parts
+        self.points = parts.points()
+        self.triangles = parts.triangles()
+        self.fields = {}
+        self.places = {}
+        for name, place, values in parts.fields():
+            if name == "contact":
+                values = values != 0.0
+            self.fields[name] = values
+            self.places[name] = place
+        self.dual_fields = parts.dual_field_names()
+        self.attributes = parts.attributes()
+
+    @property
+    def lambda_(self):
+        """λ_h at the vertices (the field `lambda`)."""
+        return self.fields["lambda"]
+
+    @property
+    def eta(self):
+        """η, the guaranteed bound of the energy error (None without `estimate=True`)."""
+        value = self.attributes.get("estimator")
+        return value if isinstance(value, float) else None
+
+    @property
+    def problem(self):
+        """"membranes" or "obstacle"."""
+        return self.attributes.get("problem")
+
+    def __getattr__(self, name):
+        if name.startswith("_"):
+            raise AttributeError(name)
+        fields = self.__dict__.get("fields", {})
+        if name in fields:
+            return fields[name]
+        attributes = self.__dict__.get("attributes", {})
+        if name in attributes:
+            return attributes[name]
+        raise AttributeError(f"this result has no field or figure '{name}'")
+
+    def __dir__(self):
+        return sorted(set(super().__dir__()) | set(self.fields) | set(self.attributes))
+
+    def summary(self):
+        """The summary the command line prints (its write time 0)."""
+        return self._parts.summary()
+
+    def write(self, directory):
+        """Writes the whole result directory `directory` as the command line does: solution.h5,
+        solution.xdmf (and dual.xdmf with `dual` or `flux`), put in place whole; an earlier result
+        there is replaced, anything else is left alone with an OutputError."""
+        self._parts.write(os.fspath(directory))
+
+    def __repr__(self):
+        return (
+            f"<membrane_contact.Result: {self.problem}, {len(self.points)} vertices, "
+            f"{len(self.triangles)} triangles, fields {', '.join(self.fields)}>"
+        )
+
+
+def solve(
+    case=None,
+    mesh=None,
+    *,
+    estimate=False,
+    flux=False,
+    dual=False,
+    hminus1=False,
+    linear=None,
+    refine=None,
+    n=None,
+    start=None,
+    verbose=False,
+):
+    """Solves a case (the built-in default case without one) and returns its `Result`.
+
+    case: a path (str or os.PathLike), a TOML string or a dict of the case file's keys.
+    mesh: a meshio.Mesh (its "triangle" cells), a (points, triangles) pair (points (N, 2), or
+    (N, 3) with z = 0; triangles (M, 3) of any integer type) or a dolfinx mesh; it replaces the
+    case's [mesh] (which may then be left out), keeps its vertex numbering and is checked as a
+    mesh file is. estimate, flux, dual, hminus1: as the command line's --estimate, --flux, --dual,
+    --hminus1. linear: "multigrid" or "direct". refine: uniform refinements (K). n: cells per side
+    of a built-in mesh. start: "nested" (the default) or "cold". verbose: the solver's details in
+    `summary()`.
+    """
+    (source, origin), (points, triangles) = _case(case), _mesh(mesh)
+    parts = _core.solve(
+        source,
+        origin,
+        points,
+        triangles,
+        estimate=estimate,
+        flux=flux,
+        dual=dual,
+        hminus1=hminus1,
+        linear=linear,
+        refine=refine,
+        n=n,
+        start=start,
+        verbose=verbose,
+    )
+    return Result(parts)
+
+
+def _row(level):
+    """A flat dict of a study level: the errors' norms beside the other columns."""
+    row = {k: v for k, v in level.items() if k != "errors"}
+    for k, v in (level.get("errors") or {}).items():
+        if k != "rigid":
+            row[k] = v
+    return row
+
+
+def study(
+    case=None,
+    mesh=None,
+    *,
+    levels=None,
+    refine=None,
+    cold=False,
+    grading=None,
+    hminus1_max=512,
+    linear=None,
+):
+    """A convergence study, as `membrane-contact study` computes it (nothing is written).
+
+    levels: cells per side of a built-in mesh on each level; refine: refinements of the case's
+    (or the given) mesh on each level; neither: the case's [validation] levels, else 8, 16, 32, 64
+    or 0, 1, 2, 3. Each level starts from the one before (nested iteration).
+
+    Returns (table, results): one dict per level (cells or refine, h, vertices, the error norms,
+    estimator, effectivity, iterations, cold_iterations, seconds; with several gradings also
+    `variant`), and the `Result` of each level, in the same order.
+    """
+    (source, origin), (points, triangles) = _case(case), _mesh(mesh)
+    series = _core.study(
+        source,
+        origin,
+        points,
+        triangles,
+        levels=None if levels is None else list(levels),
+        refine=None if refine is None else list(refine),
+        cold=cold,
+        grading=None if grading is None else [float(g) for g in grading],
+        hminus1_max=hminus1_max,
+        linear=linear,
+    )
+    table, results = [], []
+    for label, levels_json, parts in series:
+        for level, p in zip(json.loads(levels_json), parts):
+            row = _row(level)
+            energy, eta = row.get("energy"), row.get("estimator")
+            row["effectivity"] = eta / energy if energy and eta is not None else None
+            if label:
+                row["variant"] = label
+            table.append(row)
+            results.append(Result(p))
+    return table, results
+
+
+def adapt(
+    case=None,
+    mesh=None,
+    *,
+    n=None,
+    theta=None,
+    target=None,
+    max_vertices=None,
+    steps=None,
+):
+    """Adaptive refinement, as `membrane-contact adapt` computes it (nothing is written): solve,
+    estimate, refine the triangles with the largest indicators (Dörfler's θ), solve again, … until
+    η ≤ target, the vertex budget or the step count (each default: the case's [adapt]).
+
+    Returns (table, results): one dict per step (vertices, triangles, marked, estimator, error,
+    effectivity, iterations, seconds) and the `Result` of each step.
+    """
+    (source, origin), (points, triangles) = _case(case), _mesh(mesh)
+    steps_json, parts = _core.adapt(
+        source,
+        origin,
+        points,
+        triangles,
+        n=n,
+        theta=theta,
+        target=target,
+        max_vertices=max_vertices,
+        steps=steps,
+    )
+    table = json.loads(steps_json)
+    for row in table:
+        row["effectivity"] = row["estimator"] / row["error"] if row.get("error") else None
+    return table, [Result(p) for p in parts]
+
+
+def read(directory):
+    """The `Result` of a result directory written by `Result.write` or the command line."""
+    return Result(_core.read(os.fspath(directory)))

@@ -1,0 +1,649 @@
+//! `membrane_contact._core`: the Rust side of the Python package `membrane_contact`. It runs the
+//! library's own solve, study and adaptive loop (no second solver) on a case given as a path or
+//! as TOML text, optionally on a mesh given as arrays, and hands out each result's fields and
+//! attributes, the very ones the command line writes ([`run::Run::parts`]). The Python side
+//! (`membrane_contact/__init__.py`) turns paths, dicts, meshio and dolfinx meshes into these
+//! calls.
+//!
+//! Every computation runs on a thread of its own with the GIL released, while the calling thread
+//! checks for Ctrl-C every [`POLL`]: on KeyboardInterrupt the run is told to stop
+//! ([`progress::cancel`]), is waited for, and the KeyboardInterrupt is raised.
+
+use membrane_contact::adapt;
+use membrane_contact::atomic;
+use membrane_contact::case::{Case, CaseError, Levels};
+use membrane_contact::contact::{LinearSolver, SolveError, Start};
+use membrane_contact::mesh::{Edges, Mesh};
+use membrane_contact::progress;
+use membrane_contact::result::{Attr, Attribute, Field, Place, SOLUTION_H5};
+use membrane_contact::run::{self, Parts, RunError};
+use membrane_contact::study::{self, StudyOptions};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyKeyboardInterrupt, PyOSError, PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyDict, PyFloat, PyList, PyLong, PyString, PyTuple};
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{self, RecvTimeoutError};
+use std::sync::Mutex;
+use std::time::Duration;
+
+create_exception!(
+    _core,
+    InputError,
+    PyValueError,
+    "Bad input: a case, a mesh or an option; the message is the command line's."
+);
+create_exception!(
+    _core,
+    SolverError,
+    PyRuntimeError,
+    "The solver failed or a check of its solution did not pass."
+);
+create_exception!(
+    _core,
+    OutputError,
+    PyOSError,
+    "A result directory could not be written or read."
+);
+
+/// How often the waiting thread checks for Ctrl-C.
+const POLL: Duration = Duration::from_millis(50);
+
+/// The Python exception of a run's error, with its one-line message.
+fn run_error(e: RunError) -> PyErr {
+    match &e {
+        RunError::Case(_) => InputError::new_err(e.to_string()),
+        RunError::Solve(_, SolveError::Cancelled) => PyKeyboardInterrupt::new_err(e.to_string()),
+        RunError::Solve(..) | RunError::Check(..) => SolverError::new_err(e.to_string()),
+        RunError::Output(_) => OutputError::new_err(e.to_string()),
+    }
+}
+
+/// Runs `work` on a thread of its own, the GIL released, checking for Ctrl-C meanwhile.
+fn wait<T: Send + 'static>(
+    py: Python<'_>,
+    work: impl FnOnce() -> Result<T, RunError> + Send + 'static,
+) -> PyResult<T> {
+    progress::resume();
+    let (send, mut receive) = mpsc::channel();
+    let handle = std::thread::Builder::new()
+        .name("membrane-contact".into())
+        .spawn(move || {
+            let _ = send.send(work());
+        })
+        .map_err(|e| SolverError::new_err(format!("cannot start the run's thread: {e}")))?;
+    loop {
+        // The receiver goes in and out of the GIL-free closure (it is not Sync).
+        let (got, back) = py.allow_threads(move || (receive.recv_timeout(POLL), receive));
+        receive = back;
+        match got {
+            Ok(result) => {
+                let _ = handle.join();
+                return result.map_err(run_error);
+            }
+            Err(RecvTimeoutError::Timeout) => {
+                if let Err(interrupt) = py.check_signals() {
+                    // The run stops at its next check (before an active-set iteration, between
+                    // phases); it is waited for a second at most, then left to stop by itself
+                    // (the next run's `resume` lets one still inside a long phase finish).
+                    progress::cancel();
+                    let _ = py.allow_threads(move || receive.recv_timeout(Duration::from_secs(1)));
+                    return Err(interrupt);
+                }
+            }
+            Err(RecvTimeoutError::Disconnected) => {
+                let _ = handle.join();
+                return Err(SolverError::new_err(
+                    "the run failed on an internal error (a panic, printed on stderr)",
+                ));
+            }
+        }
+    }
+}
+
+/// A case as the Python side passes it.
+struct CaseSource {
+    /// "default", "path" or "text".
+    kind: String,
+    /// The path or the text.
+    value: String,
+    /// How text is named in messages ("case text", "case dict").
+    origin: String,
+}
+
+/// A mesh given as arrays, copied: points and triangles (any vertex numbers, checked later).
+type Arrays = (Vec<[f64; 2]>, Vec<[i64; 3]>);
+
+/// The placeholder `[mesh]` table of a case given without one beside a mesh: replaced by the
+/// mesh at once, and left out of the case text the result stores.
+const PLACEHOLDER_MESH: &str = "\n[mesh]\nkind = \"rectangle\"\nn = 1\n";
+
+impl CaseSource {
+    /// The case, on the given mesh if any (which replaces the case's `[mesh]`, or stands for it
+    /// when the case has none).
+    fn case(&self, mesh: Option<Arrays>) -> Result<Case, CaseError> {
+        let without_mesh =
+            |text: &str| mesh.is_some() && text.parse::<toml::Table>().is_ok_and(|t| !t.contains_key("mesh"));
+        let mut case = match self.kind.as_str() {
+            "default" => Case::default_case(),
+            "path" => {
+                let path = Path::new(&self.value);
+                let text = std::fs::read_to_string(path).unwrap_or_default();
+                if without_mesh(&text) {
+                    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+                    let origin = path.display().to_string();
+                    let mut case = Case::parse(&(text.clone() + PLACEHOLDER_MESH), &origin, base)?;
+                    case.text = text;
+                    case
+                } else {
+                    Case::read(path)?
+                }
+            }
+            _ if without_mesh(&self.value) => {
+                let text = self.value.clone() + PLACEHOLDER_MESH;
+                let mut case = Case::parse(&text, &self.origin, PathBuf::new())?;
+                case.text.clone_from(&self.value);
+                case
+            }
+            _ => Case::parse(&self.value, &self.origin, PathBuf::new())?,
+        };
+        if let Some((points, triangles)) = mesh {
+            let n = points.len();
+            let triangles = (triangles.iter().enumerate())
+                .map(|(t, tri)| {
+                    let mut out = [0usize; 3];
+                    for (o, &v) in out.iter_mut().zip(tri) {
+                        *o = usize::try_from(v).ok().filter(|&v| v < n).ok_or_else(|| {
+                            CaseError(format!(
+                                "{}: the given mesh is not valid: triangle {t} refers to vertex {v}, \
+                                 which does not exist",
+                                case.origin
+                            ))
+                        })?;
+                    }
+                    Ok(out)
+                })
+                .collect::<Result<Vec<_>, CaseError>>()?;
+            let mesh = Mesh::new(points, triangles)
+                .map_err(|e| CaseError(format!("{}: the given mesh is not valid: {e}", case.origin)))?;
+            case.set_mesh(mesh);
+        }
+        Ok(case)
+    }
+}
+
+/// The arrays of a mesh given from Python, copied (the shapes are checked on the Python side).
+fn arrays(
+    points: Option<PyReadonlyArray2<'_, f64>>,
+    triangles: Option<PyReadonlyArray2<'_, i64>>,
+) -> PyResult<Option<Arrays>> {
+    let (Some(points), Some(triangles)) = (points, triangles) else {
+        return Ok(None);
+    };
+    let (p, t) = (points.as_array(), triangles.as_array());
+    if p.ncols() != 2 || t.ncols() != 3 {
+        return Err(InputError::new_err(format!(
+            "mesh: need points of shape (N, 2) and triangles of shape (M, 3), got {:?} and {:?}",
+            p.shape(),
+            t.shape()
+        )));
+    }
+    let points = p.rows().into_iter().map(|r| [r[0], r[1]]).collect();
+    let triangles = t.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
+    Ok(Some((points, triangles)))
+}
+
+/// The case's settings that the keyword arguments override.
+fn override_case(
+    case: &mut Case,
+    n: Option<usize>,
+    refine: Option<usize>,
+    linear: Option<&str>,
+) -> Result<(), CaseError> {
+    if let Some(name) = linear {
+        case.solver.linear = LinearSolver::from_name(name).ok_or_else(|| {
+            CaseError(format!(
+                "linear = \"{name}\": expected one of {}",
+                LinearSolver::NAMES.map(|n| format!("\"{n}\"")).join(", ")
+            ))
+        })?;
+    }
+    if let Some(n) = n {
+        case.set_cells(n)
+            .map_err(|e| CaseError(format!("n = {n}: {e}")))?;
+    }
+    if let Some(k) = refine {
+        case.refine = k;
+    }
+    Ok(())
+}
+
+/// A finished result: its mesh, fields and attributes, as the command line writes them.
+#[pyclass(module = "membrane_contact._core", name = "Parts", frozen)]
+struct PyParts {
+    parts: Parts,
+}
+
+#[pymethods]
+impl PyParts {
+    /// The vertices, shape (N, 2).
+    fn points<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let flat: Vec<f64> = self.parts.mesh.points.concat();
+        let n = self.parts.mesh.n_vertices();
+        Ok(PyArray1::from_vec_bound(py, flat).reshape([n, 2])?.into_any())
+    }
+
+    /// The triangles, counter-clockwise, shape (M, 3).
+    fn triangles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let mesh = &self.parts.mesh;
+        let flat: Vec<i64> = mesh.triangles().flatten().map(|v| v as i64).collect();
+        Ok(PyArray1::from_vec_bound(py, flat)
+            .reshape([mesh.n_triangles(), 3])?
+            .into_any())
+    }
+
+    /// The fields of T_h: name → (place, values), place "vertices" or "cells", in the order
+    /// written.
+    fn fields<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let list = PyList::empty_bound(py);
+        for f in &self.parts.fields {
+            let place = match f.place {
+                Place::Vertices => "vertices",
+                Place::Cells => "cells",
+                Place::DualCells => continue,
+            };
+            let values = PyArray1::from_slice_bound(py, f.values());
+            list.append((f.name, place, values))?;
+        }
+        Ok(list)
+    }
+
+    /// The names of the fields of the dual submesh S_h written with the result (none unless
+    /// asked for by `dual` or `flux`).
+    fn dual_field_names(&self) -> Vec<&'static str> {
+        match self.parts.writes_dual {
+            true => (self.parts.fields.iter())
+                .filter(|f| f.place == Place::DualCells)
+                .map(|f| f.name)
+                .collect(),
+            false => Vec::new(),
+        }
+    }
+
+    /// The attributes of `solution.h5`'s root group: name → number, count, text or list.
+    fn attributes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let dict = PyDict::new_bound(py);
+        for (name, value) in &self.parts.attributes {
+            match value {
+                Attr::Float(v) => dict.set_item(name, v)?,
+                Attr::Int(v) => dict.set_item(name, v)?,
+                Attr::Text(s) => dict.set_item(name, s)?,
+                Attr::Floats(v) => dict.set_item(name, v.clone())?,
+            }
+        }
+        Ok(dict)
+    }
+
+    /// The summary the command line prints.
+    fn summary(&self) -> &str {
+        &self.parts.summary
+    }
+
+    /// Writes the whole result directory `directory`, as the command line does (an earlier result
+    /// there is replaced only once this one is complete).
+    fn write(slf: Py<Self>, py: Python<'_>, directory: PathBuf) -> PyResult<()> {
+        wait(py, move || slf.get().parts.write(&directory))
+    }
+}
+
+/// Solves a case: the `Parts` of its result.
+#[pyfunction]
+#[pyo3(signature = (case, origin, points=None, triangles=None, *, estimate=false, flux=false,
+    dual=false, hminus1=false, linear=None, refine=None, n=None, start=None, verbose=false))]
+#[allow(clippy::too_many_arguments)]
+fn solve(
+    py: Python<'_>,
+    case: (String, String),
+    origin: String,
+    points: Option<PyReadonlyArray2<'_, f64>>,
+    triangles: Option<PyReadonlyArray2<'_, i64>>,
+    estimate: bool,
+    flux: bool,
+    dual: bool,
+    hminus1: bool,
+    linear: Option<String>,
+    refine: Option<usize>,
+    n: Option<usize>,
+    start: Option<String>,
+    verbose: bool,
+) -> PyResult<PyParts> {
+    let source = CaseSource {
+        kind: case.0,
+        value: case.1,
+        origin,
+    };
+    let mesh = arrays(points, triangles)?;
+    let start = match start.as_deref() {
+        None | Some("nested") => Start::Nested,
+        Some("cold") => Start::Cold,
+        Some(other) => {
+            return Err(InputError::new_err(format!(
+                "start = \"{other}\": expected \"nested\" or \"cold\""
+            )))
+        }
+    };
+    let parts = wait(py, move || {
+        let mut case = source.case(mesh)?;
+        override_case(&mut case, n, refine, linear.as_deref())?;
+        let options = run::Options {
+            start,
+            hminus1,
+            flux,
+            estimate,
+            dual,
+        };
+        Ok(run::run(&case, &options)?.parts(verbose))
+    })?;
+    Ok(PyParts { parts })
+}
+
+/// A convergence study: per variant (its label, "" or "grading g"), the levels as JSON and the
+/// `Parts` of each level.
+#[pyfunction]
+#[pyo3(signature = (case, origin, points=None, triangles=None, *, levels=None, refine=None,
+    cold=false, grading=None, hminus1_max=512, linear=None))]
+#[pyo3(name = "study")]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn run_study(
+    py: Python<'_>,
+    case: (String, String),
+    origin: String,
+    points: Option<PyReadonlyArray2<'_, f64>>,
+    triangles: Option<PyReadonlyArray2<'_, i64>>,
+    levels: Option<Vec<usize>>,
+    refine: Option<Vec<usize>>,
+    cold: bool,
+    grading: Option<Vec<f64>>,
+    hminus1_max: usize,
+    linear: Option<String>,
+) -> PyResult<Vec<(String, String, Vec<PyParts>)>> {
+    let source = CaseSource {
+        kind: case.0,
+        value: case.1,
+        origin,
+    };
+    let mesh = arrays(points, triangles)?;
+    if levels.is_some() && refine.is_some() {
+        return Err(InputError::new_err("give levels or refine, not both"));
+    }
+    let series = wait(py, move || {
+        let mut case = source.case(mesh)?;
+        override_case(&mut case, None, None, linear.as_deref())?;
+        let levels = (levels.map(Levels::Cells))
+            .or(refine.map(Levels::Refine))
+            .unwrap_or_else(|| study::default_levels(&case));
+        let options = StudyOptions {
+            levels,
+            cold,
+            hminus1_max,
+            grading,
+        };
+        let mut out = Vec::new();
+        for (label, cases) in study::variants(&case, &options)? {
+            let mut parts = Vec::new();
+            let levels = study::run_levels(&cases, &options, |_, _, r| {
+                parts.push(PyParts {
+                    parts: r.parts(false),
+                })
+            })?;
+            let json = serde_json::to_string(&levels).expect("levels serialise");
+            out.push((label, json, parts));
+        }
+        Ok(out)
+    })?;
+    Ok(series)
+}
+
+/// The adaptive loop: its steps as JSON and the `Parts` of each step.
+#[pyfunction]
+#[pyo3(signature = (case, origin, points=None, triangles=None, *, n=None, theta=None,
+    target=None, max_vertices=None, steps=None))]
+#[pyo3(name = "adapt")]
+#[allow(clippy::too_many_arguments)]
+fn run_adapt(
+    py: Python<'_>,
+    case: (String, String),
+    origin: String,
+    points: Option<PyReadonlyArray2<'_, f64>>,
+    triangles: Option<PyReadonlyArray2<'_, i64>>,
+    n: Option<usize>,
+    theta: Option<f64>,
+    target: Option<f64>,
+    max_vertices: Option<usize>,
+    steps: Option<usize>,
+) -> PyResult<(String, Vec<PyParts>)> {
+    let source = CaseSource {
+        kind: case.0,
+        value: case.1,
+        origin,
+    };
+    let mesh = arrays(points, triangles)?;
+    wait(py, move || {
+        let mut case = source.case(mesh)?;
+        override_case(&mut case, n, None, None)?;
+        let mut settings = case.adapt;
+        settings.theta = theta.unwrap_or(settings.theta);
+        settings.target = target.or(settings.target);
+        settings.max_vertices = max_vertices.unwrap_or(settings.max_vertices);
+        settings.steps = steps.unwrap_or(settings.steps);
+        settings.check(str::to_string).map_err(CaseError)?;
+        let mut parts = Vec::new();
+        let steps = adapt::steps(&case, &settings, |_, r, _| {
+            parts.push(PyParts {
+                parts: r.parts(false),
+            });
+            Ok(())
+        })?;
+        let json = serde_json::to_string(&steps).expect("steps serialise");
+        Ok((json, parts))
+    })
+}
+
+/// The names read from result files, each leaked once (a field's and an attribute's name is
+/// `&'static str`): at most the few names a result holds.
+fn intern(name: &str) -> &'static str {
+    static NAMES: Mutex<Vec<&'static str>> = Mutex::new(Vec::new());
+    let mut names = NAMES.lock().unwrap_or_else(|e| e.into_inner());
+    match names.iter().find(|n| **n == name) {
+        Some(n) => n,
+        None => {
+            let leaked: &'static str = Box::leak(name.to_owned().into_boxed_str());
+            names.push(leaked);
+            leaked
+        }
+    }
+}
+
+/// The (name, center) of each attribute of the grids of an XDMF file, in order.
+fn xdmf_attributes(path: &Path) -> Result<Vec<(String, String)>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let doc = roxmltree::Document::parse(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(doc
+        .descendants()
+        .filter(|n| n.has_tag_name("Attribute"))
+        .map(|n| {
+            let get = |k| n.attribute(k).unwrap_or("").to_string();
+            (get("Name"), get("Center"))
+        })
+        .collect())
+}
+
+/// Reads a result directory written by [`run::Parts::write`] (or the command line).
+fn read_parts(dir: &Path) -> Result<Parts, String> {
+    let h5 = dir.join(SOLUTION_H5);
+    let named = |e: hdf5::Error| format!("{}: {e}", h5.display());
+    let file = hdf5::File::open(&h5).map_err(named)?;
+    let geometry = file.dataset("mesh/geometry").map_err(named)?;
+    let xy = geometry.read_raw::<f64>().map_err(named)?;
+    let points: Vec<[f64; 2]> = xy.chunks_exact(2).map(|p| [p[0], p[1]]).collect();
+    let topology = file.dataset("mesh/topology").map_err(named)?;
+    let cells = topology.read_raw::<i32>().map_err(named)?;
+    let triangles: Vec<[usize; 3]> = (cells.chunks_exact(3))
+        .map(|t| t.iter().map(|&v| usize::try_from(v).unwrap_or(usize::MAX)))
+        .map(|mut t| [(); 3].map(|_| t.next().expect("three")))
+        .collect();
+    let mesh = Mesh::new(points, triangles).map_err(|e| format!("{}: its mesh: {e}", h5.display()))?;
+    let mut fields = Vec::new();
+    let dual_xdmf = dir.join("dual.xdmf");
+    let writes_dual = dual_xdmf.exists();
+    let mut grids = vec![("mesh", dir.join("solution.xdmf"))];
+    if writes_dual {
+        grids.push(("dual", dual_xdmf));
+    }
+    for (group, xdmf) in grids {
+        for (name, center) in xdmf_attributes(&xdmf)? {
+            let place = match (group, center.as_str()) {
+                ("mesh", "Node") => Place::Vertices,
+                ("mesh", _) => Place::Cells,
+                _ => Place::DualCells,
+            };
+            let dataset = file.dataset(&format!("{group}/{name}")).map_err(named)?;
+            let values = dataset.read_raw::<f64>().map_err(named)?;
+            fields.push(Field::owned(intern(&name), place, values));
+        }
+    }
+    let mut attributes: Vec<Attribute> = Vec::new();
+    for name in file.attr_names().map_err(named)? {
+        let attr = file.attr(&name).map_err(named)?;
+        let dtype = attr.dtype().map_err(named)?;
+        let value = if dtype.is::<f64>() && attr.ndim() == 0 {
+            Attr::Float(attr.read_scalar::<f64>().map_err(named)?)
+        } else if dtype.is::<f64>() {
+            Attr::Floats(attr.read_raw::<f64>().map_err(named)?)
+        } else if dtype.is::<i64>() {
+            Attr::Int(attr.read_scalar::<i64>().map_err(named)?)
+        } else {
+            let text = attr.read_scalar::<hdf5::types::VarLenUnicode>().map_err(named)?;
+            Attr::Text(text.as_str().to_string())
+        };
+        attributes.push((intern(&name), value));
+    }
+    let summary = format!(
+        "result      {} (read back: {} vertices, {} triangles; the summary is the one its run printed)\n",
+        dir.display(),
+        mesh.n_vertices(),
+        mesh.n_triangles()
+    );
+    Ok(Parts {
+        edges: Edges::new(&mesh),
+        mesh,
+        fields,
+        attributes,
+        summary,
+        inputs: Vec::new(),
+        writes_dual,
+    })
+}
+
+/// Reads a result directory.
+#[pyfunction]
+fn read(py: Python<'_>, directory: PathBuf) -> PyResult<PyParts> {
+    let parts = py
+        .allow_threads(|| read_parts(&directory))
+        .map_err(|e| OutputError::new_err(format!("cannot read the result: {e}")))?;
+    Ok(PyParts { parts })
+}
+
+/// A TOML value of a Python value (`key` names it in errors); `None` for a value left out.
+fn toml_value(v: &Bound<'_, PyAny>, key: &str) -> PyResult<Option<toml::Value>> {
+    use toml::Value;
+    if v.is_none() {
+        return Ok(None);
+    }
+    if v.is_instance_of::<PyBool>() {
+        return Ok(Some(Value::Boolean(v.extract()?)));
+    }
+    if v.is_instance_of::<PyLong>() {
+        return Ok(Some(Value::Integer(v.extract()?)));
+    }
+    if v.is_instance_of::<PyFloat>() {
+        return Ok(Some(Value::Float(v.extract()?)));
+    }
+    if v.is_instance_of::<PyString>() {
+        return Ok(Some(Value::String(v.extract()?)));
+    }
+    if let Ok(d) = v.downcast::<PyDict>() {
+        return Ok(Some(Value::Table(toml_table(d, key)?)));
+    }
+    if v.is_instance_of::<PyList>() || v.is_instance_of::<PyTuple>() {
+        let mut out = Vec::new();
+        for (i, item) in v.iter()?.enumerate() {
+            let item = item?;
+            let value = toml_value(&item, &format!("{key}[{i}]"))?
+                .ok_or_else(|| InputError::new_err(format!("case key '{key}[{i}]' is None")))?;
+            out.push(value);
+        }
+        return Ok(Some(Value::Array(out)));
+    }
+    // numpy scalars and arrays.
+    if v.hasattr("tolist")? {
+        let plain = v.call_method0("tolist")?;
+        if !plain.is(v) {
+            return toml_value(&plain, key);
+        }
+    }
+    Err(InputError::new_err(format!(
+        "case key '{key}': a value of type {} is not a case value (a number, a string, a list or a dict)",
+        v.get_type().name()?
+    )))
+}
+
+fn toml_table(d: &Bound<'_, PyDict>, prefix: &str) -> PyResult<toml::Table> {
+    let mut table = toml::Table::new();
+    for (k, v) in d.iter() {
+        let k: String = k
+            .extract()
+            .map_err(|_| InputError::new_err(format!("case keys are strings, got {k} in '{prefix}'")))?;
+        let key = if prefix.is_empty() {
+            k.clone()
+        } else {
+            format!("{prefix}.{k}")
+        };
+        if let Some(value) = toml_value(&v, &key)? {
+            table.insert(k, value);
+        }
+    }
+    Ok(table)
+}
+
+/// The TOML text of a case given as a dict (keys in the dict's order, `None` values left out).
+#[pyfunction]
+fn dict_to_toml(case: &Bound<'_, PyDict>) -> PyResult<String> {
+    let table = toml_table(case, "")?;
+    toml::to_string(&table).map_err(|e| InputError::new_err(format!("case dict: {e}")))
+}
+
+/// The built-in default case, as a case file.
+#[pyfunction]
+fn default_case() -> &'static str {
+    membrane_contact::case::DEFAULT_CASE
+}
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // The interpreter handles SIGINT, SIGTERM and SIGHUP: none of the command line's handlers.
+    atomic::leave_signals_alone();
+    m.add("InputError", m.py().get_type_bound::<InputError>())?;
+    m.add("SolverError", m.py().get_type_bound::<SolverError>())?;
+    m.add("OutputError", m.py().get_type_bound::<OutputError>())?;
+    m.add_class::<PyParts>()?;
+    m.add_function(wrap_pyfunction!(solve, m)?)?;
+    m.add_function(wrap_pyfunction!(run_study, m)?)?;
+    m.add_function(wrap_pyfunction!(run_adapt, m)?)?;
+    m.add_function(wrap_pyfunction!(read, m)?)?;
+    m.add_function(wrap_pyfunction!(dict_to_toml, m)?)?;
+    m.add_function(wrap_pyfunction!(default_case, m)?)?;
+    m.add("version", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -1,0 +1,170 @@
+"""The package against the command line, its input forms, its errors, and its other entry points."""
+
+import os
+import signal
+import subprocess
+import sys
+import tomllib
+
+import meshio
+import numpy as np
+import pytest
+
+import membrane_contact as mc
+from conftest import CASES, ROOT, cli_solve, h5, same_bits, unit_square
+
+
+def check_against_cli(result, data):
+    assert same_bits(result.points, data["geometry"])
+    assert np.array_equal(result.triangles, data["topology"])
+    for name, values in result.fields.items():
+        expected = data[name] == 1.0 if name == "contact" else data[name]
+        assert same_bits(values, expected) if name != "contact" else np.array_equal(values, expected), name
+    assert set(result.fields) == set(data) - {"geometry", "topology"}
+
+
+def test_arrays_are_the_cli_fields_bit_for_bit(tmp_path):
+    case = CASES / "default.toml"
+    data, attrs = cli_solve(tmp_path, case, "--n", 16, "--estimate")
+    r = mc.solve(case, n=16, estimate=True)
+    check_against_cli(r, data)
+    assert r.iterations == attrs["iterations"] and r.eta == attrs["estimator"]
+    assert r.estimator.shape == (len(r.triangles),)
+
+
+def test_obstacle_gives_u_and_psi(tmp_path):
+    case = CASES / "ball.toml"
+    data, _ = cli_solve(tmp_path, case, "--n", 16)
+    r = mc.solve(str(case), n=16)
+    check_against_cli(r, data)
+    assert r.problem == "obstacle" and "u1" not in r.fields and r.u.shape == r.psi.shape
+    assert r.contact.dtype == bool and r.contact.any()
+
+
+def test_dict_toml_and_path_cases_agree(tmp_path):
+    path = CASES / "default.toml"
+    text = path.read_text()
+    as_dict = tomllib.loads(text)
+    results = [mc.solve(c, n=8) for c in (path, str(path), text, as_dict)]
+    for r in results[1:]:
+        assert same_bits(r.u1, results[0].u1) and same_bits(r.lambda_, results[0].lambda_)
+
+
+def test_meshio_pair_and_dolfinx_meshes_agree(small):
+    from dolfinx import mesh as dmesh
+    from mpi4py import MPI
+
+    msh = dmesh.create_unit_square(MPI.COMM_WORLD, 6, 6)
+    points = msh.geometry.x
+    triangles = msh.geometry.dofmap.array.reshape(-1, 3)
+    assert triangles.dtype == np.int32
+    m = meshio.Mesh(points, [("triangle", triangles.astype(np.int64))])
+    from_dolfinx = mc.solve(small, msh)
+    from_meshio = mc.solve(small, m)
+    from_pair = mc.solve(small, (points[:, :2], triangles))
+    for r in (from_meshio, from_pair):
+        assert same_bits(r.u1, from_dolfinx.u1) and same_bits(r.gap, from_dolfinx.gap)
+    # The given vertex numbering is kept.
+    assert same_bits(from_dolfinx.points, points[:, :2])
+
+
+@pytest.mark.parametrize(
+    "change, message",
+    [
+        (lambda c: c.update(bogus=1), "unknown field `bogus`"),
+        (lambda c: c.update(f1="1 +"), "key 'f1'"),
+    ],
+)
+def test_bad_case_raises_input_error(small, change, message):
+    change(small)
+    with pytest.raises(mc.InputError, match=message) as e:
+        mc.solve(small)
+    assert isinstance(e.value, ValueError) and "\n" not in str(e.value)
+
+
+def test_bad_mesh_raises_input_error(small):
+    points, triangles = unit_square(3)
+    degenerate = triangles.copy()
+    degenerate[0] = [0, 1, 1]
+    with pytest.raises(mc.InputError, match="triangle 0 has zero area"):
+        mc.solve(small, (points, degenerate))
+    folded = points.copy()
+    folded[5] = [0.9, 0.9]  # an interior vertex moved across its neighbours
+    with pytest.raises(mc.InputError, match="the given mesh is not valid"):
+        mc.solve(small, (folded, triangles))
+    with pytest.raises(mc.InputError, match="refers to vertex -1"):
+        bad = triangles.copy()
+        bad[2, 0] = -1
+        mc.solve(small, (points, bad))
+
+
+def test_obstacle_with_estimate_raises_input_error():
+    with pytest.raises(mc.InputError, match="not available yet"):
+        mc.solve(CASES / "ball.toml", n=8, estimate=True)
+
+
+def test_solver_error_and_output_error(small, tmp_path):
+    small["solver"] = {"max_iterations": 1}
+    with pytest.raises(mc.SolverError, match="did not converge"):
+        mc.solve(small, start="cold")
+    other = tmp_path / "not-a-result"
+    other.mkdir()
+    with pytest.raises(mc.OutputError, match="not a result of membrane-contact"):
+        mc.solve(n=8).write(other)
+
+
+def test_write_then_read_is_the_result(tmp_path):
+    r = mc.solve(CASES / "default.toml", n=8, estimate=True, dual=True)
+    r.write(tmp_path / "out")
+    back = mc.read(tmp_path / "out")
+    assert same_bits(back.points, r.points) and np.array_equal(back.triangles, r.triangles)
+    assert set(back.fields) == set(r.fields)
+    for name in r.fields:
+        assert np.array_equal(back.fields[name], r.fields[name]), name
+    assert back.attributes == r.attributes
+    # Written again from what was read, the file holds the same data.
+    back.write(tmp_path / "again")
+    assert all(same_bits(a, b) for a, b in zip(h5(tmp_path / "out")[0].values(), h5(tmp_path / "again")[0].values()))
+
+
+def test_study_returns_its_levels():
+    table, results = mc.study(CASES / "default.toml", levels=[8, 16])
+    assert [row["cells"] for row in table] == [8, 16]
+    assert table[1]["h1_u1"] < table[0]["h1_u1"]
+    assert [len(r.points) for r in results] == [row["vertices"] for row in table]
+
+
+def test_adapt_returns_its_steps():
+    table, results = mc.adapt(CASES / "default.toml", n=8, steps=2)
+    assert len(table) == len(results) == 3
+    assert [len(r.points) for r in results] == [row["vertices"] for row in table]
+    assert table[-1]["vertices"] > table[0]["vertices"]
+
+
+def test_summary():
+    assert "active-set iterations" in mc.solve(n=8).summary()
+
+
+def test_ctrl_c_interrupts_a_long_solve():
+    code = (
+        "import membrane_contact as mc, sys\n"
+        "print('start', flush=True)\n"
+        "try:\n"
+        "    mc.solve(n=2048, estimate=True)\n"
+        "except KeyboardInterrupt:\n"
+        "    print('interrupted', flush=True); sys.exit(3)\n"
+    )
+    p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
+    assert p.stdout.readline().strip() == "start"
+    import time
+
+    time.sleep(2.0)
+    sent = time.monotonic()
+    p.send_signal(signal.SIGINT)
+    out, _ = p.communicate(timeout=20)
+    assert p.returncode == 3 and "interrupted" in out
+    assert time.monotonic() - sent < 5.0
+
+
+def test_the_example_runs():
+    subprocess.run([sys.executable, str(ROOT / "examples" / "python" / "dolfinx_mesh.py")], check=True)
