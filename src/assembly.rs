@@ -231,17 +231,9 @@ pub fn load(mesh: &Mesh, f: &Expr, quad: Quadrature) -> Result<Vec<f64>, NotFini
         // Exact for constants: (c, φ_a) = c m_a.
         return Ok(lumped_mass(mesh).into_iter().map(|m| c * m).collect());
     }
-    // (f, φ_k)_T at corner 3 t + k of triangle t.
-    let mut local = vec![0.0; 3 * mesh.n_triangles()];
-    let piece = crate::parallel::PIECE;
-    let parts = crate::parallel::map_mut(&mut local, 3 * piece, |base, local| {
-        load_part(mesh, f, quad, base / 3..base / 3 + local.len() / 3, local)
-    });
-    parts.into_iter().collect::<Result<(), NotFinite>>()?;
-    let stars = Stars::new(mesh);
-    Ok(crate::parallel::collect(mesh.n_vertices(), |a| {
-        stars.corners(a).map(|c| local[c]).sum()
-    }))
+    load_by(mesh, |triangles, each| {
+        quad.visit(|t| mesh.corners(t), triangles, [f], each)
+    })
 }
 
 /// The load vector (f, φ_a) of a datum resolved on `mesh` ([`crate::datum::Pieces`]): [`load`]
@@ -251,53 +243,24 @@ pub fn load_pieces(mesh: &Mesh, f: &crate::datum::Pieces, quad: Quadrature) -> R
     if let Some(e) = f.single() {
         return load(mesh, e, quad);
     }
+    load_by(mesh, |triangles, each| {
+        crate::datum::visit(&quad, |t| mesh.corners(t), |t| t, triangles, [f], each)
+    })
+}
+
+/// The visit of a load's values at the quadrature points of a range of triangles.
+type Each<'a> = &'a mut dyn FnMut(usize, &[QuadraturePoint], [&[f64]; 1]);
+
+/// The load vector from `visit`, which evaluates the load on a range of triangles: the
+/// contributions (f, φ_k)_T at corner 3 t + k of triangle t, in parallel pieces, then each
+/// vertex's sum over the triangles around it, in their order.
+fn load_by(mesh: &Mesh, visit: impl Fn(std::ops::Range<usize>, Each) + Sync) -> Result<Vec<f64>, NotFinite> {
     let mut local = vec![0.0; 3 * mesh.n_triangles()];
     let piece = crate::parallel::PIECE;
     let parts = crate::parallel::map_mut(&mut local, 3 * piece, |base, local| {
-        let (first, range) = (base / 3, base / 3..base / 3 + local.len() / 3);
+        let first = base / 3;
         let mut bad = None;
-        crate::datum::visit(
-            &quad,
-            |t| mesh.corners(t),
-            |t| t,
-            range,
-            [f],
-            |t, points, [values]| {
-                for (p, &v) in points.iter().zip(values) {
-                    if !v.is_finite() && bad.is_none() {
-                        bad = Some(NotFinite { point: p.x, value: v });
-                    }
-                    for (out, b) in local[3 * (t - first)..][..3].iter_mut().zip(p.barycentric) {
-                        *out += p.weight * v * b;
-                    }
-                }
-            },
-        );
-        bad.map_or(Ok(()), Err)
-    });
-    parts.into_iter().collect::<Result<(), NotFinite>>()?;
-    let stars = Stars::new(mesh);
-    Ok(crate::parallel::collect(mesh.n_vertices(), |a| {
-        stars.corners(a).map(|c| local[c]).sum()
-    }))
-}
-
-/// The contributions (f, φ_k)_T of the `triangles` T to their corners k, into `local` (corner
-/// 3 (t − first) + k).
-fn load_part(
-    mesh: &Mesh,
-    f: &Expr,
-    quad: Quadrature,
-    triangles: std::ops::Range<usize>,
-    local: &mut [f64],
-) -> Result<(), NotFinite> {
-    let first = triangles.start;
-    let mut bad = None;
-    quad.visit(
-        |t| mesh.corners(t),
-        triangles,
-        [f],
-        |t, points, [values]| {
+        visit(first..first + local.len() / 3, &mut |t, points, [values]| {
             for (p, &v) in points.iter().zip(values) {
                 if !v.is_finite() && bad.is_none() {
                     bad = Some(NotFinite { point: p.x, value: v });
@@ -306,9 +269,14 @@ fn load_part(
                     *out += p.weight * v * b;
                 }
             }
-        },
-    );
-    bad.map_or(Ok(()), Err)
+        });
+        bad.map_or(Ok(()), Err)
+    });
+    parts.into_iter().collect::<Result<(), NotFinite>>()?;
+    let stars = Stars::new(mesh);
+    Ok(crate::parallel::collect(mesh.n_vertices(), |a| {
+        stars.corners(a).map(|c| local[c]).sum()
+    }))
 }
 
 #[cfg(test)]
