@@ -26,7 +26,8 @@ Modules:
   ball_check       the obstacle reference alone on the ball problem: rates against the exact solution
   norms            error norms with the Rust code's rules (L2, H1 on T_h; L2, H-1 on S_h)
   compare          vertex-by-vertex field comparison
-  flux_checks      checks of the written flux fields t_1h, t_2h (continuity, conservation, rate)
+  flux_checks      checks of the written flux fields t_1h, t_2h, or t_h above an obstacle (continuity,
+                   conservation, rate)
   exact_cases      SymPy check of the exact solutions (SymPy's own parser)
   estimator        the a posteriori estimators of docs/a-posteriori.md (prototype: fluxes dual,
                    dualmin, patch); --compare recomputes the Rust code's `solve --estimate`

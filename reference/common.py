@@ -14,7 +14,7 @@ import numpy as np
 from . import expr, problems
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-FLUX_FIELDS = ("t1_x", "t1_y", "div_t1", "t2_x", "t2_y", "div_t2")
+FLUX_FIELDS = ("t%s_x", "t%s_y", "div_t%s")  # of each flux (problems.Problem.fluxes: suffix 1, 2 or none)
 
 
 def read_result(path):
@@ -42,7 +42,7 @@ def read_result(path):
                 "dual_owner": dual["vertex"][...].astype(np.int64),
                 "dual_lambda": dual["lambda"][...],
             })
-            out.update({k: dual[k][...] for k in FLUX_FIELDS if k in dual})
+            out.update({k % s: dual[k % s][...] for s, *_ in problem.fluxes for k in FLUX_FIELDS if k % s in dual})
     out["case_text"] = str(out["attrs"]["case_text"])
     from . import groups
 

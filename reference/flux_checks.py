@@ -1,5 +1,7 @@
 """Checks of the flux reconstruction t_ih (Section 4.2) from the fields the Rust code WRITES on the
-dual submesh S_h: t_ih at the cell centroids (ti_x, ti_y) and div t_ih (div_ti), per cell.
+dual submesh S_h: t_ih at the cell centroids (ti_x, ti_y) and div t_ih (div_ti), per cell; above an
+obstacle the one flux t_h of u (t_x, t_y, div_t). Each membrane's names, tension, load and sign
+of lambda come from problems.Problem.fluxes (suffix "1", "2", or "").
 
 A lowest-order Raviart-Thomas field on a triangle K is t(x) = a + b x with div t = 2 b, so
 
@@ -12,7 +14,7 @@ which rebuilds t_ih on every cell from the two written fields. Then:
     max |t_ih(c_K)|). An identity of the reconstruction: only round-off may remain.
 (b) local conservation (Lemma 17): at every interior vertex a,
         sum over the cells K of D_a of div t_ih |K|  =  (f_i, phi_a)_q  +/-  lambda_a |D_a|
-    (+ for membrane 1, - for membrane 2), with the loads (f_i, phi_a)_q and lambda_a those of the
+    (+ for membrane 1 and above an obstacle, - for membrane 2), with the loads (f_i, phi_a)_q and lambda_a those of the
     REFERENCE (dolfinx, the case's quadrature degree), relative to max_a |(f_i, phi_a)| + |lambda_a| |D_a|.
 (c) approximation: ||t_ih + mu_i grad u_i||_L2 against the exact gradient (cases that give it),
     by basix's degree-10 rule on S_h; validate checks its rate between successive levels.
@@ -25,11 +27,16 @@ from . import common
 ERROR_DEGREE = 10
 
 
-def rt0_field(result, i):
-    """(centroids, t(c), div t) of t_ih on the cells of S_h."""
+def named(base, s):
+    """The name of a per-membrane quantity: base_1, base_2 (suffix s), or base alone (s = "")."""
+    return base + "_" + s if s else base
+
+
+def rt0_field(result, s):
+    """(centroids, t(c), div t) of the flux with suffix s (t1h, t2h, th) on the cells of S_h."""
     p = result["dual_points"][result["dual_cells"]][:, :, :2]
-    tc = np.stack([result["t%d_x" % i], result["t%d_y" % i]], axis=1)
-    return p.mean(axis=1), tc, result["div_t%d" % i]
+    tc = np.stack([result["t%s_x" % s], result["t%s_y" % s]], axis=1)
+    return p.mean(axis=1), tc, result["div_t%s" % s]
 
 
 def edges_of(cells):
@@ -52,7 +59,7 @@ def edge_pairs(cells):
     return (first // 3, first % 3, second // 3), int(np.sum(counts == 1))
 
 
-def normal_jump(result, i):
+def normal_jump(result, s):
     """(a): max over interior edges of |[t_ih . n]| at the midpoint, relative to max |t_ih(c)|;
     inf when S_h does not join its cells across the edges of T_h (it must have exactly twice as
     many boundary edges as T_h), where the check would otherwise pass vacuously."""
@@ -60,7 +67,7 @@ def normal_jump(result, i):
     (a, k, b), boundary = edge_pairs(cells)
     if boundary != 2 * edge_pairs(result["cells"])[1]:
         return float("inf")
-    c, tc, div = rt0_field(result, i)
+    c, tc, div = rt0_field(result, s)
     p0, p1 = pts[cells[a, k]], pts[cells[a, (k + 1) % 3]]
     mid = 0.5 * (p0 + p1)
     n = np.stack([p1[:, 1] - p0[:, 1], p0[:, 0] - p1[:, 0]], axis=1)
@@ -71,18 +78,18 @@ def normal_jump(result, i):
     return np.abs(np.sum((ta - tb) * n, axis=1)).max() / scale
 
 
-def conservation_defect(result, ref, i):
+def conservation_defect(result, ref, s, load_key, sign):
     """(b): (max over interior vertices of the defect of Lemma 17, max of |lambda_Rust - lambda_ref| |D_a|),
     both relative to max_a |(f_i, phi_a)| + |lambda_a| |D_a|; `ref` a reference file
-    (common.read_reference) on the mesh of `result`."""
+    (common.read_reference) on the mesh of `result`; the flux of suffix s, its load's case key, the
+    sign of lambda_a |D_a|."""
     owner = result["dual_owner"]
     area = common.areas(result["dual_points"], result["dual_cells"])
     nv = len(result["points"])
-    integral = np.bincount(owner, weights=result["div_t%d" % i] * area, minlength=nv)
+    integral = np.bincount(owner, weights=result["div_t%s" % s] * area, minlength=nv)
     measure = np.bincount(owner, weights=area, minlength=nv)  # |D_a|
     perm = common.match_points(result["points"], ref["points"])
-    load, lam = ref["load_f%d" % i][perm], ref["lambda"][perm]
-    sign = 1.0 if i == 1 else -1.0
+    load, lam = ref["load_" + load_key][perm], ref["lambda"][perm]
     interior = ~boundary_vertices(result)
     # sum_{K in D_a} div t_ih |K| - (f_i, phi_a)_q -/+ lambda_a |D_a|
     defect = np.abs(integral - load - sign * lam * measure)[interior]
@@ -99,11 +106,11 @@ def boundary_vertices(result):
     return out
 
 
-def flux_error(result, i, mu, grad):
-    """(c): ||t_ih + mu_i grad u_i||_L2 on S_h, grad = the case's exact gradient (two expressions)."""
+def flux_error(result, s, mu, grad):
+    """(c): ||t_ih + mu_i grad u_i||_L2 (flux of suffix s) on S_h, grad = the case's exact gradient (two expressions)."""
     xi, wts = basix.make_quadrature(basix.CellType.triangle, ERROR_DEGREE)
     p = result["dual_points"][result["dual_cells"]][:, :, :2]
-    c, tc, div = rt0_field(result, i)
+    c, tc, div = rt0_field(result, s)
     x = p[:, None, 0] + xi[None, :, 0, None] * (p[:, None, 1] - p[:, None, 0]) \
         + xi[None, :, 1, None] * (p[:, None, 2] - p[:, None, 0])  # cells x points x 2
     t = tc[:, None, :] + 0.5 * div[:, None, None] * (x - c[:, None, :])
@@ -114,14 +121,14 @@ def flux_error(result, i, mu, grad):
 
 
 def check_level(result, ref):
-    """Every flux check of one Rust result: {"jump_i", "conservation_i", "error_i"} for i = 1, 2
-    (error_i only where the case gives grad_u_i)."""
+    """Every flux check of one Rust result: {suffix: {"jump", "conservation", "error"}} for the
+    suffixes of its problem's fluxes ("1", "2"; "" above an obstacle), "error" only where the case
+    gives grad_u<suffix>."""
     case = result["case"]
     out = {}
-    for i in (1, 2):
-        out["jump_%d" % i] = normal_jump(result, i)
-        out["conservation_%d" % i] = conservation_defect(result, ref, i)
-        grad = case.get("exact", {}).get("grad_u%d" % i)
+    for s, mu, load, sign in result["problem"].fluxes:
+        out[s] = {"jump": normal_jump(result, s), "conservation": conservation_defect(result, ref, s, load, sign)}
+        grad = case.get("exact", {}).get("grad_u" + s)
         if grad is not None:
-            out["error_%d" % i] = flux_error(result, i, float(case["mu%d" % i]), grad)
+            out[s]["error"] = flux_error(result, s, float(case[mu]), grad)
     return out

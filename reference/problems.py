@@ -20,6 +20,7 @@ class Problem:
     actions: tuple  # the written fields of the contact action
     fields: tuple  # every vertex field of a Rust result
     expressions: tuple  # the case keys that hold expressions
+    action_signs: tuple  # the sign of lambda_a |D_a| in each membrane's conservation (Lemma 17)
     defaults: dict = field(default_factory=dict)  # optional expression keys and their values
 
     @property
@@ -32,6 +33,13 @@ class Problem:
         return self.displacements + ("lambda",) + tuple("grad_" + u for u in self.displacements)
 
     @property
+    def fluxes(self):
+        """One written flux t_h per membrane (`solve --flux`): (suffix of its names: t1_x, div_t1,
+        grad_u1, flux_conservation_1 for "1", t_x, div_t, grad_u, flux_conservation for "";
+        case key of its tension; of its load; sign of lambda_a |D_a| in its conservation)."""
+        return tuple(zip((u[1:] for u in self.displacements), self.tensions, self.loads, self.action_signs))
+
+    @property
     def error_keys(self):
         """Error norms: the attribute `error_<key>` of a Rust result and of a reference file."""
         return (tuple("l2_" + u for u in self.displacements) + tuple("h1_" + u for u in self.displacements)
@@ -39,9 +47,10 @@ class Problem:
 
 
 MEMBRANES = Problem("membranes", ("u1", "u2"), ("mu1", "mu2"), ("f1", "f2"), ("lambda", "lambda2"),
-                    ("u1", "u2", "gap", "lambda", "lambda2", "contact"), ("f1", "f2", "g", "g2"), {"g2": 0})
+                    ("u1", "u2", "gap", "lambda", "lambda2", "contact"), ("f1", "f2", "g", "g2"), (1.0, -1.0),
+                    {"g2": 0})
 OBSTACLE = Problem("obstacle", ("u",), ("mu",), ("f",), ("lambda",), ("u", "psi", "gap", "lambda", "contact"),
-                   ("f", "psi", "g"))
+                   ("f", "psi", "g"), (1.0,))
 PROBLEMS = {p.name: p for p in (MEMBRANES, OBSTACLE)}
 
 

@@ -4,7 +4,7 @@ import os
 
 import numpy as np
 
-from . import common
+from . import common, flux_checks
 
 # (key, label, the paper's rate on convex domains: Thm 9 for H1 (exact), Thm 21 for H-1 (at least))
 NORMS = (("h1_u1", "|u1-u1h|_H1", 1.0), ("h1_u2", "|u2-u2h|_H1", 1.0), ("h1_u", "|u-uh|_H1", 1.0),
@@ -73,18 +73,21 @@ def error_table(result):
 
 
 def flux_table(result):
-    """The checks of the written fluxes per level."""
-    has_error = "flux_1" in result["rates"]
-    lines = ["| level | normal jump t1h | normal jump t2h | conservation t1h | conservation t2h |"
-             + (" ‖t1h+μ1∇u1‖ | EOC | ‖t2h+μ2∇u2‖ | EOC |" if has_error else ""),
-             "|---|---|---|---|---|" + ("---|" * 4 if has_error else "")]
+    """The checks of the written fluxes per level (t1h, t2h; th above an obstacle)."""
+    names = list(result["levels"][0]["flux"])
+    rates = {s: result["rates"].get(flux_checks.named("flux", s)) for s in names}
+    has_error = any(rates.values())
+    lines = ["| level |" + "".join(" normal jump t%sh |" % s for s in names)
+             + "".join(" conservation t%sh |" % s for s in names)
+             + ("".join(" ‖t%sh+μ%s∇u%s‖ | EOC |" % (s, s, s) for s in names) if has_error else ""),
+             "|---" * (1 + (4 if has_error else 2) * len(names)) + "|"]
     for i, lv in enumerate(result["levels"]):
         f = lv["flux"]
-        row = "| %s | %s | %s | %s | %s |" % (lv["n"], fmt(f["jump_1"]), fmt(f["jump_2"]),
-                                             fmt(f["conservation_1"][0]), fmt(f["conservation_2"][0]))
+        row = "| %s |" % lv["n"] + "".join(" %s |" % fmt(f[s]["jump"]) for s in names) \
+            + "".join(" %s |" % fmt(f[s]["conservation"][0]) for s in names)
         if has_error:
-            row += " %s | %s | %s | %s |" % (fmt(f["error_1"]), eoc(result["rates"]["flux_1"][0], i),
-                                             fmt(f.get("error_2")), eoc(result["rates"]["flux_2"][0], i))
+            row += "".join(" %s | %s |" % (fmt(f[s].get("error")), eoc(rates[s][0], i) if rates[s] else "—")
+                           for s in names)
         lines.append(row)
     return lines + [""]
 

@@ -2,7 +2,7 @@
 references on the same meshes -- SNES-VI with bounds (solve_reference: in (w, u2) for the
 membranes, in u >= psi_h for the obstacle problem) and a primal-dual active-set loop on the mixed
 system with lambda a multiplier (solve_mixed); fields are compared vertex by vertex, the written
-fluxes are checked (membranes), and for cases with an exact solution the error norms' values and
+fluxes are checked, and for cases with an exact solution the error norms' values and
 their experimental orders of convergence (EOC) side by side. The fields and norms are those of
 the case's problem (reference/problems.py).
 
@@ -19,15 +19,15 @@ Fails (exit 1) when
   - the two codes' EOCs differ by more than 0.02, the Rust H1 EOC on a convex domain misses the
     paper's rate 1 (Theorem 9) by more than 0.1, or the H-1 EOC of the action falls below 1 - 0.1
     (Theorem 21);
-  - the written flux fields (of the membranes) fail a check of reference/flux_checks.py: the normal jump on an
-    interior edge of S_h exceeds 1e-12 of the flux scale (an identity: round-off only, ~2e-15
-    measured); the local
-    conservation (Lemma 17) with the reference's loads and lambda misses by more than
-    1e-11 + 2 (max_a |lambda_Rust - lambda_ref| |D_a|) of its scale (round-off, plus what the
-    lambda difference between the codes accounts for); ||t_ih + mu_i grad u_i||_L2 decreases at an
-    EOC below 0.9 between successive levels on a convex domain (rate 1 expected), below
-    2/3 - 0.1 on the L-shape (u in H^(5/3 - eps) only, Remark 10); the Rust code's own conservation
-    defect exceeds 1e-13;
+  - the written flux fields (t1h, t2h of the membranes, th of u above an obstacle) fail a check of
+    reference/flux_checks.py: the normal jump on an interior edge of S_h exceeds 1e-12 of the
+    flux scale (an identity: round-off only, ~2e-15 measured); the local conservation (Lemma 17)
+    with the reference's loads and lambda misses by more than 1e-11 + 2 (max_a |lambda_Rust -
+    lambda_ref| |D_a|) of its scale (round-off, plus what the lambda difference between the codes
+    accounts for); ||t_ih + mu_i grad u_i||_L2 (||t_h + mu grad u||_L2 above an obstacle)
+    decreases at an EOC below 0.9 between successive levels on a convex domain (rate 1
+    expected), below 2/3 - 0.1 on the L-shape (u in H^(5/3 - eps) only, Remark 10); the Rust
+    code's own conservation defect exceeds 1e-13;
   - an exact case fails its SymPy check (exact_cases), or ParaView cannot read a result in double
     precision (paraview_check);
   - the a posteriori estimator (`solve --estimate`, on the first validation level of every case of
@@ -63,7 +63,7 @@ THEORY_MARGIN = 0.1
 NORM_MARGIN, NORM_ROUNDOFF, NORM_FLOOR = 2.0, 1e-9, 1e-15
 FLUX_JUMP = 1e-12  # relative normal jump of t_ih on the edges of S_h (an identity)
 CONSERVATION_ROUNDOFF = 1e-11  # relative defect of Lemma 17 beyond the lambda difference
-RUST_CONSERVATION = 1e-13  # the Rust code's own reported defect (flux_conservation_i)
+RUST_CONSERVATION = 1e-13  # the Rust code's own reported defect (flux_conservation_i, flux_conservation)
 FLUX_RATE = {True: 0.9, False: 2.0 / 3.0 - 0.1}  # minimal EOC of the flux error: convex / L-shape
 
 
@@ -82,8 +82,7 @@ def run_level(path, name, level, binary, workdir, tol, failures, reuse=False):
     rust_dir = os.path.join(workdir, "rust-%s" % tag)
     t = time.perf_counter()
     if not (reuse and os.path.isdir(rust_dir)):
-        flux = ["--flux"] if problems.of(common.load_case(path)) is problems.MEMBRANES else ["--dual"]
-        proc = subprocess.run([binary, "solve", path, option, str(value), "--hminus1", *flux, "-o", rust_dir],
+        proc = subprocess.run([binary, "solve", path, option, str(value), "--hminus1", "--flux", "-o", rust_dir],
                               capture_output=True, text=True)
         if proc.returncode != 0:
             failures.append("%s %s: Rust solver failed: %s" % (name, label, proc.stderr.strip()))
@@ -99,7 +98,6 @@ def check_level(label, level, rust_dir, workdir, tol, failures, rust_seconds):
     summary = solve_reference.solve_file(rust_dir, ref_path)
     mixed = solve_mixed.solve_file(rust_dir, mixed_path)
     rust, ref = common.read_result(rust_dir), common.read_reference(ref_path)
-    membranes = rust["problem"] is problems.MEMBRANES
     diffs, mismatch = compare.compare(rust, ref)
     mixed_diffs, mixed_mismatch = compare.compare(rust, common.read_reference(mixed_path))
     field_failures(label, "", diffs, mismatch, tol, failures)
@@ -110,11 +108,10 @@ def check_level(label, level, rust_dir, workdir, tol, failures, rust_seconds):
              "ref_seconds": summary["seconds"], "mixed_diffs": mixed_diffs, "mixed_mismatch": mixed_mismatch,
              "mixed_iterations": mixed["iterations"], "rust": common.errors_of(rust["attrs"], rust["problem"]),
              "ref": common.errors_of(ref["attrs"], rust["problem"]), "problem": rust["problem"],
-             "flux": flux_checks.check_level(rust, ref) if membranes else None, "dir": rust_dir, "norm_checks": {}}
+             "flux": flux_checks.check_level(rust, ref), "dir": rust_dir, "norm_checks": {}}
     if "exact" in rust["case"]:
         level["norm_checks"] = norm_value_failures(label, level, ref["attrs"], failures)
-    if membranes:
-        flux_failures(label, level["flux"], rust["attrs"], failures)
+    flux_failures(label, level["flux"], rust["attrs"], failures)
     return level
 
 
@@ -144,20 +141,21 @@ def norm_value_failures(label, level, ref_attrs, failures):
 
 
 def flux_failures(label, flux, attrs, failures):
-    for i in (1, 2):
-        if not flux["jump_%d" % i] <= FLUX_JUMP:
-            failures.append("%s: t%dh has a normal jump of %.2e (relative) on an edge of S_h > %.0e%s"
-                            % (label, i, flux["jump_%d" % i], FLUX_JUMP, " (S_h is not joined across the "
-                               "edges of T_h)" if flux["jump_%d" % i] == float("inf") else ""))
-        defect, lam_term = flux["conservation_%d" % i]
+    """The checks of flux_checks.check_level per flux (suffix s: t1h, t2h, or th above an obstacle)."""
+    for s, f in flux.items():
+        if not f["jump"] <= FLUX_JUMP:
+            failures.append("%s: t%sh has a normal jump of %.2e (relative) on an edge of S_h > %.0e%s"
+                            % (label, s, f["jump"], FLUX_JUMP, " (S_h is not joined across the "
+                               "edges of T_h)" if f["jump"] == float("inf") else ""))
+        defect, lam_term = f["conservation"]
         allowed = CONSERVATION_ROUNDOFF + 2.0 * lam_term
         if not defect <= allowed:
-            failures.append("%s: div t%dh misses the local conservation (Lemma 17) by %.2e (relative) > %.2e"
-                            % (label, i, defect, allowed))
-        own = float(attrs["flux_conservation_%d" % i])
+            failures.append("%s: div t%sh misses the local conservation (Lemma 17) by %.2e (relative) > %.2e"
+                            % (label, s, defect, allowed))
+        own = float(attrs[flux_checks.named("flux_conservation", s)])
         if not own <= RUST_CONSERVATION:
-            failures.append("%s: the Rust code reports a conservation defect of t%dh of %.1e > %.0e"
-                            % (label, i, own, RUST_CONSERVATION))
+            failures.append("%s: the Rust code reports a conservation defect of t%sh of %.1e > %.0e"
+                            % (label, s, own, RUST_CONSERVATION))
 
 
 def rate_failures(name, levels, convex, failures):
@@ -178,14 +176,14 @@ def rate_failures(name, levels, convex, failures):
             if er[-1] < theory - THEORY_MARGIN or (key not in AT_LEAST and er[-1] > theory + THEORY_MARGIN):
                 failures.append("%s: Rust EOC of %s is %.3f, the paper's rate is %s%.1f"
                                 % (name, label, er[-1], ">= " if key in AT_LEAST else "", theory))
-    for i in (1, 2):
-        if levels[0]["flux"] and "error_%d" % i in levels[0]["flux"]:
-            er = eocs(h, [lv["flux"]["error_%d" % i] for lv in levels])
-            rates["flux_%d" % i] = (er, None)
+    for s, f in levels[0]["flux"].items():
+        if "error" in f:
+            er = eocs(h, [lv["flux"][s]["error"] for lv in levels])
+            rates[flux_checks.named("flux", s)] = (er, None)
             for k, a in enumerate(er):
                 if not a >= FLUX_RATE[convex]:
-                    failures.append("%s: EOC of ||t%dh + mu%d grad u%d||_L2 at level %d is %.3f < %.2f"
-                                    % (name, i, i, i, k + 1, a, FLUX_RATE[convex]))
+                    failures.append("%s: EOC of ||t%sh + mu%s grad u%s||_L2 at level %d is %.3f < %.2f"
+                                    % (name, s, s, s, k + 1, a, FLUX_RATE[convex]))
     return rates
 
 
