@@ -188,3 +188,80 @@ fn the_shipped_case_solves_with_tables_through_refinement() {
         }
     }
 }
+
+/// A case on the shipped mesh refined once, its data given as `body`.
+fn on_two_regions(body: &str) -> Case {
+    let text = format!("{body}\n[mesh]\nkind = \"file\"\npath = \"../meshes/two_regions.msh\"\nrefine = 1\n");
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases");
+    Case::parse(&text, "test case", dir).unwrap()
+}
+
+fn solved(case: &Case) -> membrane_contact::contact::Solution {
+    let options = membrane_contact::run::Options {
+        start: membrane_contact::contact::Start::Nested,
+        hminus1: false,
+        flux: false,
+        estimate: false,
+        dual: false,
+    };
+    membrane_contact::run::run(case, &options).unwrap().solution
+}
+
+/// An obstacle ψ per surface (two planes meeting along x = 1) and u2's boundary height g2 per
+/// curve give the solutions of the same functions written with `if`: the vertex values are taken
+/// from each vertex's own groups (swapping the entries changes the solution).
+#[test]
+fn psi_and_g2_tables_give_the_solutions_of_their_functions() {
+    let planes = ("-0.3 + 0.1*(x - 1)", "-0.3 + 0.2*(x - 1)");
+    let obstacle =
+        |psi: &str| on_two_regions(&format!("problem = \"obstacle\"\nmu = 1.0\nf = -5\ng = 0\n{psi}"));
+    let by_if = solved(&obstacle(&format!(
+        "psi = \"if(x < 1, {}, {})\"",
+        planes.0, planes.1
+    )));
+    let table = |a: &str, b: &str| format!("psi = {{ loaded = \"{a}\", free = \"{b}\" }}");
+    let by_table = solved(&obstacle(&table(planes.0, planes.1)));
+    let swapped = solved(&obstacle(&table(planes.1, planes.0)));
+    assert!(by_if.obstacle.contact.iter().any(|&c| c));
+    let close = |a: &[f64], b: &[f64], tol: f64| a.iter().zip(b).all(|(a, b)| (a - b).abs() < tol);
+    // Equal to round-off (the solves see the same vertex values; not bit for bit).
+    assert!(close(&by_if.u1, &by_table.u1, 1e-13));
+    assert!(!close(&by_if.u1, &swapped.u1, 1e-3));
+    let membranes =
+        |g2: &str| on_two_regions(&format!("mu1 = 1.0\nmu2 = 2.0\nf1 = -10\nf2 = 0\ng = 0.3\n{g2}"));
+    let by_if = solved(&membranes("g2 = \"if(x > 1.999999, 0.05 + y*(1 - y), 0.05)\""));
+    let by_table = solved(&membranes("g2 = { rim = \"0.05 + y*(1 - y)\", clamped = 0.05 }"));
+    assert!(by_if.obstacle.contact.iter().any(|&c| c));
+    // g2 enters through the v/w split: equal to round-off (not bit for bit).
+    for (a, b) in by_if.u2.iter().zip(&by_table.u2) {
+        assert!((a - b).abs() < 1e-13, "{a} vs {b}");
+    }
+    let swapped = solved(&membranes("g2 = { clamped = \"0.05 + y*(1 - y)\", rim = 0.05 }"));
+    assert!(by_if
+        .u2
+        .iter()
+        .zip(&swapped.u2)
+        .any(|(a, b)| (a - b).abs() > 1e-3));
+}
+
+/// `adapt` on the shipped two-region case: the groups follow every bisection (each triangle's
+/// group is still its side of x = 1), and the estimate falls.
+#[test]
+fn adapt_runs_with_tables_per_group() {
+    let case = Case::read(Path::new("data/cases/two_regions.toml")).unwrap();
+    let settings = membrane_contact::case::Adaptivity {
+        theta: 0.5,
+        target: None,
+        max_vertices: 20_000,
+        steps: 4,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let a = membrane_contact::adapt::adapt(&case, &settings, &dir.path().join("adapt")).unwrap();
+    let steps = &a.adaptive;
+    assert_eq!(steps.len(), 5);
+    assert!(steps
+        .windows(2)
+        .all(|w| w[1].estimator < w[0].estimator && w[1].vertices > w[0].vertices));
+    let last = file::read(&dir.path().join("adapt/step-004/solution.h5")).unwrap();
+    assert_geometric_groups(&last);
+}

@@ -79,7 +79,14 @@ pub fn read(path: &Path) -> Result<Mesh, FileError> {
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("");
     let (points, cells) = match extension {
         "xdmf" => read_xdmf(path)?,
-        "h5" | "hdf5" => read_h5_mesh(path)?,
+        "h5" | "hdf5" => {
+            let (points, cells) = read_h5_mesh(path)?;
+            let mesh = Mesh::new(points, cells).map_err(|e| FileError(format!("{}: {e}", path.display())))?;
+            return Ok(match read_h5_groups(path, &mesh)? {
+                None => mesh,
+                Some(groups) => mesh.with_groups(groups),
+            });
+        }
         "msh" => {
             let (raw, groups) = super::msh::read(path)?;
             let mesh = Mesh::new(raw.0, raw.1).map_err(|e| FileError(format!("{}: {e}", path.display())))?;
@@ -238,6 +245,83 @@ fn read_h5_mesh(path: &Path) -> Result<RawMesh, FileError> {
     };
     drop(file);
     Ok((read_points(path, g)?, read_cells(path, t)?))
+}
+
+/// The physical groups a result of this program holds (the cell field `group`, the datasets
+/// `boundary_edges` and `boundary_group`, the names in the attributes `surface_groups` and
+/// `curve_groups`), so that a result read back as a mesh keeps them; `None` for a file without.
+fn read_h5_groups(path: &Path, mesh: &Mesh) -> Result<Option<super::Groups>, FileError> {
+    let file = open_h5(path)?;
+    let all = ["/mesh/group", "/mesh/boundary_edges", "/mesh/boundary_group"];
+    if !all.iter().all(|d| file.link_exists(d))
+        || !file
+            .attr_names()
+            .is_ok_and(|a| a.iter().any(|n| n == "surface_groups"))
+    {
+        return Ok(None);
+    }
+    let err = |m: String| {
+        FileError(format!(
+            "{}: the physical groups of the result: {m}",
+            path.display()
+        ))
+    };
+    let names = |attr: &str| -> Result<Vec<String>, FileError> {
+        let text = (file
+            .attr(attr)
+            .and_then(|a| a.read_scalar::<hdf5::types::VarLenUnicode>()))
+        .map_err(|e| err(format!("attribute {attr}: {}", hdf5_error(&e))))?;
+        serde_json::from_str(text.as_str()).map_err(|e| err(format!("attribute {attr}: {e}")))
+    };
+    let (surfaces, curves) = (names("surface_groups")?, names("curve_groups")?);
+    let index = |v: i64, count: usize, what: &str| match v {
+        -1 => Ok(super::groups::NONE),
+        v if (0..count as i64).contains(&v) => Ok(v as u32),
+        v => Err(err(format!("{what} {v} is not a group index"))),
+    };
+    let column = |name: &str| {
+        (file.dataset(name).and_then(|d| d.read_raw::<f64>()))
+            .map_err(|e| err(format!("{name}: {}", hdf5_error(&e))))
+    };
+    let group = column("/mesh/group")?;
+    if group.len() != mesh.n_triangles() {
+        return Err(err(format!(
+            "{} groups for {} triangles",
+            group.len(),
+            mesh.n_triangles()
+        )));
+    }
+    let triangle = (group.iter())
+        .map(|&g| index(g as i64, surfaces.len(), "surface"))
+        .collect::<Result<Vec<_>, _>>()?;
+    let ends = read_table::<i32>(path, "/mesh/boundary_edges", "the boundary edges")?;
+    let curve = (file
+        .dataset("/mesh/boundary_group")
+        .and_then(|d| d.read_raw::<i32>()))
+    .map_err(|e| err(format!("/mesh/boundary_group: {}", hdf5_error(&e))))?;
+    let boundary = mesh.boundary_edges();
+    if ends.nrows() != boundary.len() || curve.len() != boundary.len() || ends.ncols() != 2 {
+        return Err(err(format!(
+            "{} boundary edges listed for {}",
+            ends.nrows(),
+            boundary.len()
+        )));
+    }
+    let mut edges = Vec::with_capacity(boundary.len());
+    for (row, c) in ends.rows().into_iter().zip(curve.iter()) {
+        let (a, b) = (row[0].min(row[1]) as usize, row[0].max(row[1]) as usize);
+        if boundary.binary_search(&(a, b)).is_err() {
+            return Err(err(format!("({a}, {b}) is not a boundary edge of the mesh")));
+        }
+        edges.push(((a, b), index(i64::from(*c), curves.len(), "curve")?));
+    }
+    let source = (file
+        .attr("groups_source")
+        .and_then(|a| a.read_scalar::<hdf5::types::VarLenUnicode>()))
+    .map_or_else(|_| path.display().to_string(), |s| s.as_str().to_string());
+    Ok(Some(super::Groups::new(
+        source, surfaces, curves, triangle, edges,
+    )))
 }
 
 fn open_h5(path: &Path) -> Result<hdf5::File, FileError> {
