@@ -13,7 +13,7 @@ use crate::action::Action;
 use crate::assembly::gradients;
 use crate::contact::Solution;
 use crate::mesh::{orient, DualMesh, Mesh};
-use crate::problem::DiscreteProblem;
+use crate::problem::{DiscreteProblem, Which};
 use crate::result::{Attribute, Describe, Field, Place};
 
 /// t_ih on S_h by its degrees of freedom.
@@ -104,32 +104,31 @@ impl Flux {
     }
 }
 
-/// t_1h and t_2h, with the relative defects of their local conservation (Lemma 17).
+/// The fluxes of the membranes (t_1h and t_2h, or t_h above a rigid obstacle), with the relative
+/// defects of their local conservation (Lemma 17).
 #[derive(Debug, Clone)]
 pub struct Fluxes {
-    /// t_1h, t_2h.
-    pub t: [Flux; 2],
+    /// t_ih, one per membrane of [`DiscreteProblem::membranes`].
+    pub t: Vec<Flux>,
     /// max_a |∫_{D_a} div t_ih − (f_i, φ_a) ∓ λ_a m_a| over the interior vertices, relative to the
-    /// largest size s_a of the terms of (4.5) at a vertex (see `Checks::prop12`), for i = 1, 2.
-    pub conservation: [f64; 2],
+    /// largest size s_a of the terms of (4.5) at a vertex (see `Checks::prop12`).
+    pub conservation: Vec<f64>,
+    /// Which membrane each flux is of.
+    which: Vec<Which>,
 }
 
 impl Fluxes {
-    /// Reconstructs t_1h and t_2h (4.13) on S_h and checks their local conservation at every
-    /// interior vertex: ∫_{D_a} div t_1h = (f1, φ_a) + λ_a m_a and ∫_{D_a} div t_2h = (f2, φ_a) −
-    /// λ_a m_a (Lemma 17), the defect relative to the largest term summed.
+    /// Reconstructs t_ih (4.13) on S_h and checks its local conservation at every interior vertex:
+    /// ∫_{D_a} div t_1h = (f1, φ_a) + λ_a m_a and ∫_{D_a} div t_2h = (f2, φ_a) − λ_a m_a
+    /// (Lemma 17; above an obstacle the first alone, with f), relative to the largest term summed.
     pub fn reconstruct(
         problem: &DiscreteProblem,
         dual: &DualMesh,
         solution: &Solution,
         action: &Action,
     ) -> Fluxes {
-        let (mesh, d) = (&problem.mesh, &problem.data);
-        let mu2 = d.mu2().expect("the fluxes are reconstructed on two membranes");
-        let membranes = [
-            (&solution.u1, d.mu1, &problem.load1, 1.0),
-            (&solution.u2, mu2, &problem.load2, -1.0),
-        ];
+        let mesh = &problem.mesh;
+        let membranes = problem.membranes([&solution.u1, &solution.u2]);
         // The terms of μ_i ∫∇u_ih·∇φ_a cancel down to O(h²): round-off is relative to them, and
         // λ_a's to those of both membranes (it is computed from membrane 1, Prop. 12), so each
         // defect is relative to the largest s_a of `Checks::prop12` — also when one membrane's
@@ -138,48 +137,77 @@ impl Fluxes {
             .filter(|&a| !mesh.on_boundary[a])
             .map(|a| {
                 let terms: f64 = (problem.stiffness.row(a))
-                    .map(|(b, k)| (d.mu1 * k * solution.u1[b]).abs() + (mu2 * k * solution.u2[b]).abs())
+                    .map(|(b, k)| membranes.iter().map(|m| (m.mu * k * m.u[b]).abs()).sum::<f64>())
                     .sum();
                 terms + problem.load_size(a)
             })
             .fold(f64::MIN_POSITIVE, f64::max);
-        let [(t1, c1), (t2, c2)] = membranes.map(|(u, mu, load, sign)| {
-            let flux = Flux::reconstruct(mesh, dual, u, mu);
-            let total = flux.over_dual_cells(mesh, dual);
-            let defect = (0..mesh.n_vertices())
-                .filter(|&a| !mesh.on_boundary[a])
-                .map(|a| (total[a] - load[a] - sign * action.lambda[a] * problem.mass[a]).abs())
-                .fold(0.0_f64, f64::max);
-            (flux, defect / scale)
-        });
+        let (t, conservation) = (membranes.iter())
+            .map(|m| {
+                let flux = Flux::reconstruct(mesh, dual, m.u, m.mu);
+                let total = flux.over_dual_cells(mesh, dual);
+                let defect = (0..mesh.n_vertices())
+                    .filter(|&a| !mesh.on_boundary[a])
+                    .map(|a| (total[a] - m.load[a] - m.sign * action.lambda[a] * problem.mass[a]).abs())
+                    .fold(0.0_f64, f64::max);
+                (flux, defect / scale)
+            })
+            .unzip();
         Fluxes {
-            t: [t1, t2],
-            conservation: [c1, c2],
+            t,
+            conservation,
+            which: membranes.iter().map(|m| m.which).collect(),
         }
     }
 
-    /// Writes t_ih at the centroids of the cells of S_h and div t_ih as cell data.
+    /// Writes t_ih at the centroids of the cells of S_h and div t_ih as cell data (`t1_x`,
+    /// `t1_y`, `div_t1`, …; `t_x`, `t_y`, `div_t` above an obstacle).
     pub fn fields(&self, dual: &DualMesh) -> Vec<Field<'static>> {
-        let names = [["t1_x", "t1_y", "div_t1"], ["t2_x", "t2_y", "div_t2"]];
-        (self.t.iter().zip(names))
-            .flat_map(|(flux, [x, y, div])| {
+        (self.t.iter().zip(&self.which))
+            .flat_map(|(flux, which)| {
                 let t = flux.at_centroids(dual);
+                let name = |names| which.named(names);
                 [
-                    Field::owned(x, Place::DualCells, t.iter().map(|v| v[0]).collect()),
-                    Field::owned(y, Place::DualCells, t.iter().map(|v| v[1]).collect()),
-                    Field::owned(div, Place::DualCells, flux.divergence(dual)),
+                    Field::owned(
+                        name(["t1_x", "t2_x", "t_x"]),
+                        Place::DualCells,
+                        t.iter().map(|v| v[0]).collect(),
+                    ),
+                    Field::owned(
+                        name(["t1_y", "t2_y", "t_y"]),
+                        Place::DualCells,
+                        t.iter().map(|v| v[1]).collect(),
+                    ),
+                    Field::owned(
+                        name(["div_t1", "div_t2", "div_t"]),
+                        Place::DualCells,
+                        flux.divergence(dual),
+                    ),
                 ]
             })
             .collect()
+    }
+
+    /// The summary's line: the local conservation of each flux.
+    pub fn summary(&self) -> String {
+        let names: Vec<&str> = self.which.iter().map(|w| w.named(["t1h", "t2h", "th"])).collect();
+        let defects: Vec<String> = self.conservation.iter().map(|d| format!("{d:.2e}")).collect();
+        format!(
+            "flux        {} on the dual submesh; their local conservation on the dual cells: relative defect {}\n",
+            names.join(", "),
+            defects.join(", ")
+        )
     }
 }
 
 impl Describe for Fluxes {
     fn attributes(&self) -> Vec<Attribute> {
-        vec![
-            ("flux_conservation_1", self.conservation[0].into()),
-            ("flux_conservation_2", self.conservation[1].into()),
-        ]
+        (self.which.iter().zip(&self.conservation))
+            .map(|(w, &d)| {
+                let name = w.named(["flux_conservation_1", "flux_conservation_2", "flux_conservation"]);
+                (name, d.into())
+            })
+            .collect()
     }
 }
 

@@ -348,7 +348,67 @@ impl DiscreteProblem {
     pub fn load_size(&self, a: usize) -> f64 {
         self.load1[a].abs() + self.load2.get(a).map_or(0.0, |l| l.abs())
     }
+
+    /// The membranes that have an equation, with `u` their displacements in order: the two of
+    /// (1.1), −μ1Δu1 − λ = f1 and −μ2Δu2 + λ = f2, or the one above a rigid obstacle,
+    /// −μΔu − λ = f.
+    pub fn membranes<'a>(&'a self, u: [&'a [f64]; 2]) -> Vec<Membrane<'a>> {
+        let one = |which: Which, mu, f, load: &'a [f64]| Membrane {
+            mu,
+            f,
+            load,
+            u: u[(which == Which::Second) as usize],
+            sign: if which == Which::Second { -1.0 } else { 1.0 },
+            which,
+        };
+        match &self.data.lower {
+            Lower::Membrane { mu2, f2, .. } => vec![
+                one(Which::First, self.data.mu1, &self.data.f1, &self.load1),
+                one(Which::Second, *mu2, f2, &self.load2),
+            ],
+            Lower::Rigid { .. } => vec![one(Which::Alone, self.data.mu1, &self.data.f1, &self.load1)],
+        }
+    }
 }
+
+/// One membrane's equation −μΔu ∓ λ = f, discretised.
+#[derive(Debug, Clone, Copy)]
+pub struct Membrane<'a> {
+    /// μ.
+    pub mu: f64,
+    /// f.
+    pub f: &'a Datum,
+    /// (f, φ_a) at every vertex.
+    pub load: &'a [f64],
+    /// u_h at every vertex.
+    pub u: &'a [f64],
+    /// The sign of λ in −μΔu = f ± λ: + for membrane 1 (and above an obstacle), − for membrane 2.
+    pub sign: f64,
+    /// Which: membrane 1, membrane 2, or the one membrane above an obstacle.
+    pub which: Which,
+}
+
+/// Which membrane a [`Membrane`] is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Which {
+    /// Membrane 1 of (1.1).
+    First,
+    /// Membrane 2 of (1.1).
+    Second,
+    /// The membrane above a rigid obstacle.
+    Alone,
+}
+
+impl Which {
+    /// Of three names, the one for this membrane: `names` = [membrane 1's, membrane 2's, the
+    /// one above an obstacle's].
+    pub fn named(self, names: [&'static str; 3]) -> &'static str {
+        names[self as usize]
+    }
+}
+
+/// The relative round-off below which g < g2 (or g < ψ) at a boundary vertex counts as contact.
+const ROUND_OFF: f64 = 1e-12;
 
 /// The heights on `mesh`: g_h and the gap at the boundary vertices (finite, g ≥ g2 or g ≥ ψ), 0
 /// inside, and ψ_h (finite) at every vertex below a rigid obstacle. Only the vertex values enter
@@ -367,23 +427,41 @@ pub fn boundary_values(mesh: &Mesh, data: &Data) -> Result<Heights, DataError> {
         Lower::Membrane { g2, .. } => Some(datum::vertex_values("g2", g2, mesh, On::Curves)?),
         Lower::Rigid { .. } => None,
     };
-    let (mut g_h, mut gap) = (vec![0.0; n], vec![0.0; n]);
-    for (a, p) in mesh.points.iter().enumerate() {
-        if mesh.on_boundary[a] {
-            let g = g[a].expect("g at every boundary vertex");
-            let (lower, value) = match &g2 {
-                Some(g2) => ("g2", g2[a].expect("g2 at every boundary vertex")),
-                None => ("psi", psi[a]),
-            };
-            if g < value {
-                return Err(DataError::BoundaryBelowLower {
-                    lower,
-                    point: *p,
-                    g,
-                    value,
-                });
-            }
-            (g_h[a], gap[a]) = (g, g - value);
+    let lower_at = |a: usize| match &g2 {
+        Some(g2) => ("g2", g2[a].expect("g2 at every boundary vertex")),
+        None => ("psi", psi[a]),
+    };
+    let boundary = || (0..n).filter(|&a| mesh.on_boundary[a]);
+    // g ≥ g2 (ψ) up to round-off of the data's size (of ψ over ω): sin(πx) at x = 1 is 1.2e-16,
+    // not 0. Within it the membrane touches: ψ_h := g there, so that w_h = 0 exactly on ∂ω.
+    let size = (boundary())
+        .map(|a| {
+            g[a].expect("g at every boundary vertex")
+                .abs()
+                .max(lower_at(a).1.abs())
+        })
+        .chain(psi.iter().map(|p| p.abs()))
+        .fold(0.0, f64::max);
+    let (mut g_h, mut gap, mut touching) = (vec![0.0; n], vec![0.0; n], Vec::new());
+    for a in boundary() {
+        let (g, (lower, value)) = (g[a].expect("g at every boundary vertex"), lower_at(a));
+        if g < value - ROUND_OFF * size {
+            return Err(DataError::BoundaryBelowLower {
+                lower,
+                point: mesh.points[a],
+                g,
+                value,
+            });
+        }
+        (g_h[a], gap[a]) = (g, (g - value).max(0.0));
+        if g < value {
+            touching.push((a, g));
+        }
+    }
+    let mut psi = psi;
+    for (a, g) in touching {
+        if let Some(psi) = psi.get_mut(a) {
+            *psi = g;
         }
     }
     Ok(Heights { g: g_h, gap, psi })

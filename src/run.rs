@@ -89,7 +89,7 @@ pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
         hminus1: options.hminus1 && case.exact.is_some(),
     };
     // Before the mesh is built: what this problem cannot compute fails at once.
-    case.check_options(options.flux, options.estimate)?;
+    case.check_options(options.estimate)?;
     let (mesh, coarser) = case.hierarchy(multigrid || matches!(options.start, Start::Nested), after)?;
     case.check_on(&mesh)?;
     on_mesh(case, mesh, coarser, options, clock.elapsed().as_secs_f64())
@@ -104,7 +104,7 @@ pub fn on_mesh<'c>(
     options: &Options,
     mesh_seconds: f64,
 ) -> Result<Run<'c>, RunError> {
-    case.check_options(options.flux, options.estimate)?;
+    case.check_options(options.estimate)?;
     let mut clock = Clock(Instant::now());
     progress::phase(|| format!("assembly: {} vertices", mesh.n_vertices()));
     let problem =
@@ -223,24 +223,10 @@ impl Run<'_> {
             );
         }
         if let Some(e) = &self.estimate {
-            out += &format!(
-                "estimator   |||u − u_h||| ≤ η = {:.4e} (membranes {:.3e}, {:.3e}, boundary data {:.2e}, contact {:.2e}){}; \
-                 ‖λ − λ_h‖_H⁻¹ ≤ {:.4e}\n",
-                e.total,
-                e.membranes[0],
-                e.membranes[1],
-                e.boundary_total,
-                e.contact_total,
-                self.effectivity()
-                    .map_or(String::new(), |x| format!(", effectivity η/error {x:.3}")),
-                e.lambda
-            );
+            out += &e.summary(self.effectivity());
         }
         if let Some(f) = &self.flux {
-            out += &format!(
-                "flux        t1h, t2h on the dual submesh; their local conservation on the dual cells: relative defect {:.2e}, {:.2e}\n",
-                f.conservation[0], f.conservation[1]
-            );
+            out += &f.summary();
         }
         out + &self.seconds_line()
     }

@@ -287,13 +287,6 @@ fn the_obstacle_problem_and_g2_run_and_their_keys_are_checked() {
         &format!("{OBSTACLE}[exact]\nlambda = 0\n"),
         "key 'exact.u' is missing",
     );
-    for option in ["--estimate", "--flux"] {
-        let e = fails(&format!("{OBSTACLE}{SQUARE}"), |_| {}, &[option], None);
-        contains(
-            &e,
-            "above a rigid obstacle (problem = \"obstacle\") they are not available yet",
-        );
-    }
     let e = fails(
         &format!("{GOOD}g2 = -0.1\n{SQUARE}"),
         |_| {},

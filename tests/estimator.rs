@@ -34,11 +34,13 @@ fn the_bound_holds_on_every_exact_case() {
             continue;
         }
         let case = Case::read(&path).unwrap();
-        // Only where the estimator is defined (two membranes, u2 = 0 on ∂ω), and with ∇u1.
-        if case.exact.as_ref().is_none_or(|e| e.grad_u1.is_none()) || case.check_options(false, true).is_err()
-        {
+        // Only where the estimator is defined (not with g2), and with ∇u1 (∇u above an obstacle).
+        if case.exact.as_ref().is_none_or(|e| e.grad_u1.is_none()) || case.check_options(true).is_err() {
             continue;
         }
+        // Above an obstacle η also counts ψ − ψ_h where u_h dips below ψ, which the flux term
+        // sees too (docs/a-posteriori.md §14): the bound is looser on coarse meshes.
+        let loose = if case.data.is_obstacle() { 1.9 } else { 1.6 };
         for refine in 0..2 {
             let mut c = case.clone();
             match c.cells() {
@@ -56,14 +58,14 @@ fn the_bound_holds_on_every_exact_case() {
                 "{name}, level {refine}: η = {eta:e} < error {error:e}"
             );
             assert!(
-                eta <= 1.6 * error,
+                eta <= loose * error,
                 "{name}, level {refine}: effectivity {}",
                 eta / error
             );
             checked += 1;
         }
     }
-    assert!(checked >= 16, "{checked} levels checked");
+    assert!(checked >= 18, "{checked} levels checked");
 }
 
 /// u1 = 1 + x + 2y, u2 = 0, no loads: no contact, u_h = u, and the equilibrated flux must be
@@ -126,4 +128,99 @@ fn the_equilibrated_fluxes_have_the_loads_as_divergence() {
         }
     }
     assert!(e.means.iter().all(|&m| m < 1e-12), "{:?}", e.means);
+}
+
+/// The ball obstacle (data/cases/ball.toml) from 16² to 128²: the bound holds at every level and
+/// tightens towards 1.3; the one flux is conserved on the dual cells (Lemma 17 with f).
+#[test]
+fn above_an_obstacle_the_bound_holds_and_tightens() {
+    let case = Case::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases/ball.toml")).unwrap();
+    let mut effectivities = Vec::new();
+    for n in [16, 32, 64, 128] {
+        let mut c = case.clone();
+        c.set_cells(n).unwrap();
+        let options = run::Options {
+            start: Start::Nested,
+            hminus1: false,
+            flux: true,
+            estimate: true,
+            dual: false,
+        };
+        let r = run::run(&c, &options).unwrap();
+        let (e, error) = (
+            r.estimate.as_ref().unwrap(),
+            r.errors.as_ref().unwrap().energy.unwrap(),
+        );
+        assert!(e.total >= error, "{n}²: η = {:e} < error {error:e}", e.total);
+        assert!(
+            e.obstacle_total.unwrap() > 0.1 * error,
+            "{n}²: u_h = ψ_h dips below ψ"
+        );
+        let conservation = &r.flux.as_ref().unwrap().conservation;
+        assert!(
+            conservation.len() == 1 && conservation[0] < 1e-14,
+            "{conservation:?}"
+        );
+        effectivities.push(e.total / error);
+    }
+    assert!(effectivities.windows(2).all(|w| w[1] < w[0]), "{effectivities:?}");
+    assert!(effectivities[3] < 1.35, "{effectivities:?}");
+}
+
+/// A membrane pressed onto ψ = sin πx sin πy (f = −1, g = 0): contact everywhere, u = ψ and
+/// u_h = ψ_h, so the error is ψ − ψ_h alone; the bound holds and its obstacle term (ψ − u_h on
+/// the cells where it is positive) is most of the error.
+#[test]
+fn in_full_contact_the_obstacle_term_is_the_interpolation_error() {
+    let body = "problem = \"obstacle\"\nmu = 1.0\nf = -1\npsi = \"sin(pi*x)*sin(pi*y)\"\ng = 0\n\
+                [exact]\nu = \"sin(pi*x)*sin(pi*y)\"\nlambda = \"2*pi^2*sin(pi*x)*sin(pi*y) + 1\"\n\
+                grad_u = [\"pi*cos(pi*x)*sin(pi*y)\", \"pi*sin(pi*x)*cos(pi*y)\"]";
+    for n in [8, 16, 32] {
+        let case = square(body, n, "right");
+        let r = estimated(&case);
+        assert!(r.solution.obstacle.contact.iter().filter(|&&c| c).count() == (n - 1) * (n - 1));
+        let (e, error) = (
+            r.estimate.as_ref().unwrap(),
+            r.errors.as_ref().unwrap().energy.unwrap(),
+        );
+        assert!(
+            e.total >= error && e.total <= 1.5 * error,
+            "{n}²: η = {:e}, error {error:e}",
+            e.total
+        );
+        let obstacle = e.obstacle_total.unwrap();
+        assert!(
+            obstacle > 0.85 * error && obstacle < error,
+            "{n}²: {obstacle:e} vs {error:e}"
+        );
+    }
+}
+
+/// An affine obstacle ψ = 1 + x + 2y = g pressed on by f = −1: u = ψ, λ = 1 and u_h = u exactly.
+/// The obstacle and contact terms vanish to round-off (of the difference quotient of ∇ψ,
+/// ε|ψ| / step); what is left is the flux term of the boundary cells, where λ_h = 0 (4.5) but
+/// λ = 1: a layer of width h, of order h^{3/2}.
+#[test]
+fn an_affine_obstacle_in_full_contact_leaves_only_the_boundary_layer() {
+    let body = "problem = \"obstacle\"\nmu = 2.0\nf = -1\npsi = \"1 + x + 2*y\"\ng = \"1 + x + 2*y\"";
+    let eta = [6, 24].map(|n| {
+        let case = square(body, n, "crossed");
+        let r = estimated(&case);
+        let interior = r.problem.mesh.on_boundary.iter().filter(|&&b| !b).count();
+        assert_eq!(
+            r.action
+                .lambda
+                .iter()
+                .filter(|&&l| (l - 1.0).abs() < 1e-9)
+                .count(),
+            interior
+        );
+        let e = r.estimate.unwrap();
+        assert!(
+            e.obstacle_total.unwrap() < 1e-10 && e.contact_total.abs() < 1e-15,
+            "{n}²: {e:?}"
+        );
+        e.total
+    });
+    assert!(eta[0] < 0.02 && eta[1] < eta[0] / 7.0, "η = {eta:?}");
 }

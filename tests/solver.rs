@@ -402,7 +402,9 @@ fn flux_reconstruction_is_conservative_and_converges() {
         };
         let r = run::run(&c, &options).unwrap();
         let flux = r.flux.as_ref().unwrap();
-        let [d1, d2] = flux.conservation;
+        let [d1, d2] = flux.conservation[..] else {
+            panic!("two fluxes")
+        };
         assert!(d1 < 1e-14 && d2 < 1e-14, "{d1} {d2}");
         let dual = r.dual();
         let mut sum = 0.0;

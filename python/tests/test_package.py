@@ -98,9 +98,13 @@ def test_bad_mesh_raises_input_error(small):
         mc.solve(small, (points, bad))
 
 
-def test_obstacle_with_estimate_raises_input_error():
+def test_obstacle_with_estimate_and_g2_with_estimate(tmp_path):
+    r = mc.solve(CASES / "ball.toml", n=16, estimate=True, flux=True)
+    assert r.eta >= r.error_energy and r.estimator.shape == (len(r.triangles),)
+    data, attrs = cli_solve(tmp_path, CASES / "ball.toml", "--n", 16, "--estimate")
+    assert r.eta == attrs["estimator"] and "estimator_obstacle" in attrs
     with pytest.raises(mc.InputError, match="not available yet"):
-        mc.solve(CASES / "ball.toml", n=8, estimate=True)
+        mc.solve(CASES / "g2_lifted.toml", estimate=True)
 
 
 def test_solver_error_and_output_error(small, tmp_path):

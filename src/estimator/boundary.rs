@@ -29,16 +29,20 @@ pub struct OnTriangle {
     pub grad_norm: f64,
     /// ∫_K λ_h ψ.
     pub with_lambda: f64,
+    /// Bounds of ψ on K: min(0, min δ) and max(0, max δ), summed over K's boundary edges.
+    pub range: [f64; 2],
 }
 
 /// ψ on every triangle of `mesh` (zero on those without a boundary edge). `neighbour[t][j]` is
-/// `usize::MAX` when the edge `(t[j], t[j + 1])` lies on ∂ω; `lambda` is λ_a, `gap` is w_h.
+/// `usize::MAX` when the edge `(t[j], t[j + 1])` lies on ∂ω; `lambda` is λ_a; `gap` is w_h when
+/// ψ is to keep w_h + ψ ≥ 0 at the corners of ω (between two membranes; `None` above an
+/// obstacle, whose lifting takes care of the constraint itself, §14).
 pub fn lifting(
     mesh: &Mesh,
     neighbour: &[[usize; 3]],
     g: &Pieces,
     lambda: &[f64],
-    gap: &[f64],
+    gap: Option<&[f64]>,
 ) -> Vec<OnTriangle> {
     let rule = gauss_legendre_halves();
     (0..mesh.n_triangles())
@@ -49,7 +53,7 @@ pub fn lifting(
             let edge = |j: usize| on_edge(mesh, t, j, g.on_edge(tri[j], tri[(j + 1) % 3]), lambda, &rule);
             match on_boundary[..] {
                 [] => OnTriangle::default(),
-                [j] => edge(j).0,
+                [j] => edge(j),
                 [i, j] => corner(mesh, t, [edge(i), edge(j)], gap),
                 _ => unreachable!("a mesh with an interior vertex has no triangle bounded by ∂ω alone"),
             }
@@ -57,15 +61,8 @@ pub fn lifting(
         .collect()
 }
 
-/// ψ_e on K for the boundary edge j of triangle t, and min δ along it.
-fn on_edge(
-    mesh: &Mesh,
-    t: usize,
-    j: usize,
-    g: &Expr,
-    lambda: &[f64],
-    rule: &[(f64, f64)],
-) -> (OnTriangle, f64) {
+/// ψ_e on K for the boundary edge j of triangle t.
+fn on_edge(mesh: &Mesh, t: usize, j: usize, g: &Expr, lambda: &[f64], rule: &[(f64, f64)]) -> OnTriangle {
     let tri = mesh.triangle(t);
     let corners = mesh.corners(t);
     let (p, q, c) = (corners[j], corners[(j + 1) % 3], corners[(j + 2) % 3]);
@@ -75,7 +72,7 @@ fn on_edge(
     let along = |tau: f64| g.eval(p[0] + tau * (q[0] - p[0]), p[1] + tau * (q[1] - p[1]));
     let (gp, gq) = (along(0.0), along(1.0));
     let lambda_c = lambda[tri[(j + 2) % 3]];
-    let (mut grad2, mut with_lambda, mut min_delta) = (0.0, 0.0, 0.0_f64);
+    let (mut grad2, mut with_lambda, mut range) = (0.0, 0.0, [0.0_f64; 2]);
     for &(tau, w) in rule {
         let delta = along(tau) - ((1.0 - tau) * gp + tau * gq);
         let derivative = (8.0 * (along(tau + STEP) - along(tau - STEP)) - along(tau + 2.0 * STEP)
@@ -86,33 +83,34 @@ fn on_edge(
         grad2 += w * (v[0] * v[0] + v[1] * v[1]);
         let s_star = 1.0 / (1.0 + tau.max(1.0 - tau));
         with_lambda += w * delta * s_star.powi(3) / 3.0;
-        min_delta = min_delta.min(delta);
+        range = [range[0].min(delta), range[1].max(delta)];
     }
-    let on = OnTriangle {
+    OnTriangle {
         grad_norm: (area * grad2).sqrt(),
         with_lambda: lambda_c * 2.0 * area * with_lambda,
-    };
-    (on, min_delta)
+        range,
+    }
 }
 
 /// A triangle with two boundary edges (all its vertices on ∂ω, so λ_h = 0 on it): ψ_0 = ψ_e1 +
 /// ψ_e2, bounded by the triangle inequality; where ψ_0 might dip below −w_h (g small at the
 /// vertices, δ negative), ψ = max(ψ_0, −w_h) instead, with |∇ψ|² ≤ |∇ψ_0|² + |∇w_h|².
-fn corner(mesh: &Mesh, t: usize, edges: [(OnTriangle, f64); 2], gap: &[f64]) -> OnTriangle {
-    let norm0 = edges[0].0.grad_norm + edges[1].0.grad_norm;
+fn corner(mesh: &Mesh, t: usize, edges: [OnTriangle; 2], gap: Option<&[f64]>) -> OnTriangle {
+    let norm0 = edges[0].grad_norm + edges[1].grad_norm;
+    let range = [0, 1].map(|k| edges[0].range[k] + edges[1].range[k]);
     let tri = mesh.triangle(t);
-    let lowest = tri.iter().map(|&a| gap[a]).fold(f64::INFINITY, f64::min);
-    let dip: f64 = edges.iter().map(|e| (-e.1).max(0.0)).sum();
-    let grad_norm = if lowest >= dip {
-        norm0
-    } else {
-        let g = gradients(mesh.corners(t));
-        let gw = [0, 1].map(|k| (0..3).map(|i| g[i][k] * gap[tri[i]]).sum::<f64>());
-        (norm0 * norm0 + mesh.area(t) * (gw[0] * gw[0] + gw[1] * gw[1])).sqrt()
+    let grad_norm = match gap {
+        Some(gap) if tri.iter().map(|&a| gap[a]).fold(f64::INFINITY, f64::min) < -range[0] => {
+            let g = gradients(mesh.corners(t));
+            let gw = [0, 1].map(|k| (0..3).map(|i| g[i][k] * gap[tri[i]]).sum::<f64>());
+            (norm0 * norm0 + mesh.area(t) * (gw[0] * gw[0] + gw[1] * gw[1])).sqrt()
+        }
+        _ => norm0,
     };
     OnTriangle {
         grad_norm,
         with_lambda: 0.0,
+        range,
     }
 }
 
@@ -179,7 +177,7 @@ mod tests {
         let g = Expr::parse("x^2").unwrap();
         let datum = crate::datum::Datum::from(g.clone());
         let pieces = datum.pieces("g", &mesh, crate::datum::On::Curves).unwrap();
-        let on = lifting(&mesh, &neighbour, &pieces, &[0.0, 0.0, 2.0], &[0.0; 3]);
+        let on = lifting(&mesh, &neighbour, &pieces, &[0.0, 0.0, 2.0], Some(&[0.0; 3]));
         assert!(
             (on[0].grad_norm.powi(2) - 4.0 / 15.0).abs() < 1e-12,
             "{}",

@@ -114,22 +114,25 @@ pub struct Membrane<'a> {
     pub on_dual_cell: &'a [f64],
 }
 
-/// τ_1, τ_2 = Σ_a τ_{i,a}, by their normal fluxes on the cells of S_h (the convention of [`Flux`]).
-pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: [&Membrane; 2]) -> [Flux; 2] {
+/// τ_i = Σ_a τ_{i,a} for each membrane, by their normal fluxes on the cells of S_h (the
+/// convention of [`Flux`]).
+pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: &[Membrane]) -> Vec<Flux> {
     let grad_u: Vec<[[f64; 2]; 2]> = parallel::collect(mesh.n_triangles(), |t| {
         let g = gradients(mesh.corners(t));
         let tri = mesh.triangle(t);
-        membranes.map(|m| [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()))
+        let mut grad = [[0.0; 2]; 2];
+        for (grad, m) in grad.iter_mut().zip(membranes) {
+            *grad = [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>());
+        }
+        grad
     });
     // Each patch adds into the fluxes of its cells (a cell belongs to the patches of its
     // triangle's three vertices); the patches of one class share no cell and run in parallel,
     // the classes one after the other, so that each cell sums its terms in the same order on
     // any number of threads.
-    let tau = [0, 1].map(|_| {
-        (0..dual.n_cells())
-            .map(|_| Default::default())
-            .collect::<Vec<_>>()
-    });
+    let tau: Vec<Vec<[AtomicU64; 3]>> = (membranes.iter())
+        .map(|_| (0..dual.n_cells()).map(|_| Default::default()).collect())
+        .collect();
     for class in &patches.classes {
         parallel::map_with(class.len(), PIECE, Patch::default, |work, range| {
             for &a in &class[range] {
@@ -140,11 +143,13 @@ pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: [
             }
         });
     }
-    tau.map(|tau| Flux {
-        edge_flux: parallel::collect(tau.len(), |s| {
-            tau[s].each_ref().map(|f| f64::from_bits(f.load(Relaxed)))
-        }),
-    })
+    (tau.into_iter())
+        .map(|tau| Flux {
+            edge_flux: parallel::collect(tau.len(), |s| {
+                tau[s].each_ref().map(|f| f64::from_bits(f.load(Relaxed)))
+            }),
+        })
+        .collect()
 }
 
 /// One cell of S_h in a patch.

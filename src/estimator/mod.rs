@@ -13,10 +13,13 @@
 //! defect of the loads on the dual cells (§4(c)), C_F the Friedrichs constant of the bounding box,
 //! ψ the lifting of g − g_h ([`boundary`]). The action gets the bound of §8 from the same fluxes.
 //! Per triangle K the indicator η_K² = Σ_i Σ_{κ⊂K} [η_F,κ + η_osc,κ]² + η_D,K² + 2 η_C,K says
-//! where to refine.
+//! where to refine. Above a rigid obstacle (§14, Theorem (O)) the sum is over the one membrane,
+//! and the lifting is z = max(ψ, ψ_obstacle − u_h) ([`obstacle`]), which keeps u_h + z above the
+//! obstacle itself, not only above ψ_h at the vertices.
 
 pub mod boundary;
 pub mod equilibration;
+pub mod obstacle;
 
 use crate::action::Action;
 use crate::assembly::gradients;
@@ -25,9 +28,9 @@ use crate::datum::{self, On};
 use crate::flux::Flux;
 use crate::mesh::{DualMesh, Mesh};
 use crate::parallel::{self, PIECE};
-use crate::problem::DiscreteProblem;
+use crate::problem::{DiscreteProblem, Lower, Membrane, Which};
 use crate::result::{Attribute, Describe, Field, Place};
-use equilibration::{equilibrate, Membrane, Patches};
+use equilibration::{equilibrate, Patches};
 use std::f64::consts::PI;
 
 /// The estimator of one discrete solution: per-triangle indicators and totals.
@@ -35,37 +38,51 @@ use std::f64::consts::PI;
 pub struct Estimate {
     /// η_K on each triangle of T_h.
     pub indicator: Vec<f64>,
-    /// (Σ_{κ⊂K} η_F,κ²)^½ for membranes 1 and 2.
-    pub flux: [Vec<f64>; 2],
-    /// (Σ_{κ⊂K} η_osc,κ²)^½ for membranes 1 and 2.
-    pub oscillation: [Vec<f64>; 2],
-    /// μ1^½ ‖∇ψ‖_K.
+    /// (Σ_{κ⊂K} η_F,κ²)^½ for each membrane of [`DiscreteProblem::membranes`].
+    pub flux: Vec<Vec<f64>>,
+    /// (Σ_{κ⊂K} η_osc,κ²)^½ for each membrane.
+    pub oscillation: Vec<Vec<f64>>,
+    /// μ1^½ ‖∇z‖_K, z the lifting of g − g_h (and above an obstacle of ψ − u_h, §14).
     pub boundary: Vec<f64>,
-    /// (λ_h, w_h + ψ)_K.
+    /// (λ_h, w_h + z)_K (above an obstacle (λ_h, u_h + z − ψ)_K).
     pub contact: Vec<f64>,
     /// η, the bound of |||u − u_h|||.
     pub total: f64,
-    /// η_1, η_2.
-    pub membranes: [f64; 2],
-    /// η_Q,1, η_Q,2 (included in η_1, η_2).
-    pub means: [f64; 2],
+    /// η_i for each membrane.
+    pub membranes: Vec<f64>,
+    /// η_Q,i for each membrane (included in η_i).
+    pub means: Vec<f64>,
     /// η_D.
     pub boundary_total: f64,
+    /// Above an obstacle, μ^½ ‖∇(ψ − u_h)‖ on the cells where u_h dips below ψ (included in η_D).
+    pub obstacle_total: Option<f64>,
     /// η_C.
     pub contact_total: f64,
     /// The bound of ‖λ − λ_h‖_H⁻¹ (§8).
     pub lambda: f64,
-    /// τ_1, τ_2.
-    pub tau: [Flux; 2],
+    /// τ_i for each membrane.
+    pub tau: Vec<Flux>,
+    /// Which membrane each of the per-membrane terms is of.
+    which: Vec<Which>,
 }
 
 /// What the quadrature of the loads gives on one cell κ of S_h.
 #[derive(Debug, Clone, Copy, Default)]
 struct CellLoads {
-    /// ∫_κ f_i φ_j, j the vertices of the triangle K ⊃ κ in order, for i = 1, 2.
+    /// ∫_κ f_i φ_j, j the vertices of the triangle K ⊃ κ in order, for each membrane i.
     f_phi: [[f64; 3]; 2],
     /// ‖v − Π v‖²_κ for v = f1, f2 and α f1 − (1 − α) f2 (the residual of the action, §8).
     oscillation: [f64; 3],
+}
+
+/// α = μ2/(μ1 + μ2) and μ̄ = μ1μ2/(μ1 + μ2) of §1; above a rigid obstacle (μ2 → ∞) α = 1 and
+/// μ̄ = μ, which turns §8 into its single-membrane form (§14).
+fn weights(membranes: &[Membrane]) -> (f64, f64) {
+    match membranes {
+        [m1, m2] => (m2.mu / (m1.mu + m2.mu), m1.mu * m2.mu / (m1.mu + m2.mu)),
+        [m] => (1.0, m.mu),
+        _ => unreachable!("one or two membranes"),
+    }
 }
 
 impl Estimate {
@@ -76,120 +93,215 @@ impl Estimate {
         solution: &Solution,
         action: &Action,
     ) -> Estimate {
-        let (mesh, data) = (&problem.mesh, &problem.data);
-        let mu = [data.mu1, data.mu2().expect("the estimator is of two membranes")];
-        let alpha = mu[1] / (mu[0] + mu[1]);
+        let mesh = &problem.mesh;
+        let membranes = problem.membranes([&solution.u1, &solution.u2]);
+        let (alpha, mu_bar) = weights(&membranes);
         let patches = Patches::new(mesh);
-        let loads = cell_loads(problem, dual, alpha);
-        let means = quadrature_defects(problem, &loads);
-        let sign = [1.0, -1.0];
-        let on_dual_cell: [Vec<f64>; 2] = [0, 1].map(|i| {
-            (0..mesh.n_vertices())
-                .map(|a| sign[i] * action.lambda[a] - means[i][a])
-                .collect()
-        });
+        let loads = cell_loads(problem, dual, &membranes, alpha);
+        let means = quadrature_defects(problem, &membranes, &loads);
+        let on_dual_cell: Vec<Vec<f64>> = (membranes.iter().zip(&means))
+            .map(|(m, c)| {
+                (0..mesh.n_vertices())
+                    .map(|a| m.sign * action.lambda[a] - c[a])
+                    .collect()
+            })
+            .collect();
         let cell_loads = &loads;
-        let f_phi = [0, 1].map(|i| move |s: usize| cell_loads[s].f_phi[i]);
-        let u = [&solution.u1, &solution.u2];
-        let membranes = [0, 1].map(|i| Membrane {
-            mu: mu[i],
-            u: u[i],
-            f_phi: &f_phi[i],
-            on_dual_cell: &on_dual_cell[i],
-        });
-        let tau = equilibrate(mesh, dual, &patches, [&membranes[0], &membranes[1]]);
-        let g = (data.g.pieces("g", mesh, On::Curves))
-            .expect("the data fit the mesh's groups (checked by DiscreteProblem::new)");
-        let psi = boundary::lifting(
-            mesh,
-            &patches.neighbour,
-            &g,
-            &action.lambda,
-            &solution.obstacle.gap,
-        );
-        let terms = triangle_terms(problem, dual, solution, action, &tau, &loads);
-        let n = mesh.n_triangles();
+        let f_phi: Vec<_> = (0..membranes.len())
+            .map(|i| move |s: usize| cell_loads[s].f_phi[i])
+            .collect();
+        let local: Vec<equilibration::Membrane> = (membranes.iter().enumerate())
+            .map(|(i, m)| equilibration::Membrane {
+                mu: m.mu,
+                u: m.u,
+                f_phi: &f_phi[i],
+                on_dual_cell: &on_dual_cell[i],
+            })
+            .collect();
+        let tau = equilibrate(mesh, dual, &patches, &local);
+        let lifting = Lifting::compute(problem, dual, solution, action, &patches);
+        let with_gap = (action, &solution.obstacle.gap[..]);
+        let terms = triangle_terms(problem, dual, &membranes, with_gap, &tau, &loads);
+        let m = membranes.len();
+        let mu1 = membranes[0].mu;
+        let per = |f: &dyn Fn(&TriangleTerms, usize) -> f64| -> Vec<Vec<f64>> {
+            (0..m)
+                .map(|i| terms.iter().map(|t| f(t, i).sqrt()).collect())
+                .collect()
+        };
         let mut e = Estimate {
-            indicator: vec![0.0; n],
-            flux: [0, 1].map(|i| terms.iter().map(|t| t.flux2[i].sqrt()).collect()),
-            oscillation: [0, 1].map(|i| terms.iter().map(|t| t.oscillation2[i].sqrt()).collect()),
-            boundary: psi.iter().map(|p| mu[0].sqrt() * p.grad_norm).collect(),
-            contact: (psi.iter().zip(&terms))
-                .map(|(p, t)| p.with_lambda + t.contact)
-                .collect(),
+            indicator: vec![0.0; mesh.n_triangles()],
+            flux: per(&|t, i| t.flux2[i]),
+            oscillation: per(&|t, i| t.oscillation2[i]),
+            boundary: lifting.grad2.iter().map(|g| (mu1 * g).sqrt()).collect(),
+            contact: match &lifting.contact {
+                Some(c) => c.clone(),
+                None => (lifting.with_lambda.iter().zip(&terms))
+                    .map(|(l, t)| l + t.contact)
+                    .collect(),
+            },
             total: 0.0,
-            membranes: [0.0; 2],
-            means: [0.0; 2],
+            membranes: Vec::new(),
+            means: Vec::new(),
             boundary_total: 0.0,
+            obstacle_total: lifting.obstacle.map(|o| (mu1 * o).sqrt()),
             contact_total: 0.0,
             lambda: 0.0,
             tau,
+            which: membranes.iter().map(|m| m.which).collect(),
         };
-        let sums = [0, 1].map(|i| terms.iter().map(|t| t.local2[i]).sum::<f64>());
-        let lambda_sum: f64 = terms.iter().map(|t| t.lambda2).sum();
         for (t, terms) in terms.iter().enumerate() {
-            let local2 = terms.local2[0] + terms.local2[1];
+            let local2: f64 = terms.local2[..m].iter().sum();
             e.indicator[t] = (local2 + e.boundary[t].powi(2) + 2.0 * e.contact[t])
                 .max(0.0)
                 .sqrt();
         }
         let friedrichs = friedrichs_constant(mesh);
         let norm = |c: &[f64]| (c.iter().zip(&problem.mass).map(|(c, m)| c * c * m).sum::<f64>()).sqrt();
-        e.means = [0, 1].map(|i| friedrichs * norm(&means[i]) / mu[i].sqrt());
-        e.membranes = [0, 1].map(|i| sums[i].sqrt() + e.means[i]);
+        e.means = (membranes.iter().zip(&means))
+            .map(|(mb, c)| friedrichs * norm(c) / mb.mu.sqrt())
+            .collect();
+        e.membranes = (0..m)
+            .map(|i| terms.iter().map(|t| t.local2[i]).sum::<f64>().sqrt() + e.means[i])
+            .collect();
         e.boundary_total = e.boundary.iter().map(|b| b * b).sum::<f64>().sqrt();
         e.contact_total = e.contact.iter().sum();
-        let eta_fr2 = e.membranes[0].powi(2) + e.membranes[1].powi(2);
+        let eta_fr2: f64 = e.membranes.iter().map(|x| x * x).sum();
         e.total = (eta_fr2 + e.boundary_total.powi(2) + 2.0 * e.contact_total)
             .max(0.0)
             .sqrt();
-        // §8: ‖λ − λ_h‖ ≤ μ̄^½ E_w + η_λ, E_w ≤ (η_λ²/μ̄ + μ̄‖∇ψ‖² + 2η_C)^½.
+        // §8: ‖λ − λ_h‖ ≤ μ̄^½ E_w + η_λ, E_w ≤ (η_λ²/μ̄ + μ̄‖∇z‖² + 2η_C)^½.
         let combined: Vec<f64> = (0..mesh.n_vertices())
-            .map(|a| alpha * means[0][a] - (1.0 - alpha) * means[1][a])
+            .map(|a| alpha * means[0][a] - means.get(1).map_or(0.0, |c| (1.0 - alpha) * c[a]))
             .collect();
+        let lambda_sum: f64 = terms.iter().map(|t| t.lambda2).sum();
         let eta_lambda = lambda_sum.sqrt() + friedrichs * norm(&combined);
-        let mu_bar = mu[0] * mu[1] / (mu[0] + mu[1]);
-        let grad_psi2 = e.boundary_total.powi(2) / mu[0];
-        let e_w = (eta_lambda.powi(2) / mu_bar + mu_bar * grad_psi2 + 2.0 * e.contact_total)
+        let grad_z2 = e.boundary_total.powi(2) / mu1;
+        let e_w = (eta_lambda.powi(2) / mu_bar + mu_bar * grad_z2 + 2.0 * e.contact_total)
             .max(0.0)
             .sqrt();
         e.lambda = mu_bar.sqrt() * e_w + eta_lambda;
         e
     }
+
+    /// The summary's line.
+    pub fn summary(&self, effectivity: Option<f64>) -> String {
+        let membranes: Vec<String> = self.membranes.iter().map(|x| format!("{x:.3e}")).collect();
+        let label = if self.membranes.len() == 1 {
+            "membrane"
+        } else {
+            "membranes"
+        };
+        let obstacle = (self.obstacle_total).map_or(String::new(), |o| format!(" (obstacle {o:.2e})"));
+        format!(
+            "estimator   |||u − u_h||| ≤ η = {:.4e} ({label} {}, boundary data {:.2e}{obstacle}, contact {:.2e}){}; \
+             ‖λ − λ_h‖_H⁻¹ ≤ {:.4e}\n",
+            self.total,
+            membranes.join(", "),
+            self.boundary_total,
+            self.contact_total,
+            effectivity.map_or(String::new(), |x| format!(", effectivity η/error {x:.3}")),
+            self.lambda
+        )
+    }
+}
+
+/// The lifting z of §3 on every triangle: ‖∇z‖²_K and the pieces of (λ_h, ·)_K it adds to the
+/// contact term.
+struct Lifting {
+    /// An upper bound of ‖∇z‖²_K.
+    grad2: Vec<f64>,
+    /// ∫_K λ_h ℓ, ℓ the lifting of g − g_h ([`boundary`]); the contact term adds (λ_h, w_h)_K.
+    with_lambda: Vec<f64>,
+    /// Above an obstacle, (λ_h, u_h + z − ψ)_K, the whole contact term ([`obstacle`]).
+    contact: Option<Vec<f64>>,
+    /// Above an obstacle, Σ_K of the part of ‖∇z‖²_K that ψ − u_h adds.
+    obstacle: Option<f64>,
+}
+
+impl Lifting {
+    /// z = ℓ between two membranes (§5); z = max(ℓ, ψ − u_h) above a rigid obstacle (§14).
+    fn compute(
+        problem: &DiscreteProblem,
+        dual: &DualMesh,
+        solution: &Solution,
+        action: &Action,
+        patches: &Patches,
+    ) -> Lifting {
+        let (mesh, data) = (&problem.mesh, &problem.data);
+        let g = (data.g.pieces("g", mesh, On::Curves))
+            .expect("the data fit the mesh's groups (checked by DiscreteProblem::new)");
+        let Lower::Rigid { psi } = &data.lower else {
+            let gap = Some(&solution.obstacle.gap[..]);
+            let l = boundary::lifting(mesh, &patches.neighbour, &g, &action.lambda, gap);
+            return Lifting {
+                grad2: l.iter().map(|l| l.grad_norm.powi(2)).collect(),
+                with_lambda: l.iter().map(|l| l.with_lambda).collect(),
+                contact: None,
+                obstacle: None,
+            };
+        };
+        let l = boundary::lifting(mesh, &patches.neighbour, &g, &action.lambda, None);
+        let psi = (psi.pieces("psi", mesh, On::Surfaces))
+            .expect("the data fit the mesh's groups (checked by DiscreteProblem::new)");
+        let o = obstacle::terms(problem, dual, &psi, &solution.u1, &action.lambda, &l);
+        Lifting {
+            grad2: (l.iter().zip(&o))
+                .map(|(l, o)| l.grad_norm.powi(2) + o.grad2)
+                .collect(),
+            with_lambda: l.iter().map(|l| l.with_lambda).collect(),
+            obstacle: Some(o.iter().map(|o| o.grad2).sum()),
+            contact: Some(o.iter().map(|o| o.contact).collect()),
+        }
+    }
 }
 
 /// c_{i,a} = [(f_i, φ_a) on the cells of S_h − (f_i, φ_a)_q] / m_a at the interior vertices, 0 at
 /// the boundary ones (§4(c)): what the rule of degree q on T_h misses of the load, per dual cell.
-fn quadrature_defects(problem: &DiscreteProblem, loads: &[CellLoads]) -> [Vec<f64>; 2] {
+fn quadrature_defects(
+    problem: &DiscreteProblem,
+    membranes: &[Membrane],
+    loads: &[CellLoads],
+) -> Vec<Vec<f64>> {
     let mesh = &problem.mesh;
-    let load = [&problem.load1, &problem.load2];
-    [0, 1].map(|i| {
-        let mut on_s_h = vec![0.0; mesh.n_vertices()];
-        for (s, l) in loads.iter().enumerate() {
-            for (a, v) in mesh.triangle(s / 6).into_iter().zip(l.f_phi[i]) {
-                on_s_h[a] += v;
+    (membranes.iter().enumerate())
+        .map(|(i, m)| {
+            let mut on_s_h = vec![0.0; mesh.n_vertices()];
+            for (s, l) in loads.iter().enumerate() {
+                for (a, v) in mesh.triangle(s / 6).into_iter().zip(l.f_phi[i]) {
+                    on_s_h[a] += v;
+                }
             }
-        }
-        (on_s_h.iter().enumerate())
-            .map(|(a, v)| match mesh.on_boundary[a] {
-                true => 0.0,
-                false => (v - load[i][a]) / problem.mass[a],
-            })
-            .collect()
-    })
+            (on_s_h.iter().enumerate())
+                .map(|(a, v)| match mesh.on_boundary[a] {
+                    true => 0.0,
+                    false => (v - m.load[a]) / problem.mass[a],
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// The loads on every cell of S_h by the case's rule (on the cell, not on its triangle), in
 /// parallel.
-fn cell_loads(problem: &DiscreteProblem, dual: &DualMesh, alpha: f64) -> Vec<CellLoads> {
+fn cell_loads(
+    problem: &DiscreteProblem,
+    dual: &DualMesh,
+    membranes: &[Membrane],
+    alpha: f64,
+) -> Vec<CellLoads> {
     let data = &problem.data;
     let corners = |s: usize| dual.corners(s);
     let mesh = &problem.mesh;
     let fit = "the data fit the mesh's groups (checked by DiscreteProblem::new)";
-    let f1 = data.f1.pieces("f1", mesh, On::Surfaces).expect(fit);
-    let f2 = (data.f2().expect("the estimator is of two membranes"))
-        .pieces("f2", mesh, On::Surfaces)
-        .expect(fit);
+    let pieces: Vec<_> = (membranes.iter())
+        .map(|m| {
+            m.f.pieces(m.which.named(["f1", "f2", "f"]), mesh, On::Surfaces)
+                .expect(fit)
+        })
+        .collect();
+    // Above an obstacle the one load twice, the second unused (α = 1).
+    let (f1, f2) = (&pieces[0], pieces.last().expect("one membrane at least"));
     let mut loads = vec![CellLoads::default(); dual.n_cells()];
     parallel::map_mut(&mut loads, PIECE, |base, out| {
         let range = base..base + out.len();
@@ -199,7 +311,7 @@ fn cell_loads(problem: &DiscreteProblem, dual: &DualMesh, alpha: f64) -> Vec<Cel
             corners,
             |s| s / 6,
             range,
-            [&f1, &f2],
+            [f1, f2],
             |s, points, [f1, f2]| {
                 let frame = DualMesh::frame(s);
                 let mut l = CellLoads::default();
@@ -244,14 +356,14 @@ fn cell_mean(mesh: &Mesh, s: usize, v: &[f64]) -> f64 {
 /// The terms of one triangle K, summed over its six cells κ of S_h.
 #[derive(Debug, Clone, Copy, Default)]
 struct TriangleTerms {
-    /// Σ_κ η_F,κ² and Σ_κ η_osc,κ² for the two membranes.
+    /// Σ_κ η_F,κ² and Σ_κ η_osc,κ² for each membrane (one above an obstacle).
     flux2: [f64; 2],
     oscillation2: [f64; 2],
     /// Σ_κ (η_F,κ + η_osc,κ)².
     local2: [f64; 2],
     /// Σ_κ (‖ζ‖_κ + (h_κ/π) ‖ρ − Π ρ‖_κ)² (§8).
     lambda2: f64,
-    /// (λ_h, w_h)_K: w_h is affine and λ_h constant on each κ.
+    /// (λ_h, w_h)_K: w_h is affine and λ_h constant on each κ (between two membranes).
     contact: f64,
 }
 
@@ -259,25 +371,21 @@ struct TriangleTerms {
 fn triangle_terms(
     problem: &DiscreteProblem,
     dual: &DualMesh,
-    solution: &Solution,
-    action: &Action,
-    tau: &[Flux; 2],
+    membranes: &[Membrane],
+    (action, gap): (&Action, &[f64]),
+    tau: &[Flux],
     loads: &[CellLoads],
 ) -> Vec<TriangleTerms> {
     let mesh = &problem.mesh;
-    let mu = [
-        problem.data.mu1,
-        problem.data.mu2().expect("the estimator is of two membranes"),
-    ];
-    let alpha = mu[1] / (mu[0] + mu[1]);
-    let u = [&solution.u1, &solution.u2];
+    let (alpha, _) = weights(membranes);
     let part = |triangles: std::ops::Range<usize>| {
         (triangles)
             .map(|t| {
                 let g = gradients(mesh.corners(t));
                 let tri = mesh.triangle(t);
-                let grad = [0, 1]
-                    .map(|i| [0, 1].map(|k| mu[i] * (0..3).map(|j| g[j][k] * u[i][tri[j]]).sum::<f64>()));
+                let grad: Vec<[f64; 2]> = (membranes.iter())
+                    .map(|m| [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()))
+                    .collect();
                 let mut terms = TriangleTerms::default();
                 for (s, cell_loads) in (6 * t..).zip(&loads[6 * t..6 * t + 6]) {
                     let p = dual.corners(s);
@@ -301,20 +409,22 @@ fn triangle_terms(
                         let squares = mids.iter().map(|&m| v(m)).map(|v| v[0] * v[0] + v[1] * v[1]);
                         (area / 3.0 * squares.sum::<f64>()).sqrt()
                     };
-                    for (i, mu_i) in mu.iter().enumerate() {
-                        let flux = norm(&|m| at(i, m)) / mu_i.sqrt();
-                        let oscillation = diameter / PI * cell_loads.oscillation[i].sqrt() / mu_i.sqrt();
+                    for (i, m) in membranes.iter().enumerate() {
+                        let flux = norm(&|x| at(i, x)) / m.mu.sqrt();
+                        let oscillation = diameter / PI * cell_loads.oscillation[i].sqrt() / m.mu.sqrt();
                         terms.flux2[i] += flux * flux;
                         terms.oscillation2[i] += oscillation * oscillation;
                         terms.local2[i] += (flux + oscillation).powi(2);
                     }
-                    let zeta = norm(&|m| {
-                        let (a, b) = (at(0, m), at(1, m));
+                    // ζ = α(μ1∇u1h + τ1) − (1 − α)(μ2∇u2h + τ2), or μ∇u_h + τ above an obstacle.
+                    let zeta = norm(&|x| {
+                        let a = at(0, x);
+                        let b = if membranes.len() == 2 { at(1, x) } else { [0.0; 2] };
                         [0, 1].map(|k| alpha * a[k] - (1.0 - alpha) * b[k])
                     });
                     terms.lambda2 += (zeta + diameter / PI * cell_loads.oscillation[2].sqrt()).powi(2);
                     let lambda_h = action.lambda[dual.owner(s)];
-                    terms.contact += lambda_h * area * cell_mean(mesh, s, &solution.obstacle.gap);
+                    terms.contact += lambda_h * area * cell_mean(mesh, s, gap);
                 }
                 terms
             })
@@ -340,27 +450,40 @@ fn friedrichs_constant(mesh: &Mesh) -> f64 {
 
 impl Describe for Estimate {
     fn fields(&self) -> Vec<Field<'_>> {
-        vec![
-            Field::new("estimator", Place::Cells, &self.indicator),
-            Field::new("estimator_flux_1", Place::Cells, &self.flux[0]),
-            Field::new("estimator_flux_2", Place::Cells, &self.flux[1]),
-            Field::new("estimator_oscillation_1", Place::Cells, &self.oscillation[0]),
-            Field::new("estimator_oscillation_2", Place::Cells, &self.oscillation[1]),
-            Field::new("estimator_boundary", Place::Cells, &self.boundary),
-            Field::new("estimator_contact", Place::Cells, &self.contact),
-        ]
+        let mut fields = vec![Field::new("estimator", Place::Cells, &self.indicator)];
+        for (i, w) in self.which.iter().enumerate() {
+            let flux = w.named(["estimator_flux_1", "estimator_flux_2", "estimator_flux"]);
+            let oscillation = w.named([
+                "estimator_oscillation_1",
+                "estimator_oscillation_2",
+                "estimator_oscillation",
+            ]);
+            fields.push(Field::new(flux, Place::Cells, &self.flux[i]));
+            fields.push(Field::new(oscillation, Place::Cells, &self.oscillation[i]));
+        }
+        fields.push(Field::new("estimator_boundary", Place::Cells, &self.boundary));
+        fields.push(Field::new("estimator_contact", Place::Cells, &self.contact));
+        fields
     }
 
     fn attributes(&self) -> Vec<Attribute> {
-        vec![
-            ("estimator", self.total.into()),
-            ("estimator_membrane_1", self.membranes[0].into()),
-            ("estimator_membrane_2", self.membranes[1].into()),
-            ("estimator_means_1", self.means[0].into()),
-            ("estimator_means_2", self.means[1].into()),
-            ("estimator_boundary", self.boundary_total.into()),
-            ("estimator_contact", self.contact_total.into()),
-            ("estimator_hminus1_lambda", self.lambda.into()),
-        ]
+        let mut attrs = vec![("estimator", self.total.into())];
+        for (i, w) in self.which.iter().enumerate() {
+            let membrane = w.named([
+                "estimator_membrane_1",
+                "estimator_membrane_2",
+                "estimator_membrane",
+            ]);
+            let means = w.named(["estimator_means_1", "estimator_means_2", "estimator_means"]);
+            attrs.push((membrane, self.membranes[i].into()));
+            attrs.push((means, self.means[i].into()));
+        }
+        attrs.push(("estimator_boundary", self.boundary_total.into()));
+        if let Some(o) = self.obstacle_total {
+            attrs.push(("estimator_obstacle", o.into()));
+        }
+        attrs.push(("estimator_contact", self.contact_total.into()));
+        attrs.push(("estimator_hminus1_lambda", self.lambda.into()));
+        attrs
     }
 }

@@ -248,7 +248,7 @@ pub fn run_levels(
                 hminus1,
                 flux: false,
                 // Where the problem has one (not above a rigid obstacle).
-                estimate: c.check_options(false, true).is_ok(),
+                estimate: c.check_options(true).is_ok(),
                 dual: false,
             },
         )?;
