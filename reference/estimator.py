@@ -14,9 +14,9 @@ estimator_membrane_i, estimator_means_i, estimator_boundary, estimator_contact,
 estimator_hminus1_lambda, effectivity, and the cell fields estimator, estimator_flux_i,
 estimator_oscillation_i, estimator_boundary, estimator_contact) from the written u1, u2, gap and
 lambda, the mesh and the case's expressions, with the choices of the Rust code (`rust_estimate`:
-the patch flux with the means by Friedrichs, section 4(c), the case's own rule on the cells of
-S_h), prints the differences and exits 1 when one exceeds its tolerance (COMPARED) or when the
-bound fails against the energy error computed here from the exact solution.
+the patch flux with the means lifted, section 4(c'), the case's own rule on the cells of S_h),
+prints the differences and exits 1 when one exceeds its tolerance (COMPARED) or when the bound
+fails against the energy error computed here from the exact solution.
 
 Bound (docs/a-posteriori.md, Theorem (E)):
     |||u - u_h||| <= eta := (eta_FR^2 + eta_D^2 + 2 eta_C)^(1/2),
@@ -275,18 +275,23 @@ def equilibrate(geo, G_tri, int_fphi, own_term, touching=False):
     return x
 
 
-def lift(geo, c):
-    """An RT0 field tau_c on S_h with div tau_c = c exactly (c constant on the cells of S_h): z_h in X_0h with (grad z_h, grad phi_b) = (c, phi_b), then
-    the patch equilibration of -Delta z = c, which is compatible with no defect (c is integrated
-    exactly): (c, v) = -(tau_c, grad v) for v in H^1_0, section 4(c')."""
+def stiffness(geo):
+    """The P1 stiffness matrix K of T_h (sparse, every vertex)."""
     import scipy.sparse as sps
-    import scipy.sparse.linalg as spl
 
     nv = len(geo.P)
     k = np.einsum("nid,njd->nij", geo.grad_K, geo.grad_K) * geo.area_K[:, None, None]
-    rows = np.repeat(geo.T, 3, axis=1).ravel()
-    cols = np.tile(geo.T, (1, 3)).ravel()
-    K = sps.csr_matrix((k.ravel(), (rows, cols)), shape=(nv, nv))
+    return sps.csr_matrix((k.ravel(), (np.repeat(geo.T, 3, axis=1).ravel(), np.tile(geo.T, (1, 3)).ravel())), shape=(nv, nv))
+
+
+def poisson_lift(geo, c):
+    """z_h in X_0h with (grad z_h, grad phi_b) = (c, phi_b) at every interior vertex b, c constant
+    on the cells of S_h, the right-hand side integrated exactly. Returns (K, z_h, int_cphi, b):
+    int_cphi = int_kappa c phi_j (ns x 3), b = (c, phi_b) at every vertex."""
+    import scipy.sparse.linalg as spl
+
+    nv = len(geo.P)
+    K = stiffness(geo)
     cen = barycentric(geo.pk[geo.tri], geo.ps.mean(axis=1)[:, None, :])[:, 0]  # phi_j at the cell centroids
     int_cphi = (c * geo.area)[:, None] * cen  # int_kappa c phi_j, exact
     b = np.zeros(nv)
@@ -294,8 +299,16 @@ def lift(geo, c):
     inner = np.flatnonzero(geo.interior)
     z = np.zeros(nv)
     z[inner] = spl.spsolve(K[inner][:, inner].tocsc(), b[inner])
+    return K, z, int_cphi, b
+
+
+def lift(geo, c):
+    """An RT0 field tau_c on S_h with div tau_c = c exactly (c constant on the cells of S_h): z_h of
+    `poisson_lift`, then the patch equilibration of -Delta z = c, which is compatible with no defect
+    (c is integrated exactly): (c, v) = -(tau_c, grad v) for v in H^1_0, section 4(c')."""
+    _, z, int_cphi, _ = poisson_lift(geo, c)
     grad_z = np.einsum("nkd,nk->nd", geo.grad_K, z[geo.T])
-    return equilibrate(geo, grad_z, int_cphi, np.zeros(nv))
+    return equilibrate(geo, grad_z, int_cphi, np.zeros(len(geo.P)))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -555,8 +568,10 @@ def rust_estimate(r, cell_degree=None):
     result r (common.read_result) -- the written u1, u2, gap, lambda at the vertices, the mesh and
     the case's expressions -- with the Rust code's choices (docs/a-posteriori.md section 10):
     the patch flux of section 7(c) with the normal flux free only on the halves of the boundary
-    edges of T_h that contain a; the case's own rule on the cells of S_h; the means by Friedrichs
-    (section 4(c), not lifted); h_kappa the longest edge; the lifting psi of section 5.
+    edges of T_h that contain a; the case's own rule on the cells of S_h; the means c_i lifted
+    (section 4(c'): z_i of `poisson_lift`, the patch problems of mu_i grad u_ih + grad z_i and
+    f_i + c_i), what the solve leaves, rho_i, by Friedrichs; h_kappa the longest edge; the
+    lifting psi of section 5.
     cell_degree: another rule on the cells of S_h (for experiments; the loads on T_h keep the
     case's). Returns (attributes, cell fields per triangle of T_h, checks, round-off allowances)."""
     case = r["case"]
@@ -584,8 +599,10 @@ def rust_estimate(r, cell_degree=None):
     Ku = [np.bincount(geo.T.ravel(), np.einsum("nij,nj->ni", stiff, ui[geo.T]).ravel(), minlength=nv) for ui in u]
     recovered = [mu[0] * Ku[0] - lam * m, mu[1] * Ku[1] + np.where(geo.on_boundary, 0.0, r.get("lambda2", r["lambda"])) * m]
     inner = geo.interior
+    # relative to the terms of (4.5) (the loads, or mu_i K u_i where a membrane is unloaded)
     load_check = max(float(np.abs(recovered[i] - loads[i])[inner].max(initial=0.0))
-                     / max(float(np.abs(loads[i][inner]).max(initial=0.0)), 1e-300) for i in range(2))
+                     / max(float(np.abs(loads[i][inner]).max(initial=0.0)),
+                           float(np.abs(mu[i] * Ku[i][inner]).max(initial=0.0)), 1e-300) for i in range(2))
 
     # the cells of S_h: int f phi_j, ||v - Pi v||^2 for v = f1, f2, alpha f1 - (1 - alpha) f2
     fq = [f[i](geo.xq[..., 0], geo.xq[..., 1]) for i in range(2)]
@@ -617,17 +634,22 @@ def rust_estimate(r, cell_degree=None):
     for i in range(2):
         on_s_h = np.bincount(geo.T[geo.tri].ravel(), int_fphi[i].ravel(), minlength=nv)
         c = np.where(geo.interior, (on_s_h - loads[i]) / m, 0.0)  # c_{i,a}, section 4(c)
-        means.append(c)
+        # lifted (section 4(c')): the local problems of mu_i u_ih + z_i with f_i + c_i; what the
+        # solve leaves, rho_i, stays bounded by Friedrichs
+        K, z, int_cphi, b = poisson_lift(geo, c[geo.owner])
+        rho = np.where(geo.interior, (b - K @ z) / m, 0.0)
+        means.append(rho)
         grad_uh = np.einsum("nkd,nk->nd", geo.grad_K, u[i][geo.T])
-        x = equilibrate(geo, mu[i] * grad_uh, int_fphi[i], sign[i] * lam - c, touching=True)
+        grad_z = np.einsum("nkd,nk->nd", geo.grad_K, z[geo.T])
+        x = equilibrate(geo, mu[i] * grad_uh + grad_z, int_fphi[i] + int_cphi, sign[i] * lam - c - rho, touching=True)
         F = geo.cell_fluxes(x)
         t_mid = geo.rt0_at(F, geo.mid)
         G = mu[i] * grad_uh[geo.tri]
         eta_F = np.sqrt(geo.l2_affine(G[:, None, :] + t_mid)) / math.sqrt(mu[i])
         eta_osc = geo.diam / math.pi * np.sqrt(osc2[i]) / math.sqrt(mu[i])
-        # conservation of the flux: div tau_i = Pi f_i +- lambda_h - c_i on every cell
+        # conservation of the flux: div tau_i = Pi f_i +- lambda_h - rho_i on every cell
         div = F.sum(axis=1) / geo.area
-        target = np.sum(geo.wq * fq[i], axis=1) / geo.area + sign[i] * lam_cell - c[geo.owner]
+        target = np.sum(geo.wq * fq[i], axis=1) / geo.area + sign[i] * lam_cell - rho[geo.owner]
         checks["div_defect_%d" % (i + 1)] = float(np.abs(div - target).max() / max(np.abs(target).max(), 1e-300))
         fields["estimator_flux_%d" % (i + 1)] = np.sqrt(np.bincount(geo.tri, eta_F ** 2, minlength=nt))
         fields["estimator_oscillation_%d" % (i + 1)] = np.sqrt(np.bincount(geo.tri, eta_osc ** 2, minlength=nt))
@@ -640,7 +662,7 @@ def rust_estimate(r, cell_degree=None):
         sums.append(float(local.sum()))
         G_mid.append(G)
         tau_mid.append(t_mid)
-        attrs["estimator_means_%d" % (i + 1)] = geo.C_F * math.sqrt(np.sum(c ** 2 * m) / mu[i])
+        attrs["estimator_means_%d" % (i + 1)] = geo.C_F * math.sqrt(np.sum(rho ** 2 * m) / mu[i])
         attrs["estimator_membrane_%d" % (i + 1)] = math.sqrt(sums[i]) + attrs["estimator_means_%d" % (i + 1)]
 
     # the boundary data (section 5) and the contact term (section 6)
@@ -657,7 +679,7 @@ def rust_estimate(r, cell_degree=None):
     attrs["estimator"] = math.sqrt(max(attrs["estimator_membrane_1"] ** 2 + attrs["estimator_membrane_2"] ** 2
                                        + eta_D ** 2 + 2 * eta_C, 0.0))
 
-    # the action (section 8), the means by Friedrichs
+    # the action (section 8), what the lifts leave by Friedrichs
     zeta = alpha * (G_mid[0][:, None, :] + tau_mid[0]) - (1 - alpha) * (G_mid[1][:, None, :] + tau_mid[1])
     cell = np.sqrt(geo.l2_affine(zeta)) + geo.diam / math.pi * np.sqrt(osc2[2])
     combined = alpha * means[0] - (1 - alpha) * means[1]
@@ -701,7 +723,7 @@ COMPARED = (
     ("estimator_contact", "cell", "eta2", CONTACT_TOL),
 )
 DUAL_TOL = 1e-14  # /dual against S_h built here (coordinates relative to the domain's size)
-DIV_TOL = 1e-11  # div tau_i = Pi f_i +- lambda_h - c_i, relative (this code's own equilibration)
+DIV_TOL = 1e-11  # div tau_i = Pi f_i +- lambda_h - rho_i, relative (this code's own equilibration)
 ERROR_TOL = 1e-9  # error_energy against the one computed here (same rule, same points)
 
 

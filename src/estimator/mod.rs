@@ -6,12 +6,13 @@
 //! |||u − u_h|||² = Σ_i μ_i ‖∇(u_i − u_ih)‖² ≤ η² = η_FR² + η_D² + 2 η_C,
 //! η_FR² = η_1² + η_2²,   η_i = ( Σ_κ [η_F,κ + η_osc,κ]² )^½ + η_Q,i,                        (7)
 //! η_F,κ = μ_i^{-½} ‖μ_i ∇u_ih + τ_i‖_κ,   η_osc,κ = μ_i^{-½} (h_κ/π) ‖f_i − Π f_i‖_κ,
-//! η_Q,i = μ_i^{-½} C_F ‖c_i‖,   η_D = μ1^½ ‖∇ψ‖,   η_C = (λ_h, w_h + ψ),
+//! η_Q,i = μ_i^{-½} C_F ‖ρ_i‖,   η_D = μ1^½ ‖∇ψ‖,   η_C = (λ_h, w_h + ψ),
 //! ```
 //!
-//! κ the cells of S_h, τ_i the patch-equilibrated fluxes ([`equilibration`]), c_i the quadrature
-//! defect of the loads on the dual cells (§4(c)), C_F the Friedrichs constant of the bounding box,
-//! ψ the lifting of g − g_h ([`boundary`]). The action gets the bound of §8 from the same fluxes.
+//! κ the cells of S_h, τ_i the patch-equilibrated fluxes ([`equilibration`]) with the quadrature
+//! defect c_i of the loads lifted into them ([`means`], §4(c')), ρ_i what the lift's solve leaves
+//! (round-off), C_F the Friedrichs constant of the bounding box, ψ the lifting of g − g_h
+//! ([`boundary`]). The action gets the bound of §8 from the same fluxes.
 //! Per triangle K the indicator η_K² = Σ_i Σ_{κ⊂K} [η_F,κ + η_osc,κ]² + η_D,K² + 2 η_C,K says
 //! where to refine. Above a rigid obstacle (§14, Theorem (O)) the sum is over the one membrane,
 //! and the lifting is z = max(ψ, ψ_obstacle − u_h) ([`obstacle`]), which keeps u_h + z above the
@@ -19,6 +20,7 @@
 
 pub mod boundary;
 pub mod equilibration;
+pub mod means;
 pub mod obstacle;
 
 use crate::action::Action;
@@ -98,22 +100,33 @@ impl Estimate {
         let (alpha, mu_bar) = weights(&membranes);
         let patches = Patches::new(mesh);
         let loads = cell_loads(problem, dual, &membranes, alpha);
-        let means = quadrature_defects(problem, &membranes, &loads);
-        let on_dual_cell: Vec<Vec<f64>> = (membranes.iter().zip(&means))
-            .map(|(m, c)| {
+        let defects = quadrature_defects(problem, &membranes, &loads);
+        let lifted = means::lift(problem, dual, &defects);
+        let means = &lifted.rest;
+        // The local problems of u_ih + z_i/μ_i with f_i + c_i (§4(c')).
+        let on_dual_cell: Vec<Vec<f64>> = (membranes.iter().zip(&defects).zip(means))
+            .map(|((m, c), rho)| {
                 (0..mesh.n_vertices())
-                    .map(|a| m.sign * action.lambda[a] - c[a])
+                    .map(|a| m.sign * action.lambda[a] - c[a] - rho[a])
                     .collect()
             })
             .collect();
-        let cell_loads = &loads;
+        let u: Vec<Vec<f64>> = (membranes.iter().zip(&lifted.z))
+            .map(|(m, z)| m.u.iter().zip(z).map(|(u, z)| u + z / m.mu).collect())
+            .collect();
+        let (cell_loads, defects) = (&loads, &defects);
         let f_phi: Vec<_> = (0..membranes.len())
-            .map(|i| move |s: usize| cell_loads[s].f_phi[i])
+            .map(|i| {
+                move |s: usize| {
+                    let c = means::on_cell(mesh, dual, &defects[i], s);
+                    std::array::from_fn(|j| cell_loads[s].f_phi[i][j] + c[j])
+                }
+            })
             .collect();
         let local: Vec<equilibration::Membrane> = (membranes.iter().enumerate())
             .map(|(i, m)| equilibration::Membrane {
                 mu: m.mu,
-                u: m.u,
+                u: &u[i],
                 f_phi: &f_phi[i],
                 on_dual_cell: &on_dual_cell[i],
             })
@@ -158,7 +171,7 @@ impl Estimate {
         }
         let friedrichs = friedrichs_constant(mesh);
         let norm = |c: &[f64]| (c.iter().zip(&problem.mass).map(|(c, m)| c * c * m).sum::<f64>()).sqrt();
-        e.means = (membranes.iter().zip(&means))
+        e.means = (membranes.iter().zip(means))
             .map(|(mb, c)| friedrichs * norm(c) / mb.mu.sqrt())
             .collect();
         e.membranes = (0..m)
