@@ -38,25 +38,27 @@ pub fn lift(problem: &DiscreteProblem, dual: &DualMesh, defects: &[Vec<f64>]) ->
         let defect: f64 = c.iter().zip(&problem.mass).map(|(c, m)| (c * m).abs()).sum();
         defect <= ROUND_OFF * loads
     };
-    if defects.iter().all(round_off) {
-        let zero = vec![0.0; mesh.n_vertices()];
-        return Lifted {
-            z: defects.iter().map(|_| zero.clone()).collect(),
-            rest: defects.to_vec(),
-        };
-    }
-    let system = InteriorSystem::new(k, &mesh.on_boundary);
-    let mut factor = system.factorization();
-    factor
-        .factorize(&vec![false; system.n()])
-        .expect("the stiffness matrix of a valid mesh is positive definite");
     let zero = vec![0.0; mesh.n_vertices()];
+    // Analysed and factorized for the first defect that is not round-off only.
+    let system = std::cell::OnceCell::new();
+    let mut factor = None;
     let (z, rest) = (defects.iter())
         .map(|c| {
             let load = pairing(mesh, dual, c);
-            let mut x = system.lifted_rhs(k, |a| load[a], 1.0, |_| 0.0);
-            factor.solve(&mut x);
-            let z = system.scatter(&x, &zero);
+            let z = if round_off(c) {
+                zero.clone()
+            } else {
+                let system = system.get_or_init(|| InteriorSystem::new(k, &mesh.on_boundary));
+                let factor = factor.get_or_insert_with(|| {
+                    let mut f = system.factorization();
+                    f.factorize(&vec![false; system.n()])
+                        .expect("the stiffness matrix of a valid mesh is positive definite");
+                    f
+                });
+                let mut x = system.lifted_rhs(k, |a| load[a], 1.0, |_| 0.0);
+                factor.solve(&mut x);
+                system.scatter(&x, &zero)
+            };
             let rest = parallel::collect(mesh.n_vertices(), |a| match mesh.on_boundary[a] {
                 true => 0.0,
                 false => (load[a] - k.row_dot(a, &z)) / problem.mass[a],
@@ -65,6 +67,24 @@ pub fn lift(problem: &DiscreteProblem, dual: &DualMesh, defects: &[Vec<f64>]) ->
         })
         .unzip();
     Lifted { z, rest }
+}
+
+/// Adds ∫_κ c_i φ_j ([`on_cell`]) to `f_phi(cell)[i]` of every cell of S_h, for each defect c_i.
+pub fn add_to_cells<T: Send>(
+    mesh: &Mesh,
+    dual: &DualMesh,
+    defects: &[Vec<f64>],
+    cells: &mut [T],
+    f_phi: impl Fn(&mut T) -> &mut [[f64; 3]; 2] + Sync,
+) {
+    parallel::map_mut(cells, parallel::PIECE, |base, out| {
+        for (k, cell) in out.iter_mut().enumerate() {
+            for (f, c) in f_phi(cell).iter_mut().zip(defects) {
+                let add = on_cell(mesh, dual, c, base + k);
+                *f = std::array::from_fn(|j| f[j] + add[j]);
+            }
+        }
+    });
 }
 
 /// ∫_κ c φ_j for the three vertices j of the triangle of the cell s of S_h, c constant on each

@@ -71,7 +71,8 @@ pub struct Estimate {
 /// What the quadrature of the loads gives on one cell κ of S_h.
 #[derive(Debug, Clone, Copy, Default)]
 struct CellLoads {
-    /// ∫_κ f_i φ_j, j the vertices of the triangle K ⊃ κ in order, for each membrane i.
+    /// ∫_κ f_i φ_j, j the vertices of the triangle K ⊃ κ in order, for each membrane i (with the
+    /// lifted defect's ∫_κ c_i φ_j added once the defect is known, §4(c')).
     f_phi: [[f64; 3]; 2],
     /// ‖v − Π v‖²_κ for v = f1, f2 and α f1 − (1 − α) f2 (the residual of the action, §8).
     oscillation: [f64; 3],
@@ -99,11 +100,12 @@ impl Estimate {
         let membranes = problem.membranes([&solution.u1, &solution.u2]);
         let (alpha, mu_bar) = weights(&membranes);
         let patches = Patches::new(mesh);
-        let loads = cell_loads(problem, dual, &membranes, alpha);
+        let mut loads = cell_loads(problem, dual, &membranes, alpha);
         let defects = quadrature_defects(problem, &membranes, &loads);
         let lifted = means::lift(problem, dual, &defects);
         let means = &lifted.rest;
         // The local problems of u_ih + z_i/μ_i with f_i + c_i (§4(c')).
+        means::add_to_cells(mesh, dual, &defects, &mut loads, |l| &mut l.f_phi);
         let on_dual_cell: Vec<Vec<f64>> = (membranes.iter().zip(&defects).zip(means))
             .map(|((m, c), rho)| {
                 (0..mesh.n_vertices())
@@ -114,14 +116,9 @@ impl Estimate {
         let u: Vec<Vec<f64>> = (membranes.iter().zip(&lifted.z))
             .map(|(m, z)| m.u.iter().zip(z).map(|(u, z)| u + z / m.mu).collect())
             .collect();
-        let (cell_loads, defects) = (&loads, &defects);
+        let cell_loads = &loads;
         let f_phi: Vec<_> = (0..membranes.len())
-            .map(|i| {
-                move |s: usize| {
-                    let c = means::on_cell(mesh, dual, &defects[i], s);
-                    std::array::from_fn(|j| cell_loads[s].f_phi[i][j] + c[j])
-                }
-            })
+            .map(|i| move |s: usize| cell_loads[s].f_phi[i])
             .collect();
         let local: Vec<equilibration::Membrane> = (membranes.iter().enumerate())
             .map(|(i, m)| equilibration::Membrane {
