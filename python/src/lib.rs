@@ -177,6 +177,22 @@ impl CaseSource {
     }
 }
 
+/// The case (kind and value, from Python's `_case`), its origin for messages and the mesh
+/// arrays, if given: what `solve`, `study` and `adapt` take.
+fn inputs(
+    case: (String, String),
+    origin: String,
+    points: Option<PyReadonlyArray2<'_, f64>>,
+    triangles: Option<PyReadonlyArray2<'_, i64>>,
+) -> PyResult<(CaseSource, Option<Arrays>)> {
+    let source = CaseSource {
+        kind: case.0,
+        value: case.1,
+        origin,
+    };
+    Ok((source, arrays(points, triangles)?))
+}
+
 /// The arrays of a mesh given from Python, copied (the shapes are checked on the Python side).
 fn arrays(
     points: Option<PyReadonlyArray2<'_, f64>>,
@@ -322,12 +338,7 @@ fn solve(
     start: Option<String>,
     verbose: bool,
 ) -> PyResult<PyParts> {
-    let source = CaseSource {
-        kind: case.0,
-        value: case.1,
-        origin,
-    };
-    let mesh = arrays(points, triangles)?;
+    let (source, mesh) = inputs(case, origin, points, triangles)?;
     let start = match start.as_deref() {
         None | Some("nested") => Start::Nested,
         Some("cold") => Start::Cold,
@@ -372,12 +383,7 @@ fn run_study(
     hminus1_max: usize,
     linear: Option<String>,
 ) -> PyResult<Vec<(String, String, Vec<PyParts>)>> {
-    let source = CaseSource {
-        kind: case.0,
-        value: case.1,
-        origin,
-    };
-    let mesh = arrays(points, triangles)?;
+    let (source, mesh) = inputs(case, origin, points, triangles)?;
     if levels.is_some() && refine.is_some() {
         return Err(InputError::new_err("give levels or refine, not both"));
     }
@@ -427,12 +433,7 @@ fn run_adapt(
     max_vertices: Option<usize>,
     steps: Option<usize>,
 ) -> PyResult<(String, Vec<PyParts>)> {
-    let source = CaseSource {
-        kind: case.0,
-        value: case.1,
-        origin,
-    };
-    let mesh = arrays(points, triangles)?;
+    let (source, mesh) = inputs(case, origin, points, triangles)?;
     wait(py, move || {
         let mut case = source.case(mesh)?;
         override_case(&mut case, n, None, None)?;

@@ -64,20 +64,16 @@ pub fn terms(
                     .sum()
             };
             let l = &lifting[t];
-            let dip: Vec<f64> = (points.iter().zip(psi_at))
-                .map(|(p, psi)| psi - u_at(p.barycentric))
-                .collect();
-            let above = dip.iter().any(|&d| d > l.range[0]);
+            // ψ − u_h at the rule's points, with their weights.
+            let dip = || (points.iter().zip(psi_at)).map(|(p, psi)| (p.weight, psi - u_at(p.barycentric)));
+            let above = dip().any(|(_, d)| d > l.range[0]);
             let lambda_h = lambda[dual.owner(s)];
             let o = &mut out[t - base];
             if above {
                 o.grad2 += grad2(mesh, t, psi, u, points);
-                o.contact += lambda_h
-                    * (points.iter().zip(&dip))
-                        .map(|(p, d)| p.weight * (-d).max(0.0))
-                        .sum::<f64>();
+                o.contact += lambda_h * dip().map(|(w, d)| w * (-d).max(0.0)).sum::<f64>();
             } else {
-                o.contact -= lambda_h * (points.iter().zip(&dip)).map(|(p, d)| p.weight * d).sum::<f64>();
+                o.contact -= lambda_h * dip().map(|(w, d)| w * d).sum::<f64>();
             }
             above
         };
