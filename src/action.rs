@@ -308,6 +308,7 @@ mod tests {
                 u2: u2.clone(),
                 obstacle,
                 rigid: false,
+                transfers: Vec::new(),
             },
         );
         let k = &p.stiffness;

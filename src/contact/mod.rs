@@ -33,7 +33,7 @@ use crate::parallel;
 use crate::problem::DiscreteProblem;
 use crate::result::{Attr, Attribute, Describe, Field, Place};
 use active_set::{obstacle, Role};
-use backend::{analysed, LinearSolve, Loads, FINAL_STOP, RESULT_STOP};
+use backend::{analysed, LinearSolve, Loads, Stop, FINAL_STOP, RESULT_STOP};
 use nested::{chain, initial_guess, Started};
 use std::borrow::Cow;
 use std::time::Instant;
@@ -61,6 +61,9 @@ pub struct Solution {
     /// Whether u2h is a rigid obstacle ψ_h (the classical obstacle problem): its fields are then
     /// written as u = u1h and psi = u2h.
     pub rigid: bool,
+    /// The interpolations between the meshes of the solve's multigrid, finest first (none when it
+    /// used Cholesky): later Poisson solves on this mesh ([`poisson`]) use the same hierarchy.
+    pub transfers: Vec<Prolongation>,
 }
 
 /// Solves (3.4): the Poisson problem for v beside the obstacle problem for w from the guess of
@@ -136,7 +139,36 @@ pub fn solve(
     stats.linear = options.linear;
     stats.multigrid_levels = analysis.hierarchy.as_ref().map_or(0, Hierarchy::levels);
     stats.wall_seconds = clock.elapsed().as_secs_f64();
-    Ok(Solution::of(problem, v, obstacle))
+    drop(analysis);
+    let transfers = if multigrid { prolongations } else { Vec::new() };
+    Ok(Solution::of(problem, v, obstacle, transfers))
+}
+
+/// z_k with K z_k = `loads[k]` at the interior vertices and z_k = 0 on ∂ω: CG with V-cycles on
+/// `transfers` (a [`Solution`]'s) until max_a |r_a|/m_a ≤ `residual` · max_a |b_a|/m_a, or
+/// Cholesky without them; one analysis serves every load.
+pub fn poisson(
+    problem: &DiscreteProblem,
+    transfers: &[Prolongation],
+    loads: &[&[f64]],
+    residual: f64,
+) -> Result<Vec<Vec<f64>>, SolveError> {
+    let (system, hierarchy) = analysed(problem, (!transfers.is_empty()).then_some(transfers));
+    let sizes = Loads {
+        density: 0.0,
+        problem,
+        scale: 1.0,
+    };
+    let multigrid = hierarchy.as_ref().map(|h| (h, Stop::Residual(residual)));
+    let mut solver = backend::solver(&system, multigrid, None, sizes);
+    solver.prepare(&vec![false; system.n()])?;
+    let zero = vec![0.0; problem.mesh.n_vertices()];
+    (loads.iter())
+        .map(|load| {
+            let rhs = system.lifted_rhs(&problem.stiffness, |a| load[a], 1.0, |_| 0.0);
+            Ok(system.scatter(&solver.solve(Cow::Owned(rhs))?, &zero))
+        })
+        .collect()
 }
 
 /// What the v and w solves on the final mesh share: the unknowns with the Cholesky analysis of
@@ -213,7 +245,7 @@ fn solve_w(
 
 impl Solution {
     /// u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w; below a rigid obstacle u1 = ψ_h + w, u2 = ψ_h.
-    fn of(problem: &DiscreteProblem, v: Vec<f64>, obstacle: Obstacle) -> Self {
+    fn of(problem: &DiscreteProblem, v: Vec<f64>, obstacle: Obstacle, transfers: Vec<Prolongation>) -> Self {
         let w = &obstacle.gap;
         let Some(mu2) = problem.data.mu2() else {
             let psi = &problem.psi_h;
@@ -223,6 +255,7 @@ impl Solution {
                 u2: psi.clone(),
                 obstacle,
                 rigid: true,
+                transfers,
             };
         };
         let mu1 = problem.data.mu1;
@@ -234,6 +267,7 @@ impl Solution {
             u2,
             obstacle,
             rigid: false,
+            transfers,
         }
     }
 }

@@ -143,11 +143,12 @@ pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: &
             }
         });
     }
+    // In place: [AtomicU64; 3] and [f64; 3] have the same size, so the collect reuses the room.
     (tau.into_iter())
         .map(|tau| Flux {
-            edge_flux: parallel::collect(tau.len(), |s| {
-                tau[s].each_ref().map(|f| f64::from_bits(f.load(Relaxed)))
-            }),
+            edge_flux: (tau.into_iter())
+                .map(|f| f.map(|f| f64::from_bits(f.into_inner())))
+                .collect(),
         })
         .collect()
 }

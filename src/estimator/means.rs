@@ -12,13 +12,18 @@
 //! residual ρ_a m_a), the flux's divergence becomes Π f_i ± λ_h − ρ_i, and the quadrature defect
 //! leaves the bound but for ρ_i, the solve's round-off, still bounded by Friedrichs.
 
-use crate::linear::InteriorSystem;
-use crate::mesh::{DualMesh, Mesh};
+use crate::contact;
+use crate::mesh::{DualMesh, Mesh, Prolongation};
 use crate::parallel;
 use crate::problem::DiscreteProblem;
 
 /// Σ_a |c_a| m_a below this fraction of Σ_a |(f, φ_a)| is round-off: no lift.
 const ROUND_OFF: f64 = 1e-13;
+
+/// The lifts' residual, relative to their loads' (see [`contact::poisson`]): what it leaves, ρ_i,
+/// enters η by Friedrichs, at most this part of what the whole defect would have added (§4(c)),
+/// and η agrees with a direct solve's to round-off (`make validate` compares them at 1e-9).
+const LIFT_RESIDUAL: f64 = 1e-12;
 
 /// The lifts z_i of the defects c_i and what the solves leave of them.
 pub struct Lifted {
@@ -28,36 +33,34 @@ pub struct Lifted {
     pub rest: Vec<Vec<f64>>,
 }
 
-/// Lifts each of `defects` (c_i per vertex, 0 at the boundary vertices), with one factorization of
-/// K on the interior vertices; none where every defect is round-off of the loads (a load the rule
+/// Lifts each of `defects` (c_i per vertex, 0 at the boundary vertices) by [`contact::poisson`]
+/// on the solve's `transfers`; none where every defect is round-off of the loads (a load the rule
 /// integrates exactly), which is then left to Friedrichs as it is.
-pub fn lift(problem: &DiscreteProblem, dual: &DualMesh, defects: &[Vec<f64>]) -> Lifted {
+pub fn lift(
+    problem: &DiscreteProblem,
+    dual: &DualMesh,
+    transfers: &[Prolongation],
+    defects: &[Vec<f64>],
+) -> Lifted {
     let (mesh, k) = (&problem.mesh, &problem.stiffness);
     let loads: f64 = (0..mesh.n_vertices()).map(|a| problem.load_size(a)).sum();
     let round_off = |c: &Vec<f64>| {
         let defect: f64 = c.iter().zip(&problem.mass).map(|(c, m)| (c * m).abs()).sum();
         defect <= ROUND_OFF * loads
     };
-    let zero = vec![0.0; mesh.n_vertices()];
-    // Analysed and factorized for the first defect that is not round-off only.
-    let system = std::cell::OnceCell::new();
-    let mut factor = None;
-    let (z, rest) = (defects.iter())
-        .map(|c| {
-            let load = pairing(mesh, dual, c);
-            let z = if round_off(c) {
-                zero.clone()
-            } else {
-                let system = system.get_or_init(|| InteriorSystem::new(k, &mesh.on_boundary));
-                let factor = factor.get_or_insert_with(|| {
-                    let mut f = system.factorization();
-                    f.factorize(&vec![false; system.n()])
-                        .expect("the stiffness matrix of a valid mesh is positive definite");
-                    f
-                });
-                let mut x = system.lifted_rhs(k, |a| load[a], 1.0, |_| 0.0);
-                factor.solve(&mut x);
-                system.scatter(&x, &zero)
+    let pairings: Vec<Vec<f64>> = defects.iter().map(|c| pairing(mesh, dual, c)).collect();
+    let lifted: Vec<&[f64]> = (defects.iter().zip(&pairings))
+        .filter(|(c, _)| !round_off(c))
+        .map(|(_, load)| &load[..])
+        .collect();
+    let mut solved = contact::poisson(problem, transfers, &lifted, LIFT_RESIDUAL)
+        .expect("the stiffness matrix of a valid mesh is positive definite")
+        .into_iter();
+    let (z, rest) = (defects.iter().zip(&pairings))
+        .map(|(c, load)| {
+            let z = match round_off(c) {
+                true => vec![0.0; mesh.n_vertices()],
+                false => solved.next().expect("one lift per defect not round-off"),
             };
             let rest = parallel::collect(mesh.n_vertices(), |a| match mesh.on_boundary[a] {
                 true => 0.0,
@@ -95,11 +98,17 @@ pub fn on_cell(mesh: &Mesh, dual: &DualMesh, c: &[f64], s: usize) -> [f64; 3] {
     std::array::from_fn(|j| value * (0..3).map(|v| frame[v][j]).sum::<f64>() / 3.0)
 }
 
-/// (c, φ_b) at every vertex b.
+/// (c, φ_b) at every vertex b: each triangle's three terms in parallel, added up in order.
 fn pairing(mesh: &Mesh, dual: &DualMesh, c: &[f64]) -> Vec<f64> {
+    let per_triangle = parallel::collect(mesh.n_triangles(), |t| {
+        (6 * t..6 * t + 6).fold([0.0; 3], |sum, s| {
+            let add = on_cell(mesh, dual, c, s);
+            std::array::from_fn(|j| sum[j] + add[j])
+        })
+    });
     let mut load = vec![0.0; mesh.n_vertices()];
-    for s in 0..dual.n_cells() {
-        for (b, v) in mesh.triangle(s / 6).into_iter().zip(on_cell(mesh, dual, c, s)) {
+    for (tri, add) in mesh.triangles().zip(per_triangle) {
+        for (b, v) in tri.into_iter().zip(add) {
             load[b] += v;
         }
     }
@@ -139,7 +148,7 @@ mod tests {
         for a in 0..mesh.n_vertices() {
             assert!((per_cell[a] - c[a] * problem.mass[a]).abs() < 1e-15, "vertex {a}");
         }
-        let lifted = lift(&problem, &dual, std::slice::from_ref(&c));
+        let lifted = lift(&problem, &dual, &[], std::slice::from_ref(&c));
         assert!(lifted.z[0].iter().any(|z| z.abs() > 1e-3));
         assert!(
             lifted.rest[0].iter().all(|r| r.abs() < 1e-11),

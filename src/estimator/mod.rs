@@ -102,7 +102,7 @@ impl Estimate {
         let patches = Patches::new(mesh);
         let mut loads = cell_loads(problem, dual, &membranes, alpha);
         let defects = quadrature_defects(problem, &membranes, &loads);
-        let lifted = means::lift(problem, dual, &defects);
+        let lifted = means::lift(problem, dual, &solution.transfers, &defects);
         let means = &lifted.rest;
         // The local problems of u_ih + z_i/μ_i with f_i + c_i (§4(c')).
         means::add_to_cells(mesh, dual, &defects, &mut loads, |l| &mut l.f_phi);
@@ -393,9 +393,10 @@ fn triangle_terms(
             .map(|t| {
                 let g = gradients(mesh.corners(t));
                 let tri = mesh.triangle(t);
-                let grad: Vec<[f64; 2]> = (membranes.iter())
-                    .map(|m| [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()))
-                    .collect();
+                let grad: [[f64; 2]; 2] = std::array::from_fn(|i| match membranes.get(i) {
+                    Some(m) => [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()),
+                    None => [0.0; 2],
+                });
                 let mut terms = TriangleTerms::default();
                 for (s, cell_loads) in (6 * t..).zip(&loads[6 * t..6 * t + 6]) {
                     let p = dual.corners(s);

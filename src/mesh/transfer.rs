@@ -11,6 +11,7 @@ use std::sync::OnceLock;
 /// zero but for round-off left out). Its transpose restricts nodal loads: Pᵀ(f, φ_a)_a =
 /// (f, φ_A)_A exactly when the meshes are nested, since then every coarse hat function is a
 /// combination of fine ones. Multigrid interpolates its corrections with the same P.
+#[derive(Debug, Clone)]
 pub struct Prolongation {
     matrix: Csr,
     /// Pᵀ, made when first asked for (multigrid's restriction and Galerkin products).
