@@ -180,6 +180,9 @@ struct Link([(usize, usize); 2]);
 /// The workspace of one patch, reused from vertex to vertex.
 #[derive(Default)]
 struct Patch {
+    /// The triangles around a (with a's position in each) and a's neighbours, in order.
+    star: Vec<(usize, usize)>,
+    others: Vec<usize>,
     cells: Vec<Cell>,
     links: Vec<Link>,
     /// Node = cell index in the patch, or `cells.len()` for the ground (∂ω).
@@ -188,6 +191,7 @@ struct Patch {
     order: Vec<usize>,
     parent: Vec<usize>,
     adjacency: Vec<Vec<usize>>,
+    seen: Vec<bool>,
     unknowns: usize,
     /// The P1 stiffness matrix of S_h|ω_a on the stream unknowns, factorized (LLᵀ).
     factor: Vec<f64>,
@@ -199,10 +203,11 @@ struct Patch {
 impl Patch {
     /// The cells, links, spanning tree and stream-function system of the patch of `a`.
     fn build(&mut self, mesh: &Mesh, dual: &DualMesh, patches: &Patches, a: usize) {
-        let star: Vec<(usize, usize)> = patches.around(a).collect();
-        let mut others: Vec<usize> = (star.iter())
-            .flat_map(|&(t, k)| [1, 2].map(|d| mesh.triangle(t)[(k + d) % 3]))
-            .collect();
+        let (mut star, mut others) = (std::mem::take(&mut self.star), std::mem::take(&mut self.others));
+        star.clear();
+        star.extend(patches.around(a));
+        others.clear();
+        others.extend((star.iter()).flat_map(|&(t, k)| [1, 2].map(|d| mesh.triangle(t)[(k + d) % 3])));
         others.sort_unstable();
         others.dedup();
         let midpoint_unknown = |v: usize| 1 + others.binary_search(&v).expect("a neighbour of a");
@@ -283,6 +288,7 @@ impl Patch {
         self.spanning_tree();
         self.unknowns = 1 + others.len() + star.len();
         self.factorize();
+        (self.star, self.others) = (star, others);
     }
 
     /// A breadth-first spanning tree of the cell graph, rooted at the ground when there is one.
@@ -301,7 +307,9 @@ impl Patch {
         self.parent.resize(nodes, NONE);
         self.order.clear();
         self.order.push(root);
-        let mut seen = vec![false; nodes];
+        let seen = &mut self.seen;
+        seen.clear();
+        seen.resize(nodes, false);
         seen[root] = true;
         let mut next = 0;
         while next < self.order.len() {

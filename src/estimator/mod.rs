@@ -416,23 +416,26 @@ fn triangle_terms(
                     };
                     let mids: [[f64; 2]; 3] =
                         std::array::from_fn(|e| [0, 1].map(|k| 0.5 * (p[e][k] + p[(e + 1) % 3][k])));
-                    let norm = |v: &dyn Fn([f64; 2]) -> [f64; 2]| {
-                        let squares = mids.iter().map(|&m| v(m)).map(|v| v[0] * v[0] + v[1] * v[1]);
+                    let norm = |v: [[f64; 2]; 3]| {
+                        let squares = v.iter().map(|v| v[0] * v[0] + v[1] * v[1]);
                         (area / 3.0 * squares.sum::<f64>()).sqrt()
                     };
+                    let values: [[[f64; 2]; 3]; 2] = std::array::from_fn(|i| match i < membranes.len() {
+                        true => mids.map(|m| at(i, m)),
+                        false => [[0.0; 2]; 3],
+                    });
                     for (i, m) in membranes.iter().enumerate() {
-                        let flux = norm(&|x| at(i, x)) / m.mu.sqrt();
+                        let flux = norm(values[i]) / m.mu.sqrt();
                         let oscillation = diameter / PI * cell_loads.oscillation[i].sqrt() / m.mu.sqrt();
                         terms.flux2[i] += flux * flux;
                         terms.oscillation2[i] += oscillation * oscillation;
                         terms.local2[i] += (flux + oscillation).powi(2);
                     }
                     // ζ = α(μ1∇u1h + τ1) − (1 − α)(μ2∇u2h + τ2), or μ∇u_h + τ above an obstacle.
-                    let zeta = norm(&|x| {
-                        let a = at(0, x);
-                        let b = if membranes.len() == 2 { at(1, x) } else { [0.0; 2] };
-                        [0, 1].map(|k| alpha * a[k] - (1.0 - alpha) * b[k])
-                    });
+                    let [a, b] = values;
+                    let zeta = norm(std::array::from_fn(|m| {
+                        [0, 1].map(|k| alpha * a[m][k] - (1.0 - alpha) * b[m][k])
+                    }));
                     terms.lambda2 += (zeta + diameter / PI * cell_loads.oscillation[2].sqrt()).powi(2);
                     let lambda_h = action.lambda[dual.owner(s)];
                     terms.contact += lambda_h * area * cell_mean(mesh, s, gap);
