@@ -146,13 +146,16 @@ pub fn solve(
 
 /// z_k with K z_k = `loads[k]` at the interior vertices and z_k = 0 on ∂ω: CG with V-cycles on
 /// `transfers` (a [`Solution`]'s) until max_a |r_a|/m_a ≤ `residual` · max_a |b_a|/m_a, or
-/// Cholesky without them; one analysis serves every load.
+/// Cholesky without them; one analysis serves every load, and none is made for no load.
 pub fn poisson(
     problem: &DiscreteProblem,
     transfers: &[Prolongation],
     loads: &[&[f64]],
     residual: f64,
 ) -> Result<Vec<Vec<f64>>, SolveError> {
+    if loads.is_empty() {
+        return Ok(Vec::new());
+    }
     let (system, hierarchy) = analysed(problem, (!transfers.is_empty()).then_some(transfers));
     let sizes = Loads {
         density: 0.0,
