@@ -120,15 +120,36 @@ pub fn map_parts2<T: Send, U: Send, R: Send>(
         .collect()
 }
 
-/// The entries `value(i)` for i in 0..n, computed in parallel.
-pub fn collect<T: Send + Default + Clone>(n: usize, value: impl Fn(usize) -> T + Sync + Send) -> Vec<T> {
-    let mut out = vec![T::default(); n];
-    map_mut(&mut out, PIECE, |base, chunk| {
-        for (k, out) in chunk.iter_mut().enumerate() {
-            *out = value(base + k);
-        }
-    });
-    out
+/// The entries `value(i)` for i in 0..n, computed in parallel and written in place (no pass
+/// that fills the vector first).
+pub fn collect<T: Send>(n: usize, value: impl Fn(usize) -> T + Sync + Send) -> Vec<T> {
+    (0..n).into_par_iter().with_min_len(PIECE).map(value).collect()
+}
+
+/// The entries of 0..n computed by blocks, in parallel and in place: `block(range, values)`
+/// pushes the entries of `range` to `values`, `range` one of the blocks `k size..(k + 1) size`
+/// (for work that is cheaper over many entries at once, such as quadrature). Each thread keeps
+/// its last block, so a block is computed once, or twice where two threads' runs meet in it.
+pub fn collect_by_blocks<T: Send + Copy>(
+    n: usize,
+    size: usize,
+    block: impl Fn(Range<usize>, &mut Vec<T>) + Sync + Send,
+) -> Vec<T> {
+    let size = size.max(1);
+    let room = || (usize::MAX, Vec::with_capacity(size));
+    (0..n)
+        .into_par_iter()
+        .with_min_len(size)
+        .map_init(room, |(start, values), i| {
+            let first = i / size * size;
+            if *start != first {
+                values.clear();
+                block(first..(first + size).min(n), values);
+                *start = first;
+            }
+            values[i - first]
+        })
+        .collect()
 }
 
 /// `a` and `b` side by side when a thread is free (rayon's `join`).
@@ -197,5 +218,20 @@ mod tests {
         assert_eq!(firsts, [0, 1000, 2000]);
         assert!(x.iter().enumerate().all(|(i, &v)| v == i) && y.iter().enumerate().all(|(i, &v)| v == 2 * i));
         assert_eq!(collect(5000, |i| i * i)[4321], 4321 * 4321);
+    }
+
+    #[test]
+    fn blocks_give_every_entry_once_on_any_number_of_threads() {
+        for threads in [1, 2, 3, 8] {
+            for n in [0, 1, 999, 1000, 1001, 54321] {
+                let values = on_threads(threads, || {
+                    collect_by_blocks(n, 1000, |range, out: &mut Vec<(usize, usize)>| {
+                        assert!(range.start.is_multiple_of(1000) && range.end == n.min(range.start + 1000));
+                        out.extend(range.map(|i| (i, i * i)));
+                    })
+                });
+                assert!(values.len() == n && values.iter().enumerate().all(|(i, &v)| v == (i, i * i)));
+            }
+        }
     }
 }

@@ -43,23 +43,18 @@ pub struct Patches {
 impl Patches {
     /// The patches of `mesh`.
     pub fn new(mesh: &Mesh) -> Self {
-        let mut halves: Vec<((usize, usize), usize, usize)> = (mesh.triangles().enumerate())
-            .flat_map(|(t, tri)| {
-                (0..3).map(move |j| {
-                    let (a, b) = (tri[j], tri[(j + 1) % 3]);
-                    ((a.min(b), a.max(b)), t, j)
-                })
-            })
-            .collect();
-        halves.sort_unstable();
-        let mut neighbour = vec![[NONE; 3]; mesh.n_triangles()];
-        for pair in halves.chunk_by(|x, y| x.0 == y.0) {
-            if let [(_, s, i), (_, t, j)] = *pair {
-                neighbour[s][i] = t;
-                neighbour[t][j] = s;
-            }
-        }
         let stars = Stars::new(mesh);
+        // Across edge (a, b) of t: the other triangle around a that has b (T_h is conforming,
+        // so there is at most one).
+        let neighbour = parallel::collect(mesh.n_triangles(), |t| {
+            let tri = mesh.triangle(t);
+            [0, 1, 2].map(|j| {
+                let (a, b) = (tri[j], tri[(j + 1) % 3]);
+                (stars.around(a))
+                    .find(|&(s, _)| s != t && mesh.triangle(s).contains(&b))
+                    .map_or(NONE, |(s, _)| s)
+            })
+        });
         Patches {
             classes: classes(mesh, &stars),
             stars,
@@ -131,7 +126,7 @@ pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: &
     // the classes one after the other, so that each cell sums its terms in the same order on
     // any number of threads.
     let tau: Vec<Vec<[AtomicU64; 3]>> = (membranes.iter())
-        .map(|_| (0..dual.n_cells()).map(|_| Default::default()).collect())
+        .map(|_| parallel::collect(dual.n_cells(), |_| Default::default()))
         .collect();
     for class in &patches.classes {
         parallel::map_with(class.len(), PIECE, Patch::default, |work, range| {

@@ -312,9 +312,7 @@ fn cell_loads(
         .collect();
     // Above an obstacle the one load twice, the second unused (α = 1).
     let (f1, f2) = (&pieces[0], pieces.last().expect("one membrane at least"));
-    let mut loads = vec![CellLoads::default(); dual.n_cells()];
-    parallel::map_mut(&mut loads, PIECE, |base, out| {
-        let range = base..base + out.len();
+    parallel::collect_by_blocks(dual.n_cells(), PIECE, |range, out| {
         // The cell s of S_h lies in the triangle s / 6 of T_h: its loads are that triangle's.
         datum::visit(
             &data.quadrature,
@@ -347,11 +345,10 @@ fn cell_loads(
                         *o += p.weight * (f - m / area).powi(2);
                     }
                 }
-                out[s - base] = l;
+                out.push(l);
             },
         );
-    });
-    loads
+    })
 }
 
 /// The mean over cell s of a P1 field `v` of T_h (its value at the cell's centroid).
