@@ -132,6 +132,7 @@ impl Estimate {
         let lifting = Lifting::compute(problem, dual, solution, action, &patches);
         let with_gap = (action, &solution.obstacle.gap[..]);
         let terms = triangle_terms(problem, dual, &membranes, with_gap, &tau, &loads);
+        drop(loads);
         let m = membranes.len();
         let mu1 = membranes[0].mu;
         let per = |f: &dyn Fn(&TriangleTerms, usize) -> f64| -> Vec<Vec<f64>> {
@@ -385,66 +386,56 @@ fn triangle_terms(
 ) -> Vec<TriangleTerms> {
     let mesh = &problem.mesh;
     let (alpha, _) = weights(membranes);
-    let part = |triangles: std::ops::Range<usize>| {
-        (triangles)
-            .map(|t| {
-                let g = gradients(mesh.corners(t));
-                let tri = mesh.triangle(t);
-                let grad: [[f64; 2]; 2] = std::array::from_fn(|i| match membranes.get(i) {
-                    Some(m) => [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()),
-                    None => [0.0; 2],
-                });
-                let mut terms = TriangleTerms::default();
-                for (s, cell_loads) in (6 * t..).zip(&loads[6 * t..6 * t + 6]) {
-                    let p = dual.corners(s);
-                    let area = 0.5 * crate::mesh::orient(p[0], p[1], p[2]);
-                    let diameter = (0..3)
-                        .map(|e| crate::mesh::dist(p[e], p[(e + 1) % 3]))
-                        .fold(0.0, f64::max);
-                    // μ_i ∇u_ih + τ_i at the edge midpoints: ‖·‖²_κ = |κ|/3 Σ_m |·(m)|², exact for
-                    // affine fields.
-                    let at = |i: usize, m: [f64; 2]| {
-                        let f = &tau[i].edge_flux[s];
-                        [0, 1].map(|k| {
-                            grad[i][k]
-                                + (0..3).map(|e| f[e] * (m[k] - p[(e + 2) % 3][k])).sum::<f64>()
-                                    / (2.0 * area)
-                        })
-                    };
-                    let mids: [[f64; 2]; 3] =
-                        std::array::from_fn(|e| [0, 1].map(|k| 0.5 * (p[e][k] + p[(e + 1) % 3][k])));
-                    let norm = |v: [[f64; 2]; 3]| {
-                        let squares = v.iter().map(|v| v[0] * v[0] + v[1] * v[1]);
-                        (area / 3.0 * squares.sum::<f64>()).sqrt()
-                    };
-                    let values: [[[f64; 2]; 3]; 2] = std::array::from_fn(|i| match i < membranes.len() {
-                        true => mids.map(|m| at(i, m)),
-                        false => [[0.0; 2]; 3],
-                    });
-                    for (i, m) in membranes.iter().enumerate() {
-                        let flux = norm(values[i]) / m.mu.sqrt();
-                        let oscillation = diameter / PI * cell_loads.oscillation[i].sqrt() / m.mu.sqrt();
-                        terms.flux2[i] += flux * flux;
-                        terms.oscillation2[i] += oscillation * oscillation;
-                        terms.local2[i] += (flux + oscillation).powi(2);
-                    }
-                    // ζ = α(μ1∇u1h + τ1) − (1 − α)(μ2∇u2h + τ2), or μ∇u_h + τ above an obstacle.
-                    let [a, b] = values;
-                    let zeta = norm(std::array::from_fn(|m| {
-                        [0, 1].map(|k| alpha * a[m][k] - (1.0 - alpha) * b[m][k])
-                    }));
-                    terms.lambda2 += (zeta + diameter / PI * cell_loads.oscillation[2].sqrt()).powi(2);
-                    let lambda_h = action.lambda[dual.owner(s)];
-                    terms.contact += lambda_h * area * cell_mean(mesh, s, gap);
-                }
-                terms
-            })
-            .collect::<Vec<_>>()
-    };
-    parallel::map(mesh.n_triangles(), PIECE, part)
-        .into_iter()
-        .flatten()
-        .collect()
+    parallel::collect(mesh.n_triangles(), |t| {
+        let g = gradients(mesh.corners(t));
+        let tri = mesh.triangle(t);
+        let grad: [[f64; 2]; 2] = std::array::from_fn(|i| match membranes.get(i) {
+            Some(m) => [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()),
+            None => [0.0; 2],
+        });
+        let mut terms = TriangleTerms::default();
+        for (s, cell_loads) in (6 * t..).zip(&loads[6 * t..6 * t + 6]) {
+            let p = dual.corners(s);
+            let area = 0.5 * crate::mesh::orient(p[0], p[1], p[2]);
+            let diameter = (0..3)
+                .map(|e| crate::mesh::dist(p[e], p[(e + 1) % 3]))
+                .fold(0.0, f64::max);
+            // μ_i ∇u_ih + τ_i at the edge midpoints: ‖·‖²_κ = |κ|/3 Σ_m |·(m)|², exact for
+            // affine fields.
+            let at = |i: usize, m: [f64; 2]| {
+                let f = &tau[i].edge_flux[s];
+                [0, 1].map(|k| {
+                    grad[i][k] + (0..3).map(|e| f[e] * (m[k] - p[(e + 2) % 3][k])).sum::<f64>() / (2.0 * area)
+                })
+            };
+            let mids: [[f64; 2]; 3] =
+                std::array::from_fn(|e| [0, 1].map(|k| 0.5 * (p[e][k] + p[(e + 1) % 3][k])));
+            let norm = |v: [[f64; 2]; 3]| {
+                let squares = v.iter().map(|v| v[0] * v[0] + v[1] * v[1]);
+                (area / 3.0 * squares.sum::<f64>()).sqrt()
+            };
+            let values: [[[f64; 2]; 3]; 2] = std::array::from_fn(|i| match i < membranes.len() {
+                true => mids.map(|m| at(i, m)),
+                false => [[0.0; 2]; 3],
+            });
+            for (i, m) in membranes.iter().enumerate() {
+                let flux = norm(values[i]) / m.mu.sqrt();
+                let oscillation = diameter / PI * cell_loads.oscillation[i].sqrt() / m.mu.sqrt();
+                terms.flux2[i] += flux * flux;
+                terms.oscillation2[i] += oscillation * oscillation;
+                terms.local2[i] += (flux + oscillation).powi(2);
+            }
+            // ζ = α(μ1∇u1h + τ1) − (1 − α)(μ2∇u2h + τ2), or μ∇u_h + τ above an obstacle.
+            let [a, b] = values;
+            let zeta = norm(std::array::from_fn(|m| {
+                [0, 1].map(|k| alpha * a[m][k] - (1.0 - alpha) * b[m][k])
+            }));
+            terms.lambda2 += (zeta + diameter / PI * cell_loads.oscillation[2].sqrt()).powi(2);
+            let lambda_h = action.lambda[dual.owner(s)];
+            terms.contact += lambda_h * area * cell_mean(mesh, s, gap);
+        }
+        terms
+    })
 }
 
 /// C_F = 1 / (π (L_x⁻² + L_y⁻²)^½), L_x × L_y the bounding box of ω: ‖v‖ ≤ C_F ‖∇v‖ on H¹_0(ω)
