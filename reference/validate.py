@@ -355,8 +355,8 @@ def mesh_files(binary, out, tol, failures):
             ""] + lines + [""], [e for e in estimates if e]
 
 
-ADAPTED = [("lshape_corner", ["--n", "8", "--max-vertices", "4000"]),
-           ("disk_contact", ["--max-vertices", "5000", "--theta", "0.3"])]
+ADAPTED = [("lshape_corner", ["--n", "8", "--max-vertices", "4000", "--dual"]),
+           ("disk_contact", ["--max-vertices", "5000", "--theta", "0.3", "--dual"])]
 
 
 def adapted_meshes(binary, out, tol, failures):

@@ -7,8 +7,8 @@
 //! ```
 //!
 //! until η ≤ the target, the next mesh would exceed the vertex budget, or the steps run out. Each
-//! step's result is a result directory of its own; `adapt.xdmf` shows them in ParaView as one time
-//! series, `adapt.md`/`.csv`/`.json` tabulate the steps beside uniform refinement of the same case,
+//! step's result is a result directory of its own (T_h with its fields; the dual submesh S_h too
+//! on request, four times the rest); `adapt.xdmf` shows them in ParaView as one time series, `adapt.md`/`.csv`/`.json` tabulate the steps beside uniform refinement of the same case,
 //! and `adapt.png` plots η and the error against N for both.
 
 use crate::atomic::{OutputError, Staging};
@@ -90,8 +90,8 @@ pub fn dorfler(indicator: &[f64], theta: f64) -> Vec<bool> {
 }
 
 /// Runs the adaptive loop on `case` with `settings` and writes everything into the directory
-/// `target`, whole or not at all.
-pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapted, RunError> {
+/// `target`, whole or not at all; with `dual`, each step's result holds S_h with λ_h as well.
+pub fn adapt(case: &Case, settings: &Adaptivity, dual: bool, target: &Path) -> Result<Adapted, RunError> {
     check_memory(case, settings)?;
     let inputs = case.inputs();
     let staging = Staging::new(target, &inputs, "adapt")?;
@@ -100,7 +100,7 @@ pub fn adapt(case: &Case, settings: &Adaptivity, target: &Path) -> Result<Adapte
         progress(steps);
         let dir = format!("step-{step:03}");
         crate::progress::phase(|| format!("writing {dir}"));
-        write_step(&staging, &dir, r)?;
+        write_step(&staging, &dir, r, dual)?;
         grids.push(result::step_grid(&dir, step as f64, &r.problem.mesh, &r.fields()));
         Ok(())
     })?;
@@ -206,14 +206,14 @@ pub fn steps(
     Ok(adaptive)
 }
 
-/// A run with the estimator, its result with S_h (the validation compares λ_h on it).
+/// A run with the estimator.
 fn estimating(start: Start) -> run::Options {
     run::Options {
         start,
         hminus1: false,
         flux: false,
         estimate: true,
-        dual: true,
+        dual: false,
     }
 }
 
@@ -222,11 +222,11 @@ fn mesh_error(case: &Case, e: &dyn std::fmt::Display) -> RunError {
     crate::case::CaseError(format!("{}: cannot refine the mesh: {e}", case.origin)).into()
 }
 
-/// Writes one step's result directory inside the staging directory.
-fn write_step(staging: &Staging, dir: &str, r: &Run) -> Result<(), RunError> {
+/// Writes one step's result directory inside the staging directory, with S_h if `dual`.
+fn write_step(staging: &Staging, dir: &str, r: &Run, dual: bool) -> Result<(), RunError> {
     let path = staging.path().join(dir);
     std::fs::create_dir(&path).map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
-    let dual = r.writes_dual.then(|| r.dual());
+    let dual = dual.then(|| r.dual());
     result::write(
         &path,
         &r.problem.mesh,

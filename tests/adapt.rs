@@ -21,7 +21,7 @@ fn adapted(mut case: Case, max_vertices: usize) -> (Adapted, tempfile::TempDir, 
     };
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("adapt");
-    let a = adapt(&case, &settings, &out).unwrap();
+    let a = adapt(&case, &settings, false, &out).unwrap();
     (a, dir, out)
 }
 
@@ -88,6 +88,8 @@ fn adaptivity_on_the_l_shape_reaches_the_optimal_rate_with_a_guaranteed_bound() 
     for name in ["adapt.md", "adapt.csv", "adapt.json", "adapt.png"] {
         assert!(out.join(name).exists(), "{name}");
     }
+    // S_h only on request (tests/groups.rs asks for it).
+    assert!((0..steps.len()).all(|k| !out.join(format!("step-{k:03}/dual.xdmf")).exists()));
 }
 
 /// The default case: contact on the disk r < 1/4, loads discontinuous on its circle. Where the

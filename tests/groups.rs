@@ -256,7 +256,7 @@ fn adapt_runs_with_tables_per_group() {
         steps: 4,
     };
     let dir = tempfile::tempdir().unwrap();
-    let a = membrane_contact::adapt::adapt(&case, &settings, &dir.path().join("adapt")).unwrap();
+    let a = membrane_contact::adapt::adapt(&case, &settings, true, &dir.path().join("adapt")).unwrap();
     let steps = &a.adaptive;
     assert_eq!(steps.len(), 5);
     assert!(steps
@@ -264,4 +264,6 @@ fn adapt_runs_with_tables_per_group() {
         .all(|w| w[1].estimator < w[0].estimator && w[1].vertices > w[0].vertices));
     let last = file::read(&dir.path().join("adapt/step-004/solution.h5")).unwrap();
     assert_geometric_groups(&last);
+    // S_h asked for: in every step.
+    assert!((0..5).all(|k| dir.path().join(format!("adapt/step-{k:03}/dual.xdmf")).exists()));
 }
