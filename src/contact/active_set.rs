@@ -119,7 +119,9 @@ pub(super) fn obstacle(
         }
         if same_set || proposal {
             if !proposal && solver.refines() {
-                // The confirmed set's w to the backward error of the checks (not a step).
+                // The confirmed set's w to the backward error of the checks (not a step), the
+                // step it refines let go first (the two are not held at once).
+                drop(next);
                 solver.loosen(RESULT_STOP);
                 next = w_problem.step(system, &mut solver, data, None)?;
                 solver.tighten();
