@@ -22,17 +22,19 @@ pub mod boundary;
 pub mod equilibration;
 pub mod means;
 pub mod obstacle;
+pub mod resolution;
 
 use crate::action::Action;
 use crate::assembly::gradients;
 use crate::contact::Solution;
-use crate::datum::{self, On};
+use crate::datum::{self, On, Pieces};
 use crate::flux::Flux;
 use crate::mesh::{DualMesh, Mesh};
 use crate::parallel::{self, PIECE};
 use crate::problem::{DiscreteProblem, Lower, Membrane, Which};
 use crate::result::{Attribute, Describe, Field, Place};
 use equilibration::{equilibrate, Patches};
+use resolution::Resolution;
 use std::f64::consts::PI;
 
 /// The estimator of one discrete solution: per-triangle indicators and totals.
@@ -64,6 +66,8 @@ pub struct Estimate {
     pub lambda: f64,
     /// τ_i for each membrane.
     pub tau: Vec<Flux>,
+    /// What the case's rule misses of the loads: whether η is a bound for the loads as given.
+    pub resolution: Resolution,
     /// Which membrane each of the per-membrane terms is of.
     which: Vec<Which>,
 }
@@ -100,7 +104,14 @@ impl Estimate {
         let membranes = problem.membranes([&solution.u1, &solution.u2]);
         let (alpha, mu_bar) = weights(&membranes);
         let patches = Patches::new(mesh);
-        let mut loads = cell_loads(problem, dual, &membranes, alpha);
+        let pieces = load_pieces(problem, &membranes);
+        // Above an obstacle the one load twice, the second unused (α = 1).
+        let f = [&pieces[0], pieces.last().expect("one membrane at least")];
+        let mut loads = cell_loads(problem, dual, f, alpha);
+        let friedrichs = friedrichs_constant(mesh);
+        let mu: Vec<f64> = membranes.iter().map(|m| m.mu).collect();
+        let on_cell = |s: usize, i: usize| loads[s].f_phi[i];
+        let resolution = Resolution::check((problem, dual, &solution.transfers), f, &mu, on_cell);
         let defects = quadrature_defects(problem, &membranes, &loads);
         let lifted = means::lift(problem, dual, &solution.transfers, &defects);
         let means = &lifted.rest;
@@ -159,6 +170,7 @@ impl Estimate {
             contact_total: 0.0,
             lambda: 0.0,
             tau,
+            resolution,
             which: membranes.iter().map(|m| m.which).collect(),
         };
         for (t, terms) in terms.iter().enumerate() {
@@ -167,7 +179,6 @@ impl Estimate {
                 .max(0.0)
                 .sqrt();
         }
-        let friedrichs = friedrichs_constant(mesh);
         let norm = |c: &[f64]| (c.iter().zip(&problem.mass).map(|(c, m)| c * c * m).sum::<f64>()).sqrt();
         e.means = (membranes.iter().zip(means))
             .map(|(mb, c)| friedrichs * norm(c) / mb.mu.sqrt())
@@ -213,6 +224,31 @@ impl Estimate {
             self.contact_total,
             effectivity.map_or(String::new(), |x| format!(", effectivity η/error {x:.3}")),
             self.lambda
+        ) + &self.loads_summary()
+    }
+
+    /// Whether the loads count as resolved by the case's rule (η_data ≤ [`resolution::RESOLVED`] η),
+    /// and η therefore as a bound of the error for the loads as given.
+    pub fn loads_resolved(&self) -> bool {
+        self.resolution.total <= resolution::RESOLVED * self.total
+    }
+
+    /// The summary's line on the loads' quadrature.
+    fn loads_summary(&self) -> String {
+        let r = &self.resolution;
+        let change = format!(
+            "a finer rule on the {} triangles where two rules disagree would change η by about \
+             η_data = {:.2e}",
+            r.checked, r.total
+        );
+        let share = r.total / self.total.max(f64::MIN_POSITIVE);
+        if self.loads_resolved() {
+            return format!("loads       resolved by the case's rule: {change} ({share:.1e} of η)\n");
+        }
+        let at = (r.worst).map_or(String::new(), |[x, y]| format!(", most near ({x:.4}, {y:.4})"));
+        format!(
+            "loads       NOT resolved by the case's rule, so η is not a guaranteed bound: {change} \
+             ({share:.2} × η){at}; raise [quadrature] degree or refine there\n"
         )
     }
 }
@@ -293,26 +329,27 @@ fn quadrature_defects(
         .collect()
 }
 
+/// The loads f_i of `membranes` on the triangles of the mesh.
+fn load_pieces<'a>(problem: &'a DiscreteProblem, membranes: &[Membrane<'a>]) -> Vec<Pieces<'a>> {
+    let fit = "the data fit the mesh's groups (checked by DiscreteProblem::new)";
+    (membranes.iter())
+        .map(|m| {
+            m.f.pieces(m.which.named(["f1", "f2", "f"]), &problem.mesh, On::Surfaces)
+                .expect(fit)
+        })
+        .collect()
+}
+
 /// The loads on every cell of S_h by the case's rule (on the cell, not on its triangle), in
 /// parallel.
 fn cell_loads(
     problem: &DiscreteProblem,
     dual: &DualMesh,
-    membranes: &[Membrane],
+    [f1, f2]: [&Pieces; 2],
     alpha: f64,
 ) -> Vec<CellLoads> {
     let data = &problem.data;
     let corners = |s: usize| dual.corners(s);
-    let mesh = &problem.mesh;
-    let fit = "the data fit the mesh's groups (checked by DiscreteProblem::new)";
-    let pieces: Vec<_> = (membranes.iter())
-        .map(|m| {
-            m.f.pieces(m.which.named(["f1", "f2", "f"]), mesh, On::Surfaces)
-                .expect(fit)
-        })
-        .collect();
-    // Above an obstacle the one load twice, the second unused (α = 1).
-    let (f1, f2) = (&pieces[0], pieces.last().expect("one membrane at least"));
     parallel::collect_by_blocks(dual.n_cells(), PIECE, |range, out| {
         // The cell s of S_h lies in the triangle s / 6 of T_h: its loads are that triangle's.
         datum::visit(
@@ -465,6 +502,11 @@ impl Describe for Estimate {
         }
         fields.push(Field::new("estimator_boundary", Place::Cells, &self.boundary));
         fields.push(Field::new("estimator_contact", Place::Cells, &self.contact));
+        fields.push(Field::new(
+            "estimator_data",
+            Place::Cells,
+            &self.resolution.indicator,
+        ));
         fields
     }
 
@@ -486,6 +528,12 @@ impl Describe for Estimate {
         }
         attrs.push(("estimator_contact", self.contact_total.into()));
         attrs.push(("estimator_hminus1_lambda", self.lambda.into()));
+        attrs.push(("estimator_data", self.resolution.total.into()));
+        attrs.push(("estimator_data_checked", self.resolution.checked.into()));
+        attrs.push((
+            "estimator_loads_resolved",
+            usize::from(self.loads_resolved()).into(),
+        ));
         attrs
     }
 }

@@ -1,0 +1,189 @@
+//! Whether the case's rule resolves the loads (docs/a-posteriori.md §11).
+//!
+//! η takes the pairings (f_i, φ_a)_κ of the loads on the cells κ of S_h by the case's rule as
+//! exact. Pairings off by δ_{i,a} would change the data of the patch problems as the quadrature
+//! defect does, and by the lift of §4(c') change η by about
+//!
+//! ```text
+//! η_data = (Σ_i ‖∇z_i‖² / μ_i)^½,   K z_i = δ_i at the interior vertices, z_i = 0 on ∂ω,
+//! ```
+//!
+//! which this module estimates with δ measured against a finer rule: on each triangle K the case's
+//! rule on K and on K's six cells give two values of ∫_K f_i; where they agree to [`AGREE`] the
+//! load counts as resolved on K (δ = 0 there); elsewhere each cell is integrated again by the
+//! highest rule on its four halves. An estimate, not a bound: a load whose features fall between
+//! the points of every rule is not seen.
+
+use crate::assembly::{gradients, Quadrature};
+use crate::contact;
+use crate::datum::{self, Pieces};
+use crate::mesh::transfer::Prolongation;
+use crate::mesh::{DualMesh, Mesh};
+use crate::parallel::{self, PIECE};
+use crate::problem::DiscreteProblem;
+
+/// Relative agreement of the two values of ∫_K f_i within which the load counts as resolved on K.
+const AGREE: f64 = 1e-9;
+
+/// η_data up to this share of η: the loads count as resolved, and η as a bound.
+pub const RESOLVED: f64 = 1e-2;
+
+/// The residual of the lifts' solves, relative to their loads' (an estimate to a few per cent needs
+/// no more).
+const LIFT_RESIDUAL: f64 = 1e-3;
+
+/// What the case's rule misses of the loads, by a finer rule where it may miss anything.
+#[derive(Debug, Clone)]
+pub struct Resolution {
+    /// (Σ_i ‖∇z_i‖²_K / μ_i)^½ on each triangle K.
+    pub indicator: Vec<f64>,
+    /// η_data.
+    pub total: f64,
+    /// The triangles checked by the finer rule.
+    pub checked: usize,
+    /// The centroid of the triangle of the largest indicator, if any is above 0.
+    pub worst: Option<[f64; 2]>,
+}
+
+/// δ on one triangle: for each membrane, the change of (f_i, φ_j) over its six cells, j its
+/// vertices in order.
+type Change = [[f64; 3]; 2];
+
+impl Resolution {
+    /// The check of the loads `f` (one per membrane, of tensions `mu`) of `problem`, whose
+    /// pairings on the cells of S_h by the case's rule are `on_cell(s, i)` (∫_κ f_i φ_j for the
+    /// vertices j of s's triangle); the lifts on the solve's `transfers`.
+    pub(super) fn check(
+        (problem, dual, transfers): (&DiscreteProblem, &DualMesh, &[Prolongation]),
+        f: [&Pieces; 2],
+        mu: &[f64],
+        on_cell: impl Fn(usize, usize) -> [f64; 3] + Sync,
+    ) -> Resolution {
+        let mesh = &problem.mesh;
+        let changes: Vec<Option<Change>> =
+            parallel::collect_by_blocks(mesh.n_triangles(), PIECE, |range, out| {
+                datum::visit(
+                    &problem.data.quadrature,
+                    |t| mesh.corners(t),
+                    |t| t,
+                    range,
+                    f,
+                    |t, points, values| {
+                        let agree = (0..mu.len()).all(|i| {
+                            let on_k: f64 = points.iter().zip(values[i]).map(|(p, f)| p.weight * f).sum();
+                            let cells = (6 * t..6 * t + 6).map(|s| on_cell(s, i).iter().sum::<f64>());
+                            let size: f64 = cells.clone().map(f64::abs).sum();
+                            (cells.sum::<f64>() - on_k).abs() <= AGREE * size
+                        });
+                        out.push((!agree).then(|| finer(mesh, dual, t, f, &on_cell)));
+                    },
+                )
+            });
+        let z = lifts(problem, transfers, &changes, mu.len());
+        let squares = parallel::collect(mesh.n_triangles(), |t| {
+            let (g, tri, area) = (gradients(mesh.corners(t)), mesh.triangle(t), mesh.area(t));
+            let grad2 = |z: &[f64]| {
+                let d = [0, 1].map(|k| (0..3).map(|j| g[j][k] * z[tri[j]]).sum::<f64>());
+                area * (d[0] * d[0] + d[1] * d[1])
+            };
+            z.iter().zip(mu).map(|(z, mu)| grad2(z) / mu).sum::<f64>()
+        });
+        let worst = (0..squares.len()).max_by(|&s, &t| squares[s].total_cmp(&squares[t]));
+        let centroid = |t: usize| {
+            let c = mesh.corners(t);
+            [0, 1].map(|k| (c[0][k] + c[1][k] + c[2][k]) / 3.0)
+        };
+        Resolution {
+            total: squares.iter().sum::<f64>().sqrt(),
+            indicator: squares.iter().map(|x| x.sqrt()).collect(),
+            checked: changes.iter().filter(|c| c.is_some()).count(),
+            worst: worst.filter(|&t| squares[t] > 0.0).map(centroid),
+        }
+    }
+}
+
+/// z_i with K z_i = δ_i (the changes summed at each interior vertex), for `m` membranes; 0 where
+/// nothing changed.
+fn lifts(
+    problem: &DiscreteProblem,
+    transfers: &[Prolongation],
+    changes: &[Option<Change>],
+    m: usize,
+) -> Vec<Vec<f64>> {
+    let mesh = &problem.mesh;
+    let mut delta = vec![vec![0.0; mesh.n_vertices()]; m];
+    for (t, change) in changes.iter().enumerate() {
+        for (delta, change) in delta.iter_mut().zip(change.iter().flatten()) {
+            for (a, c) in mesh.triangle(t).into_iter().zip(change) {
+                if !mesh.on_boundary[a] {
+                    delta[a] += c;
+                }
+            }
+        }
+    }
+    if changes.iter().all(Option::is_none) {
+        return delta;
+    }
+    let loads: Vec<&[f64]> = delta.iter().map(|d| &d[..]).collect();
+    contact::poisson(problem, transfers, &loads, LIFT_RESIDUAL)
+        .expect("the stiffness matrix of a valid mesh is positive definite")
+}
+
+/// δ on the triangle t: (f_i, φ_j) on its six cells by the highest rule on each cell's four
+/// halves, less `on_cell`.
+fn finer(
+    mesh: &Mesh,
+    dual: &DualMesh,
+    t: usize,
+    f: [&Pieces; 2],
+    on_cell: impl Fn(usize, usize) -> [f64; 3],
+) -> Change {
+    let halves: Vec<[[f64; 2]; 3]> = (6 * t..6 * t + 6).flat_map(|s| halved(dual.corners(s))).collect();
+    let (g, p0) = (gradients(mesh.corners(t)), mesh.corners(t)[0]);
+    // φ_j(x) = φ_j(p0) + ∇φ_j · (x − p0).
+    let phi = |x: [f64; 2]| -> [f64; 3] {
+        std::array::from_fn(|j| {
+            f64::from(u8::from(j == 0)) + g[j][0] * (x[0] - p0[0]) + g[j][1] * (x[1] - p0[1])
+        })
+    };
+    let mut change: Change = [[0.0; 3]; 2];
+    let rule = Quadrature {
+        degree: Quadrature::MAX_DEGREE,
+    };
+    datum::visit(
+        &rule,
+        |c| halves[c],
+        |_| t,
+        0..halves.len(),
+        f,
+        |_, points, values| {
+            for (change, values) in change.iter_mut().zip(values) {
+                for (p, v) in points.iter().zip(values) {
+                    for (c, phi) in change.iter_mut().zip(phi(p.x)) {
+                        *c += p.weight * v * phi;
+                    }
+                }
+            }
+        },
+    );
+    for s in 6 * t..6 * t + 6 {
+        for (i, change) in change.iter_mut().enumerate() {
+            for (c, v) in change.iter_mut().zip(on_cell(s, i)) {
+                *c -= v;
+            }
+        }
+    }
+    change
+}
+
+/// The four triangles of the midpoint subdivision of `p`.
+fn halved(p: [[f64; 2]; 3]) -> [[[f64; 2]; 3]; 4] {
+    let mid = |a: usize, b: usize| [0.5 * (p[a][0] + p[b][0]), 0.5 * (p[a][1] + p[b][1])];
+    let (m01, m12, m20) = (mid(0, 1), mid(1, 2), mid(2, 0));
+    [
+        [p[0], m01, m20],
+        [m01, p[1], m12],
+        [m20, m12, p[2]],
+        [m01, m12, m20],
+    ]
+}
