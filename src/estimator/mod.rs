@@ -236,6 +236,9 @@ impl Estimate {
     /// The summary's line on the loads' quadrature.
     fn loads_summary(&self) -> String {
         let r = &self.resolution;
+        if r.checked == 0 {
+            return "loads       resolved: the case's rule on each triangle and on its six cells of S_h agree\n".into();
+        }
         let change = format!(
             "a finer rule on the {} triangles where two rules disagree would change η by about \
              η_data = {:.2e}",
