@@ -8,8 +8,9 @@
 //!
 //! until η ≤ the target, the next mesh would exceed the vertex budget, or the steps run out. Each
 //! step's result is a result directory of its own (T_h with its fields; the dual submesh S_h too
-//! on request, four times the rest); `adapt.xdmf` shows them in ParaView as one time series, `adapt.md`/`.csv`/`.json` tabulate the steps beside uniform refinement of the same case,
-//! and `adapt.png` plots η and the error against N for both.
+//! on request, four times the rest); `adapt.xdmf` shows them in ParaView as one time series,
+//! `adapt.md`/`.csv`/`.json` tabulate the steps beside uniform refinement of the same case, and
+//! `adapt.png` plots η and the error against N for both.
 
 use crate::atomic::{OutputError, Staging};
 use crate::case::{Adaptivity, Case, CaseError};
