@@ -148,6 +148,19 @@ pub const BLOCK: usize = 32;
 /// Steps of a program evaluated at one point with room on the call stack.
 const SMALL: usize = 256;
 
+impl Step {
+    /// Whether the step branches: its value, or its derivative, can jump where its operands'
+    /// do not (a comparison, `sign`, `floor`; `abs`, `min`, `max`).
+    fn branches(&self) -> bool {
+        match self {
+            Step::Compare(..) => true,
+            Step::Unary(f, _) => matches!(f, Unary::Sign | Unary::Floor | Unary::Abs),
+            Step::Binary(f, _, _) => matches!(f, Binary::Min | Binary::Max),
+            _ => false,
+        }
+    }
+}
+
 fn truth(b: bool) -> f64 {
     f64::from(u8::from(b))
 }
@@ -247,6 +260,46 @@ impl Program {
             self.run(points, values);
             self.copy_out(values, out, k * BLOCK..k * BLOCK + points.len());
         }
+    }
+
+    /// As [`Program::eval_with`], and in `margins`, point after point, the margin of each step
+    /// that branches (in the steps' order): a − b of a comparison a ⋚ b (of `if`, `and`, `or`) and
+    /// of `min(a, b)`, `max(a, b)`; x of `sign(x)` and `abs(x)`; x − round(x) of `floor(x)`. The
+    /// expressions are smooth between points whose margins have the same signs; where a margin
+    /// changes sign, a value or a derivative may jump between them.
+    pub(crate) fn eval_with_margins(
+        &self,
+        points: &[[f64; 2]],
+        out: &mut [&mut [f64]],
+        values: &mut Vec<[f64; BLOCK]>,
+        margins: &mut Vec<f64>,
+    ) {
+        let branches: Vec<Step> = self.steps.iter().copied().filter(Step::branches).collect();
+        values.resize(self.steps.len(), [0.0; BLOCK]);
+        margins.clear();
+        for (k, points) in points.chunks(BLOCK).enumerate() {
+            self.run(points, values);
+            self.copy_out(values, out, k * BLOCK..k * BLOCK + points.len());
+            let (base, j) = (margins.len(), branches.len());
+            margins.resize(base + points.len() * j, 0.0);
+            for (at, step) in branches.iter().enumerate() {
+                let v = |s: u32| &values[s as usize][..points.len()];
+                let slots = margins[base + at..].iter_mut().step_by(j);
+                match *step {
+                    Step::Compare(_, a, b) | Step::Binary(_, a, b) => slots
+                        .zip(v(a).iter().zip(v(b)))
+                        .for_each(|(m, (a, b))| *m = a - b),
+                    Step::Unary(Unary::Floor, a) => slots.zip(v(a)).for_each(|(m, a)| *m = a - a.round()),
+                    Step::Unary(_, a) => slots.zip(v(a)).for_each(|(m, a)| *m = *a),
+                    _ => unreachable!("only the steps that branch"),
+                }
+            }
+        }
+    }
+
+    /// The number of steps that branch (the margins of each point).
+    pub(crate) fn branches(&self) -> usize {
+        self.steps.iter().filter(|s| s.branches()).count()
     }
 
     /// The outputs' values of a block into `out[..][range]`.

@@ -206,20 +206,24 @@ impl Run<'_> {
     /// corrections, CG iterations or factorizations) and why Cholesky ran in place of multigrid.
     pub fn summary(&self, verbose: bool) -> String {
         let mut out = self.mesh_line() + &self.solver_line(verbose) + &self.action_lines();
-        if let Some(e) = self.errors.as_ref().filter(|_| self.solution.rigid) {
+        if let Some(e) = &self.errors {
             let show = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.4e}"));
+            let norms = if self.solution.rigid {
+                format!("|u−uh|_H1 = {}, ‖u−uh‖_L2 = {:.4e}", show(e.h1_u1), e.l2_u1)
+            } else {
+                format!(
+                    "|u1−u1h|_H1 = {}, |u2−u2h|_H1 = {}, ‖u1−u1h‖_L2 = {:.4e}, ‖u2−u2h‖_L2 = {:.4e}",
+                    show(e.h1_u1),
+                    show(e.h1_u2),
+                    e.l2_u1,
+                    e.l2_u2
+                )
+            };
             out += &format!(
-                "errors      |u−uh|_H1 = {}, ‖u−uh‖_L2 = {:.4e}, ‖λ−λh‖_L2 = {:.4e}, ‖λ−λh‖_H⁻¹ = {}\n",
-                show(e.h1_u1),
-                e.l2_u1,
+                "errors      {norms}, ‖λ−λh‖_L2 = {:.4e}, ‖λ−λh‖_H⁻¹ = {} (quadrature: estimated relative error ≤ {:.0e})\n",
                 e.l2_lambda,
-                show(e.hminus1_lambda)
-            );
-        } else if let Some(e) = &self.errors {
-            let show = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.4e}"));
-            out += &format!(
-                "errors      |u1−u1h|_H1 = {}, |u2−u2h|_H1 = {}, ‖u1−u1h‖_L2 = {:.4e}, ‖u2−u2h‖_L2 = {:.4e}, ‖λ−λh‖_L2 = {:.4e}, ‖λ−λh‖_H⁻¹ = {}\n",
-                show(e.h1_u1), show(e.h1_u2), e.l2_u1, e.l2_u2, e.l2_lambda, show(e.hminus1_lambda)
+                show(e.hminus1_lambda),
+                e.quadrature
             );
         }
         if let Some(e) = &self.estimate {

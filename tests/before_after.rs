@@ -89,10 +89,10 @@ fn compare(case_file: &str, before: &str) {
             assert_eq!(text(x), text(y), "{case_file}: attribute {name}");
         } else {
             let (p, q) = (x.read_raw::<f64>().unwrap(), y.read_raw::<f64>().unwrap());
-            // The error norms are integrated with a rule per cell to 1e-7 of their squares now. The
-            // fixed degree-10 rule before was off (against a rule per cell to 1e-11) by up to 8e-6
-            // at the default case's kinks, 1.1e-5 at the L-shape's corner singularity, and 4.8e-4
-            // in its ‖λ − λh‖, whose λ jumps.
+            // The error norms are integrated by a rule per cell now (src/norms/cubature.rs). The
+            // fixed degree-10 rule before was off by 1.4e-6 in the default case's |u1 − u1h|_H1
+            // (u1 bends on the free boundary) and 1.6e-4 in its ‖λ − λh‖, by 1.2e-5 in the
+            // L-shape's |u2 − u2h|_H1 (its corner singularity) and 5.2e-4 in its ‖λ − λh‖.
             let agree = |a: f64, b: f64| match name.starts_with("error_") {
                 true => (a - b).abs() <= 1e-3 * a.abs(),
                 false => close(a, b, a.abs()),

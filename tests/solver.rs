@@ -448,7 +448,7 @@ fn error_norms_have_their_closed_form_values() {
     let close = |value: f64, exact: f64, tol: f64| {
         assert!((value - exact).abs() <= tol * exact, "{value} against {exact}");
     };
-    // The degree-10 rule integrates these polynomial errors exactly, but for round-off.
+    // The rules of the error norms integrate these polynomial errors exactly, but for round-off.
     let tol = 1e-12;
     close(e.l2_u1, 0.5, tol);
     close(e.h1_u1.unwrap(), pi / 2f64.sqrt(), tol);

@@ -9,7 +9,7 @@
 //! ```
 //!
 //! which this module estimates with δ measured against a finer rule: on each triangle K the case's
-//! rule on K and on K's six cells give two values of ∫_K f_i; where they agree to [`AGREE`] the
+//! rule on K and on K's six cells give two values of ∫_K f_i; where they agree to `AGREE` the
 //! load counts as resolved on K (δ = 0 there); elsewhere each cell is integrated again by the
 //! highest rule on its four halves. An estimate, not a bound: a load whose features fall between
 //! the points of every rule is not seen.
