@@ -266,17 +266,21 @@ def solver(points, cells, case):
 
 
 def error_norms(ref, res, rust, lam):
-    """The reference's error norms, and the norms of (Rust - reference) that bound their difference;
-    lam: the reference's lambda at the Rust vertices."""
+    """The reference's error norms, the estimated errors of their quadrature, and the norms of
+    (Rust - reference) that bound their difference; lam: the reference's lambda at the Rust vertices."""
     dual = norms.DualSubmesh(rust["dual_points"], rust["dual_cells"])
     owner = rust["dual_owner"]
     mine = {k: (v, mu) for (k, v), mu in zip(ref.displacements(res).items(), ref.mu)}
-    errors = norms.all_errors(ref.V, mine, lam[owner], dual, rust["case"]["exact"])
+    exact = rust["case"]["exact"]
+    at_vertices = {k: (v[ref.vertex_dof], mu) for k, (v, mu) in mine.items()}
+    errors, quadrature = norms.exact_errors(rust["points"], rust["cells"], at_vertices, rust["dual_points"],
+                                            rust["dual_cells"], lam[owner], exact)
+    errors["hminus1_lambda"] = dual.errors(lam[owner], exact["lambda"])[1]
     to_dofs = np.empty_like(ref.vertex_dof)
     to_dofs[ref.vertex_dof] = np.arange(len(ref.vertex_dof))  # Rust vertex at each dof
     rust_lam = np.where(ref.boundary[ref.vertex_dof], 0.0, rust["lambda"])
     differences = {k: (rust[k][to_dofs] - v, mu) for k, (v, mu) in mine.items()}
-    return errors, norms.difference_norms(ref.V, differences, (rust_lam - lam)[owner], dual)
+    return errors, quadrature, norms.difference_norms(ref.V, differences, (rust_lam - lam)[owner], dual)
 
 
 def solve_file(rust_path, out_path, guess=None):
@@ -295,8 +299,9 @@ def solve_file(rust_path, out_path, guess=None):
     summary = {"snes_iterations": res["snes_iterations"], "seconds": total, "polish_rounds": res["polish_rounds"]}
     attrs = dict(summary)
     if "exact" in case:
-        errors, diff = error_norms(ref, res, rust, lam)
+        errors, quadrature, diff = error_norms(ref, res, rust, lam)
         attrs.update({"error_" + k: v for k, v in errors.items()})
+        attrs.update({"quadrature_" + k: v for k, v in quadrature.items()})
         attrs.update({"difference_" + k: v for k, v in diff.items()})
     common.write_reference(out_path, rust, fields, {
         "program": "reference: dolfinx %s + PETSc SNES vinewtonrsls" % common.dolfinx_version(), **attrs})
