@@ -92,6 +92,18 @@ fn weights(membranes: &[Membrane]) -> (f64, f64) {
     }
 }
 
+/// η_K of each triangle from its terms (of `m` membranes), its boundary term and its contact term:
+/// (Σ_i η_{i,K}² + η_{∂,K}² + 2 η_{C,K})^½.
+fn indicators(terms: &[TriangleTerms], boundary: &[f64], contact: &[f64], m: usize) -> Vec<f64> {
+    (terms.iter().zip(boundary).zip(contact))
+        .map(|((t, b), c)| {
+            (t.local2[..m].iter().sum::<f64>() + b * b + 2.0 * c)
+                .max(0.0)
+                .sqrt()
+        })
+        .collect()
+}
+
 impl Estimate {
     /// The estimator of `solution` (λ_h = `action`, S_h = `dual`).
     pub fn compute(
@@ -152,7 +164,7 @@ impl Estimate {
                 .collect()
         };
         let mut e = Estimate {
-            indicator: vec![0.0; mesh.n_triangles()],
+            indicator: Vec::new(),
             flux: per(&|t, i| t.flux2[i]),
             oscillation: per(&|t, i| t.oscillation2[i]),
             boundary: lifting.grad2.iter().map(|g| (mu1 * g).sqrt()).collect(),
@@ -173,12 +185,7 @@ impl Estimate {
             resolution,
             which: membranes.iter().map(|m| m.which).collect(),
         };
-        for (t, terms) in terms.iter().enumerate() {
-            let local2: f64 = terms.local2[..m].iter().sum();
-            e.indicator[t] = (local2 + e.boundary[t].powi(2) + 2.0 * e.contact[t])
-                .max(0.0)
-                .sqrt();
-        }
+        e.indicator = indicators(&terms, &e.boundary, &e.contact, m);
         let norm = |c: &[f64]| (c.iter().zip(&problem.mass).map(|(c, m)| c * c * m).sum::<f64>()).sqrt();
         e.means = (membranes.iter().zip(means))
             .map(|(mb, c)| friedrichs * norm(c) / mb.mu.sqrt())

@@ -38,7 +38,51 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>), FileErro
         let kinds: Vec<String> = trace.iter().rev().map(|(_, k)| k.to_string()).collect();
         err(format!("not a readable MSH {VERSION} file: {}", kinds.join(": ")))
     })?;
-    let mut triangles = Vec::new();
+    let (triangles, triangle_tag, lines) = elements(&msh, &err)?;
+    if triangles.is_empty() {
+        return Err(err(
+            "the file has no triangles: the mesh must be made of triangles".into(),
+        ));
+    }
+    let coordinates = nodes(&msh, &node_tags(&bytes).map_err(err)?).map_err(err)?;
+    super::check_memory(coordinates.len(), super::MULTIGRID_BYTES_PER_VERTEX)
+        .map_err(|e| err(e.to_string()))?;
+    // Number the nodes the triangles use by increasing tag; ignore the others.
+    let mut used: Vec<u64> = triangles.iter().flatten().copied().collect();
+    used.sort_unstable();
+    used.dedup();
+    let index: HashMap<u64, usize> = used.iter().enumerate().map(|(i, &t)| (t, i)).collect();
+    let points = (used.iter())
+        .map(|tag| match coordinates.get(tag) {
+            Some(p) if p[2] != 0.0 => Err(err(format!(
+                "node {tag} has z = {}: the mesh must be planar",
+                p[2]
+            ))),
+            Some(p) => Ok([p[0], p[1]]),
+            None => Err(err(format!(
+                "a triangle refers to node {tag}, which the file does not define"
+            ))),
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let names = super::groups::physical_names(&bytes).map_err(err)?;
+    let has_groups = triangle_tag.iter().any(Option::is_some) || !lines.is_empty();
+    let groups = has_groups.then(|| raw_groups(&names, &triangle_tag, &lines, &index));
+    Ok((
+        (
+            points,
+            triangles.iter().map(|t| t.map(|tag| index[&tag])).collect(),
+        ),
+        groups,
+    ))
+}
+
+/// The triangles of the file (their node tags), the physical tag of each, and the lines of a
+/// physical group with their tag.
+#[allow(clippy::type_complexity)]
+fn elements(
+    msh: &mshio::MshFile<u64, i32, f64>,
+    err: &dyn Fn(String) -> FileError,
+) -> Result<(Vec<[u64; 3]>, Vec<Option<i32>>, Vec<([u64; 2], i32)>), FileError> {
     // The physical tag of each triangle and each line, by its entity.
     let physical = |dim: i32, entity: i32| -> Result<Option<i32>, FileError> {
         let tags: &[i32] = match (&msh.data.entities, dim) {
@@ -56,7 +100,7 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>), FileErro
             ))),
         }
     };
-    let (mut triangle_tag, mut lines) = (Vec::new(), Vec::new());
+    let (mut triangles, mut triangle_tag, mut lines) = (Vec::new(), Vec::new(), Vec::new());
     for block in msh.data.elements.iter().flat_map(|e| &e.element_blocks) {
         match (block.entity_dim, block.element_type) {
             (1, ElementType::Lin2) => {
@@ -92,71 +136,46 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>), FileErro
             }
         }
     }
-    if triangles.is_empty() {
-        return Err(err(
-            "the file has no triangles: the mesh must be made of triangles".into(),
-        ));
-    }
-    let coordinates = nodes(&msh, &node_tags(&bytes).map_err(err)?).map_err(err)?;
-    super::check_memory(coordinates.len(), super::MULTIGRID_BYTES_PER_VERTEX)
-        .map_err(|e| err(e.to_string()))?;
-    // Number the nodes the triangles use by increasing tag; ignore the others.
-    let mut used: Vec<u64> = triangles.iter().flatten().copied().collect();
-    used.sort_unstable();
-    used.dedup();
-    let index: HashMap<u64, usize> = used.iter().enumerate().map(|(i, &t)| (t, i)).collect();
-    let points = (used.iter())
-        .map(|tag| match coordinates.get(tag) {
-            Some(p) if p[2] != 0.0 => Err(err(format!(
-                "node {tag} has z = {}: the mesh must be planar",
-                p[2]
-            ))),
-            Some(p) => Ok([p[0], p[1]]),
-            None => Err(err(format!(
-                "a triangle refers to node {tag}, which the file does not define"
-            ))),
-        })
-        .collect::<Result<Vec<_>, _>>()?;
-    let names = super::groups::physical_names(&bytes).map_err(err)?;
-    let has_groups = triangle_tag.iter().any(Option::is_some) || !lines.is_empty();
-    let groups = has_groups.then(|| {
-        // Groups numbered by increasing tag, named by $PhysicalNames or by their tag.
-        let numbering = |dim: i32, tags: &mut dyn Iterator<Item = i32>| {
-            let mut tags: Vec<i32> = tags.collect();
-            tags.sort_unstable();
-            tags.dedup();
-            let name = |t: i32| {
-                (names.iter().find(|((d, tag), _)| *d == dim && *tag == t))
-                    .map_or_else(|| t.to_string(), |(_, n)| n.clone())
-            };
-            let names: Vec<String> = tags.iter().map(|&t| name(t)).collect();
-            (tags, names)
+    Ok((triangles, triangle_tag, lines))
+}
+
+/// The physical groups of the triangles and lines, numbered by increasing tag and named by
+/// $PhysicalNames (`names`) or by their tag; `index` numbers the nodes the triangles use.
+fn raw_groups(
+    names: &[((i32, i32), String)],
+    triangle_tag: &[Option<i32>],
+    lines: &[([u64; 2], i32)],
+    index: &HashMap<u64, usize>,
+) -> RawGroups {
+    // Groups numbered by increasing tag, named by $PhysicalNames or by their tag.
+    let numbering = |dim: i32, tags: &mut dyn Iterator<Item = i32>| {
+        let mut tags: Vec<i32> = tags.collect();
+        tags.sort_unstable();
+        tags.dedup();
+        let name = |t: i32| {
+            (names.iter().find(|((d, tag), _)| *d == dim && *tag == t))
+                .map_or_else(|| t.to_string(), |(_, n)| n.clone())
         };
-        let (surface_tags, surfaces) = numbering(2, &mut triangle_tag.iter().flatten().copied());
-        let (curve_tags, curves) = numbering(1, &mut lines.iter().map(|l| l.1));
-        let group = |tags: &[i32], t: i32| tags.binary_search(&t).expect("a tag numbered") as u32;
-        RawGroups {
-            surfaces,
-            curves,
-            triangle: (triangle_tag.iter())
-                .map(|t| t.map_or(super::groups::NONE, |t| group(&surface_tags, t)))
-                .collect(),
-            // Lines on nodes that no triangle uses are not on ω.
-            lines: (lines.iter())
-                .filter_map(|(l, t)| {
-                    let [a, b] = l.map(|tag| index.get(&tag).copied());
-                    Some(([a?, b?], group(&curve_tags, *t)))
-                })
-                .collect(),
-        }
-    });
-    Ok((
-        (
-            points,
-            triangles.iter().map(|t| t.map(|tag| index[&tag])).collect(),
-        ),
-        groups,
-    ))
+        let names: Vec<String> = tags.iter().map(|&t| name(t)).collect();
+        (tags, names)
+    };
+    let (surface_tags, surfaces) = numbering(2, &mut triangle_tag.iter().flatten().copied());
+    let (curve_tags, curves) = numbering(1, &mut lines.iter().map(|l| l.1));
+    let group = |tags: &[i32], t: i32| tags.binary_search(&t).expect("a tag numbered") as u32;
+    RawGroups {
+        surfaces,
+        curves,
+        triangle: (triangle_tag.iter())
+            .map(|t| t.map_or(super::groups::NONE, |t| group(&surface_tags, t)))
+            .collect(),
+        // Lines on nodes that no triangle uses are not on ω.
+        lines: (lines.iter())
+            .filter_map(|(l, t)| {
+                let [a, b] = l.map(|tag| index.get(&tag).copied());
+                Some(([a?, b?], group(&curve_tags, *t)))
+            })
+            .collect(),
+    }
 }
 
 /// Refuses files that are not MSH 4.1, naming their version, by their first bytes.
