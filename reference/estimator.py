@@ -535,7 +535,6 @@ def estimate(path, variants=VARIANTS, lift_means=("dualmin", "patch")):
 # ---------------------------------------------------------------------------------------------
 
 MAX_RULE = 20  # the highest degree of the rules (src/quadrature_tables.rs, reference/gen_quadrature.py)
-ERROR_DEGREE = 10  # the Rust code's rule for the error norms (src/norms.rs)
 
 
 def on_triangles(geo, degree):

@@ -1,4 +1,4 @@
-"""The Rust code's error norms (src/norms.rs), computed with UFL by the same quadrature rule.
+"""The Rust code's error norms (src/norms/), computed here.
 
 On T_h, for u_h in P1 and an exact u with gradient G (expressions of the case file):
 
@@ -9,9 +9,11 @@ on the dual submesh S_h, for lambda_h constant on each dual cell D_a (zero near 
     ||lambda - lambda_h||_L2,   ||lambda - lambda_h||_H-1 ~ |z|_H1 = (lambda - lambda_h, z)^1/2,
     z in P1_0(S_h):  (grad z, grad v) = (lambda - lambda_h, v)  for all v in P1_0(S_h),
 
-every integral of an exact expression by basix's degree-10 rule (dx with quadrature_degree 10).
-The same functions give the norms of the difference of two discrete fields (exact = 0), which
-bound the difference of two codes' error values by the triangle inequality.
+`exact_errors` integrates the L2 and H1 norms of an exact solution by this reference's own adaptive
+rule (reference/cubature.py), with an estimate of its error; the H-1 norm, and every norm of
+`all_errors`, by basix's degree-10 rule (dx with quadrature_degree 10). `all_errors` also gives the
+norms of the difference of two discrete fields (exact = 0), integrated exactly, which bound the
+difference of two codes' error values by the triangle inequality.
 """
 import numpy as np
 import ufl
@@ -23,7 +25,7 @@ import dolfinx.fem.petsc  # noqa: F401  (registers fem.petsc)
 
 from . import common, cubature
 
-ERROR_DEGREE = 10  # the Rust code's error rule (ERROR_QUADRATURE in src/norms.rs)
+ERROR_DEGREE = 10  # the H-1 norm's rule, the Rust code's too (ERROR_QUADRATURE in src/norms/mod.rs)
 
 
 def scalar(form):

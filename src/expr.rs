@@ -255,10 +255,23 @@ impl Program {
         out: &mut [&mut [f64]],
         values: &mut Vec<[f64; BLOCK]>,
     ) {
+        self.by_blocks(points, out, values, |_, _| {});
+    }
+
+    /// The steps run on each block of [`BLOCK`] points, the outputs copied out, then `each` with
+    /// the steps' values and the block's number of points.
+    fn by_blocks(
+        &self,
+        points: &[[f64; 2]],
+        out: &mut [&mut [f64]],
+        values: &mut Vec<[f64; BLOCK]>,
+        mut each: impl FnMut(&[[f64; BLOCK]], usize),
+    ) {
         values.resize(self.steps.len(), [0.0; BLOCK]);
         for (k, points) in points.chunks(BLOCK).enumerate() {
             self.run(points, values);
             self.copy_out(values, out, k * BLOCK..k * BLOCK + points.len());
+            each(values, points.len());
         }
     }
 
@@ -275,15 +288,13 @@ impl Program {
         margins: &mut Vec<f64>,
     ) {
         let branches: Vec<Step> = self.steps.iter().copied().filter(Step::branches).collect();
-        values.resize(self.steps.len(), [0.0; BLOCK]);
+        let j = branches.len();
         margins.clear();
-        for (k, points) in points.chunks(BLOCK).enumerate() {
-            self.run(points, values);
-            self.copy_out(values, out, k * BLOCK..k * BLOCK + points.len());
-            let (base, j) = (margins.len(), branches.len());
-            margins.resize(base + points.len() * j, 0.0);
+        self.by_blocks(points, out, values, |values, n| {
+            let base = margins.len();
+            margins.resize(base + n * j, 0.0);
             for (at, step) in branches.iter().enumerate() {
-                let v = |s: u32| &values[s as usize][..points.len()];
+                let v = |s: u32| &values[s as usize][..n];
                 let slots = margins[base + at..].iter_mut().step_by(j);
                 match *step {
                     Step::Compare(_, a, b) | Step::Binary(_, a, b) => slots
@@ -294,7 +305,7 @@ impl Program {
                     _ => unreachable!("only the steps that branch"),
                 }
             }
-        }
+        });
     }
 
     /// The number of steps that branch (the margins of each point).

@@ -114,15 +114,13 @@ pub fn integrate<const M: usize, D: Density<M>>(
             (0..M).for_each(|m| closed.error[m] += e[m]);
         }
     }
-    let open = Evaluator::new(density, rules).estimates(&open);
-    closed.value = whole.minus(&sum(&Integral::zero(), &open)).value;
-    let points = Evaluator::new(density, rules).points_per_piece();
-    refine(
-        open,
-        closed,
-        Evaluator::new(density, rules),
-        MIN_BUDGET.max(n * points / 8),
-    )
+    let ev = Evaluator::new(density, rules);
+    let open = ev.all(&open);
+    for (m, v) in closed.value.iter_mut().enumerate() {
+        *v -= open.iter().map(|e| e.value[m]).sum::<f64>();
+    }
+    let budget = MIN_BUDGET.max(n * ev.points_per_piece() / 8);
+    refine(open, closed, ev, budget)
 }
 
 /// The largest of the errors `e` relative to the tolerances `tol`.
@@ -158,21 +156,18 @@ fn refine<const M: usize, D: Density<M>>(
         }
         let mut is_cut = vec![false; open.len()];
         chosen.iter().for_each(|&i| is_cut[i] = true);
-        let (cut, keep): (Vec<_>, Vec<_>) = open.into_iter().zip(is_cut).partition(|(_, c)| *c);
-        let (cut, keep): (Vec<_>, Vec<_>) = (
-            cut.into_iter().map(|(e, _)| e).collect(),
-            keep.into_iter().map(|(e, _)| e).collect(),
-        );
+        let (mut cut, mut keep) = (Vec::new(), Vec::new());
+        for (e, c) in open.into_iter().zip(is_cut) {
+            if c {
+                cut.push(e)
+            } else {
+                keep.push(e)
+            }
+        }
         open = keep;
         budget -= cut.len() * cost;
         let quarters: Vec<Piece> = cut.iter().flat_map(|e| e.piece.quarters()).collect();
-        let parts = parallel::map_with(
-            quarters.len(),
-            PIECE,
-            || ev.clone(),
-            |ev, range| ev.estimates(&quarters[range]),
-        );
-        let mut quarters: Vec<Estimate<M>> = parts.into_iter().flatten().collect();
+        let mut quarters = ev.all(&quarters);
         for (parent, quarters) in cut.iter().zip(quarters.chunks_mut(4)) {
             across_branch(parent, quarters);
             for e in quarters.iter() {
@@ -234,13 +229,6 @@ impl<const M: usize> Integral<M> {
         Integral {
             value: std::array::from_fn(|m| self.value[m] + other.value[m]),
             error: std::array::from_fn(|m| self.error[m] + other.error[m]),
-        }
-    }
-
-    fn minus(&self, other: &Integral<M>) -> Self {
-        Integral {
-            value: std::array::from_fn(|m| self.value[m] - other.value[m]),
-            error: std::array::from_fn(|m| self.error[m] - other.error[m]),
         }
     }
 }
@@ -345,6 +333,17 @@ impl<'a, const M: usize, D: Density<M>> Evaluator<'a, M, D> {
     /// The points evaluated per piece: both rules', and the three corners where the fields branch.
     fn points_per_piece(&self) -> usize {
         self.rules[0].len() + self.rules[1].len() + if self.branches > 0 { 3 } else { 0 }
+    }
+
+    /// The estimates of `pieces`, in their order, in parallel (each thread with room of its own).
+    fn all(&self, pieces: &[Piece]) -> Vec<Estimate<M>> {
+        let parts = parallel::map_with(
+            pieces.len(),
+            PIECE,
+            || self.clone(),
+            |ev, r| ev.estimates(&pieces[r]),
+        );
+        parts.into_iter().flatten().collect()
     }
 
     /// The estimates of `pieces`, in their order.

@@ -12,7 +12,7 @@ use crate::problem::DiscreteProblem;
 use crate::result::{Attribute, Describe, Field, Place};
 use cubature::{Density, Integral, Rules};
 
-pub mod cubature;
+pub(crate) mod cubature;
 
 /// Degree of the rule of the H⁻¹ norm's right-hand side on S_h.
 const ERROR_QUADRATURE: Quadrature = Quadrature { degree: 10 };
