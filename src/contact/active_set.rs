@@ -94,15 +94,7 @@ pub(super) fn obstacle(
     let data = [&rhs[..], &problem.gap_h[..]];
     let (mut correcting, mut same_set) = (true, false);
     loop {
-        if crate::progress::cancelled() {
-            return Err(SolveError::Cancelled);
-        }
-        if stats.iterations == options.max_iterations {
-            return Err(SolveError::IterationCap {
-                iterations: stats.iterations,
-                changed: stats.changes.last().copied().unwrap_or(0),
-            });
-        }
+        may_step(&options, &stats)?;
         stats.iterations += 1;
         let mut next = w_problem.step(system, &mut solver, data, (!same_set).then_some(&active[..]))?;
         let loose = solver.tighten();
@@ -139,6 +131,21 @@ pub(super) fn obstacle(
             false => next.next,
         };
     }
+}
+
+/// Whether another active-set step may be taken: not once the run is cancelled, nor beyond
+/// `options.max_iterations`.
+fn may_step(options: &SolverOptions, stats: &SolverStats) -> Result<(), SolveError> {
+    if crate::progress::cancelled() {
+        return Err(SolveError::Cancelled);
+    }
+    if stats.iterations == options.max_iterations {
+        return Err(SolveError::IterationCap {
+            iterations: stats.iterations,
+            changed: stats.changes.last().copied().unwrap_or(0),
+        });
+    }
+    Ok(())
 }
 
 /// The active set the guess predicts; settled locally first (`settle`) with the guess (and the
