@@ -321,11 +321,17 @@ fn quadrature_defects(
     loads: &[CellLoads],
 ) -> Vec<Vec<f64>> {
     let mesh = &problem.mesh;
+    // Each triangle's six cells summed in parallel, then added to its vertices in order.
+    let per_triangle: Vec<[[f64; 3]; 2]> = parallel::collect(mesh.n_triangles(), |t| {
+        (loads[6 * t..6 * t + 6].iter()).fold([[0.0; 3]; 2], |sum, l| {
+            std::array::from_fn(|i| std::array::from_fn(|j| sum[i][j] + l.f_phi[i][j]))
+        })
+    });
     (membranes.iter().enumerate())
         .map(|(i, m)| {
             let mut on_s_h = vec![0.0; mesh.n_vertices()];
-            for (s, l) in loads.iter().enumerate() {
-                for (a, v) in mesh.triangle(s / 6).into_iter().zip(l.f_phi[i]) {
+            for (tri, sums) in mesh.triangles().zip(&per_triangle) {
+                for (a, v) in tri.into_iter().zip(sums[i]) {
                     on_s_h[a] += v;
                 }
             }
