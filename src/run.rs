@@ -225,6 +225,14 @@ impl Run<'_> {
                 show(e.hminus1_lambda),
                 e.quadrature
             );
+            if let Some(m) = &e.boundary {
+                out += &format!(
+                    "exact       misses the boundary data on ∂ω_h, the mesh's polygon, by up to {:.1e} of \
+                     their size (at ({:.4}, {:.4})): the errors above are against the solution on \
+                     another domain, while η bounds the error against the solution on ω_h\n",
+                    m.relative, m.at[0], m.at[1]
+                );
+            }
         }
         if let Some(e) = &self.estimate {
             out += &e.summary(self.effectivity());

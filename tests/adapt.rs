@@ -25,6 +25,36 @@ fn adapted(mut case: Case, max_vertices: usize) -> (Adapted, tempfile::TempDir, 
     (a, dir, out)
 }
 
+/// On the Part-2 disk (data/cases/part2_disk.toml: loads and λ jumping across a circle no mesh
+/// edge follows), adaptive refinement keeps the effectivity within [1, 1.2] at every step and η
+/// and the error fall at the optimal rate N^(−1/2).
+#[test]
+fn adaptivity_with_a_load_jumping_across_a_curve_keeps_a_sharp_bound_at_the_optimal_rate() {
+    let case = Case::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases/part2_disk.toml")).unwrap();
+    let mut case = case;
+    case.refine = 0;
+    let settings = Adaptivity {
+        theta: 0.5,
+        target: None,
+        max_vertices: 20_000,
+        steps: 40,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let a = adapt(&case, &settings, false, &dir.path().join("adapt")).unwrap();
+    let steps = &a.adaptive;
+    assert!(steps.len() >= 12, "{} steps", steps.len());
+    for (k, s) in steps.iter().enumerate() {
+        let effectivity = s.estimator / s.error.unwrap();
+        assert!(
+            (1.0..1.2).contains(&effectivity),
+            "step {k}: effectivity {effectivity}"
+        );
+    }
+    let eta = rate(steps, |s| Some(s.estimator)).unwrap();
+    let error = rate(steps, |s| s.error).unwrap();
+    assert!(eta >= 0.48 && error >= 0.48, "rates: η {eta}, error {error}");
+}
+
 #[test]
 fn adaptivity_on_the_l_shape_reaches_the_optimal_rate_with_a_guaranteed_bound() {
     let case =

@@ -5,12 +5,14 @@
 use crate::action::Action;
 use crate::assembly::{gradients, Quadrature, Stiffness};
 use crate::contact::Solution;
+use crate::datum::On;
 use crate::expr::Expr;
 use crate::linear::dirichlet_solve;
 use crate::mesh::{DualMesh, Mesh};
-use crate::problem::DiscreteProblem;
+use crate::problem::{DiscreteProblem, Lower};
 use crate::result::{Attribute, Describe, Field, Place};
 use cubature::{Density, Integral, Rules};
+use std::collections::HashMap;
 
 pub(crate) mod cubature;
 
@@ -72,13 +74,31 @@ pub struct Errors {
     /// ‖λ − λ_h‖_H⁻¹(ω) by [`hminus1_lambda`], when asked for (it costs a solve on S_h).
     pub hminus1_lambda: Option<f64>,
     /// The largest estimated relative error of the norms' quadrature (the adaptive rule of
-    /// [`cubature`]; the H⁻¹ norm's fixed rule not included).
+    /// `cubature`; the H⁻¹ norm's fixed rule not included).
     pub quadrature: f64,
     /// Whether u2 is a rigid obstacle ([`Exact::rigid`]): u1's errors are then u's, and u2's
     /// (ψ's interpolation error) are not reported.
     #[serde(skip)]
     pub rigid: bool,
+    /// Where the exact solution does not take the boundary data on ∂ω_h, the polygon of the mesh
+    /// (a curved ω, or a mesh of another domain): the errors are then against the solution of
+    /// another problem than the one on ω_h, which the estimator's η bounds the error against.
+    #[serde(skip)]
+    pub boundary: Option<Mismatch>,
 }
+
+/// The largest difference between the exact solution and the boundary data on ∂ω_h.
+#[derive(Debug, Clone, Copy)]
+pub struct Mismatch {
+    /// max |u1 − g|, |u2 − g2| (above a rigid obstacle |u − g|) at the sample points of the
+    /// boundary edges, relative to the largest of these values there.
+    pub relative: f64,
+    /// The point where it is largest.
+    pub at: [f64; 2],
+}
+
+/// A mismatch below this part of the boundary values is round-off.
+const MISMATCH: f64 = 1e-9;
 
 impl Errors {
     /// The errors of `solution` and `action` against `exact`; with `hminus1`, the H⁻¹ norm too.
@@ -122,8 +142,62 @@ impl Errors {
             hminus1_lambda: hminus1.then(|| hminus1_lambda(dual, &action.lambda, &exact.lambda)),
             quadrature,
             rigid: exact.rigid,
+            boundary: boundary_mismatch(problem, exact),
         }
     }
+}
+
+/// The edges of ∂ω_h: those of one triangle only, among the edges of two boundary vertices.
+fn boundary_edges(mesh: &Mesh) -> Vec<[usize; 2]> {
+    let mut count: HashMap<[usize; 2], usize> = HashMap::new();
+    for tri in mesh.triangles() {
+        for j in 0..3 {
+            let (a, b) = (tri[j], tri[(j + 1) % 3]);
+            if mesh.on_boundary[a] && mesh.on_boundary[b] {
+                *count.entry([a.min(b), a.max(b)]).or_default() += 1;
+            }
+        }
+    }
+    let mut edges: Vec<[usize; 2]> = (count.into_iter())
+        .filter(|&(_, n)| n == 1)
+        .map(|(e, _)| e)
+        .collect();
+    edges.sort_unstable();
+    edges
+}
+
+/// Where the exact solution differs from the boundary data on ∂ω_h by more than round-off, at
+/// the quarter points of each boundary edge (it agrees at the vertices wherever ω_h is inscribed
+/// in ω): u1 against g and u2 against g2, or u against g above a rigid obstacle.
+fn boundary_mismatch(problem: &DiscreteProblem, exact: &Exact) -> Option<Mismatch> {
+    let (mesh, data) = (&problem.mesh, &problem.data);
+    let fit = "the data fit the mesh's groups (checked by DiscreteProblem::new)";
+    let g = data.g.pieces("g", mesh, On::Curves).expect(fit);
+    let g2 = match &data.lower {
+        Lower::Membrane { g2, .. } => Some(g2.pieces("g2", mesh, On::Curves).expect(fit)),
+        Lower::Rigid { .. } => None,
+    };
+    let (mut worst, mut scale, mut at) = (0.0_f64, 0.0_f64, [0.0; 2]);
+    for [a, b] in boundary_edges(mesh) {
+        let (p, q) = (mesh.points[a], mesh.points[b]);
+        for t in [0.25, 0.5, 0.75] {
+            let x = [p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])];
+            let mut pairs = vec![(exact.u1.eval(x[0], x[1]), g.on_edge(a, b).eval(x[0], x[1]))];
+            if let Some(g2) = &g2 {
+                pairs.push((exact.u2.eval(x[0], x[1]), g2.on_edge(a, b).eval(x[0], x[1])));
+            }
+            for (u, given) in pairs {
+                scale = scale.max(u.abs()).max(given.abs());
+                if (u - given).abs() > worst {
+                    (worst, at) = ((u - given).abs(), x);
+                }
+            }
+        }
+    }
+    (worst > MISMATCH * scale).then(|| Mismatch {
+        relative: worst / scale,
+        at,
+    })
 }
 
 impl Errors {
@@ -151,6 +225,11 @@ impl Describe for Errors {
             ("error_h1_u2", "", self.h1_u2),
             ("error_energy", "error_energy", self.energy),
             ("error_quadrature", "error_quadrature", Some(self.quadrature)),
+            (
+                "exact_boundary_mismatch",
+                "exact_boundary_mismatch",
+                Some(self.boundary.map_or(0.0, |m| m.relative)),
+            ),
             (
                 "error_hminus1_lambda",
                 "error_hminus1_lambda",
