@@ -365,10 +365,15 @@ def boundary_lifting(geo, case, lam, gap):
             delta = g(y[:, 0], y[:, 1]) - ((1 - tau) * gp + tau * gq)
             ddelta = dg(y[:, 0], y[:, 1]) @ (Qp - P) - (gq - gp)
             ds = -gl[lc]
-            field = delta[:, None] * ds[None] + ddelta[:, None] * (gl[lq][None] - tau[:, None] * ds[None])
-            n2 = geo.area_K[K] * np.sum(wt * np.sum(field ** 2, axis=1))
+            v = gl[lq][None] - tau[:, None] * ds[None]
+            # psi_e = s^k delta(tau): ||grad psi_e||^2 = |K| (k A + 2 C + B / k), least at k = (B/A)^(1/2)
+            A = np.sum(wt * delta ** 2) * float(ds @ ds)
+            B = np.sum(wt * ddelta ** 2 * np.sum(v ** 2, axis=1))
+            C = np.sum(wt * delta * ddelta * (v @ ds))
+            k = max(1.0, math.sqrt(B / A)) if A > 0 else 1.0
+            n2 = max(0.0, geo.area_K[K] * (k * A + 2 * C + B / k))
             sstar = 1.0 / (1.0 + np.maximum(tau, 1 - tau))
-            lampsi[K] += lam[c] * 2 * geo.area_K[K] * np.sum(wt * delta * sstar ** 3 / 3)
+            lampsi[K] += lam[c] * 2 * geo.area_K[K] * np.sum(wt * delta * sstar ** (k + 2) / (k + 2))
             parts.append((math.sqrt(n2), min(0.0, float(np.min(delta))), (gp, gq)))
         if len(parts) == 1:
             grad2[K] = parts[0][0] ** 2  # w_h + psi = (1 - s) w_c + s g >= 0: psi is the lifting

@@ -40,7 +40,7 @@ fn square(body: &str, n: usize, diagonal: &str) -> Case {
 }
 
 /// The bound holds (η ≥ |||u − u_h|||, the error from the exact solution by quadrature) on every
-/// shipped case with an exact gradient, on the two smallest levels, and is not loose.
+/// shipped case with an exact gradient, on the two smallest levels, and is sharp.
 #[test]
 fn the_bound_holds_on_every_exact_case() {
     let mut checked = 0;
@@ -55,8 +55,9 @@ fn the_bound_holds_on_every_exact_case() {
             continue;
         }
         // Above an obstacle η also counts ψ − ψ_h where u_h dips below ψ, which the flux term
-        // sees too (docs/a-posteriori.md §14): the bound is looser on coarse meshes.
-        let loose = if case.data.is_obstacle() { 1.9 } else { 1.6 };
+        // sees too (docs/a-posteriori.md §14): the bound is looser on coarse meshes. Between two
+        // membranes 1.214 at most (lshape_tensions at 8², 1.311 with the radial lifting of g − g_h).
+        let loose = if case.data.is_obstacle() { 1.9 } else { 1.25 };
         for refine in 0..2 {
             let mut c = case.clone();
             match c.cells() {

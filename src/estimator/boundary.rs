@@ -2,15 +2,18 @@
 //! a boundary edge e = [p, q] and third vertex c, with s = λ_p + λ_q = 1 − λ_c and τ = λ_q / s,
 //!
 //! ```text
-//! ψ_e = s δ(τ),   δ(τ) = g(p + τ(q − p)) − [(1 − τ) g(p) + τ g(q)],
+//! ψ_e = s^k δ(τ),   δ(τ) = g(p + τ(q − p)) − [(1 − τ) g(p) + τ g(q)],   k ≥ 1,
 //! ```
 //!
 //! zero on the two other edges, so ψ = Σ_e ψ_e ∈ H¹(ω) with ψ = g − g_h on ∂ω, and w_h + ψ ≥ 0
-//! (w_h + ψ_e = (1 − s) w_h(c) + s g ≥ 0 on K). In the coordinates (s, τ) ∈ [0, 1]²,
-//! dx = 2|K| s ds dτ and ∇ψ_e = δ(τ) ∇s + δ'(τ)(∇λ_q − τ∇s) does not depend on s, so
-//! ‖∇ψ_e‖²_K = |K| ∫_0^1 |δ∇s + δ'(∇λ_q − τ∇s)|² dτ, and ∫_K λ_h ψ_e = λ_c 2|K| ∫_0^1 δ s*³/3 dτ
-//! with s* = 1 / (1 + max(τ, 1 − τ)) bounding D_c ∩ K (λ_h = 0 on the cells of p and q).
-//! The integrals in τ: Gauss–Legendre on [0, ½] and [½, 1] (s* has a kink at ½).
+//! (w_h + ψ_e ≥ (1 − s) w_h(c) + s g ≥ 0 on K, as s^k δ ≥ s δ where δ < 0). In the coordinates
+//! (s, τ) ∈ [0, 1]², dx = 2|K| s ds dτ and ∇ψ_e = s^{k−1} [k δ(τ) ∇s + δ'(τ) v], v = ∇λ_q − τ∇s,
+//! so ‖∇ψ_e‖²_K = (|K|/k) ∫_0^1 |k δ∇s + δ'v|² dτ = |K| (k A + 2C + B/k) with A = ∫ δ²|∇s|²,
+//! B = ∫ δ'²|v|², C = ∫ δδ' ∇s·v: least at k = (B/A)^½ (≥ 1 unless δ is nearly flat), where it is
+//! 2|K| ((AB)^½ + C). k = 1 is the radial extension of docs/a-posteriori.md §5; the least k takes
+//! a quarter off ‖∇ψ_e‖ for a parabola on a right triangle. ∫_K λ_h ψ_e = λ_c 2|K| ∫_0^1 δ
+//! s*^{k+2}/(k+2) dτ with s* = 1 / (1 + max(τ, 1 − τ)) bounding D_c ∩ K (λ_h = 0 on the cells of
+//! p and q). The integrals in τ: Gauss–Legendre on [0, ½] and [½, 1] (s* has a kink at ½).
 
 use crate::assembly::gradients;
 use crate::datum::Pieces;
@@ -72,21 +75,32 @@ fn on_edge(mesh: &Mesh, t: usize, j: usize, g: &Expr, lambda: &[f64], rule: &[(f
     let along = |tau: f64| g.eval(p[0] + tau * (q[0] - p[0]), p[1] + tau * (q[1] - p[1]));
     let (gp, gq) = (along(0.0), along(1.0));
     let lambda_c = lambda[tri[(j + 2) % 3]];
-    let (mut grad2, mut with_lambda, mut range) = (0.0, 0.0, [0.0_f64; 2]);
-    for &(tau, w) in rule {
-        let delta = along(tau) - ((1.0 - tau) * gp + tau * gq);
-        let derivative = (8.0 * (along(tau + STEP) - along(tau - STEP)) - along(tau + 2.0 * STEP)
-            + along(tau - 2.0 * STEP))
-            / (12.0 * STEP);
-        let d1 = derivative - (gq - gp);
-        let v = [0, 1].map(|k| delta * grad_s[k] + d1 * (grad_q[k] - tau * grad_s[k]));
-        grad2 += w * (v[0] * v[0] + v[1] * v[1]);
-        let s_star = 1.0 / (1.0 + tau.max(1.0 - tau));
-        with_lambda += w * delta * s_star.powi(3) / 3.0;
-        range = [range[0].min(delta), range[1].max(delta)];
-    }
+    let dot = |a: [f64; 2], b: [f64; 2]| a[0] * b[0] + a[1] * b[1];
+    let (mut a, mut b, mut c, mut range) = (0.0, 0.0, 0.0, [0.0_f64; 2]);
+    let deltas: Vec<f64> = (rule.iter())
+        .map(|&(tau, w)| {
+            let delta = along(tau) - ((1.0 - tau) * gp + tau * gq);
+            let derivative = (8.0 * (along(tau + STEP) - along(tau - STEP)) - along(tau + 2.0 * STEP)
+                + along(tau - 2.0 * STEP))
+                / (12.0 * STEP);
+            let d1 = derivative - (gq - gp);
+            let v = [0, 1].map(|k| grad_q[k] - tau * grad_s[k]);
+            a += w * delta * delta * dot(grad_s, grad_s);
+            b += w * d1 * d1 * dot(v, v);
+            c += w * delta * d1 * dot(grad_s, v);
+            range = [range[0].min(delta), range[1].max(delta)];
+            delta
+        })
+        .collect();
+    let k = if a > 0.0 { (b / a).sqrt().max(1.0) } else { 1.0 };
+    let with_lambda: f64 = (rule.iter().zip(&deltas))
+        .map(|(&(tau, w), delta)| {
+            let s_star = 1.0 / (1.0 + tau.max(1.0 - tau));
+            w * delta * s_star.powf(k + 2.0) / (k + 2.0)
+        })
+        .sum();
     OnTriangle {
-        grad_norm: (area * grad2).sqrt(),
+        grad_norm: (area * (k * a + 2.0 * c + b / k)).max(0.0).sqrt(),
         with_lambda: lambda_c * 2.0 * area * with_lambda,
         range,
     }
@@ -164,8 +178,10 @@ mod tests {
         }
     }
 
-    /// K = (0,0), (1,0), (0,1), the edge y = 0 on ∂ω, g = x²: ψ = x²/(1 − y) − x, and by hand
-    /// ∫_K |∇ψ|² = ½ ∫_0^1 (2τ − 1)² + τ⁴ dτ = 4/15.
+    /// K = (0,0), (1,0), (0,1), the edge y = 0 on ∂ω, g = x²: s = 1 − y, τ = x/(1 − y),
+    /// δ = τ² − τ, ∇s = (0, −1), v = (1, τ), so A = ∫ δ² = 1/30, B = ∫ (2τ − 1)²(1 + τ²) = 7/15,
+    /// C = −∫ (τ² − τ)(2τ − 1)τ = 1/60: k = √14 and ‖∇ψ‖²_K = (AB)^½ + C = (2√14 + 1)/60, against
+    /// 4/15 for the radial extension ψ = s δ (k = 1).
     #[test]
     fn the_lifting_of_a_parabola_has_its_closed_form_norm() {
         let mesh = Mesh::from_parts(
@@ -179,12 +195,13 @@ mod tests {
         let pieces = datum.pieces("g", &mesh, crate::datum::On::Curves).unwrap();
         let on = lifting(&mesh, &neighbour, &pieces, &[0.0, 0.0, 2.0], Some(&[0.0; 3]));
         assert!(
-            (on[0].grad_norm.powi(2) - 4.0 / 15.0).abs() < 1e-12,
+            (on[0].grad_norm.powi(2) - (2.0 * 14f64.sqrt() + 1.0) / 60.0).abs() < 1e-12,
             "{}",
             on[0].grad_norm
         );
         // ∫_K λ_h ψ with λ_h = 2 on D_c ∩ K = {y ≥ x, y ≥ 1 − x − y}: by the (s, τ) formula,
-        // 2 · 2|K| ∫ (τ² − τ) s*³/3 dτ; against a brute-force sum over a fine grid of K.
+        // 2 · 2|K| ∫ (τ² − τ) s*^{k+2}/(k + 2) dτ; against a brute-force sum over a fine grid of K.
+        let k = 14f64.sqrt();
         let (mut brute, n) = (0.0, 2000);
         let cell = 1.0 / n as f64;
         // The grid's lower and upper triangles inside K, by their centroids.
@@ -193,7 +210,8 @@ mod tests {
                 for (shift, inside) in [(1.0 / 3.0, true), (2.0 / 3.0, i + j + 2 <= n)] {
                     let (x, y) = ((i as f64 + shift) * cell, (j as f64 + shift) * cell);
                     if inside && y >= x && y >= 1.0 - x - y {
-                        brute += 2.0 * (x * x / (1.0 - y) - x) * 0.5 * cell * cell;
+                        let (s, tau) = (1.0 - y, x / (1.0 - y));
+                        brute += 2.0 * s.powf(k) * (tau * tau - tau) * 0.5 * cell * cell;
                     }
                 }
             }
