@@ -710,7 +710,7 @@ impl Case {
             ("exact.u2", &exact.u2),
             ("exact.lambda", &exact.lambda),
         ] {
-            if let Some(p) = mesh.points.iter().find(|p| !e.eval(p[0], p[1]).is_finite()) {
+            if let Some(p) = first_not_finite(mesh, e).map(|a| mesh.points[a]) {
                 return Err(err(format!(
                     "key '{key}' is {} at the vertex ({}, {}): an exact solution must be finite",
                     e.eval(p[0], p[1]),
@@ -1175,6 +1175,20 @@ fn validation_levels(v: &ValidationTable, mesh: &MeshSpec) -> Result<Levels, Str
         return Err(format!("key '{key}' = {l:?}: need increasing levels"));
     }
     Ok(levels)
+}
+
+/// The first vertex of `mesh` where `e` is not a finite number, the vertices evaluated in parallel
+/// pieces.
+fn first_not_finite(mesh: &Mesh, e: &Expr) -> Option<usize> {
+    let pieces = crate::parallel::map(mesh.n_vertices(), crate::parallel::PIECE, |range| {
+        let mut values = vec![0.0; range.len()];
+        e.eval_many(&mesh.points[range.clone()], &mut values);
+        values
+            .iter()
+            .position(|v| !v.is_finite())
+            .map(|k| range.start + k)
+    });
+    pieces.into_iter().flatten().next()
 }
 
 #[cfg(test)]

@@ -14,6 +14,12 @@ use std::ops::Range;
 /// of 10⁵ vertices gives every core of a large machine some.
 pub const PIECE: usize = 1 << 12;
 
+/// Sorts `v` in parallel. Its items are to be distinct (a total order), so that the result does
+/// not depend on the threads.
+pub fn sort<T: Ord + Send>(v: &mut [T]) {
+    v.par_sort_unstable();
+}
+
 /// The pieces of 0..n of `size` items each (the last one shorter).
 fn pieces(n: usize, size: usize) -> impl IndexedParallelIterator<Item = Range<usize>> {
     let size = size.max(1);

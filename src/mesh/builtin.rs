@@ -32,7 +32,10 @@ impl Mesh {
         diagonal: Diagonal,
     ) -> Result<Self, MeshError> {
         let (points, triangles) = rectangle_raw(corner0, corner1, nx, ny, diagonal);
-        Mesh::new(points, triangles)
+        let on_boundary = (0..points.len())
+            .map(|v| grid_index(v, nx, ny).is_some_and(|(ix, iy)| ix == 0 || ix == nx || iy == 0 || iy == ny))
+            .collect();
+        Mesh::constructed(points, triangles, on_boundary)
     }
 
     /// The L-shaped domain (−1, 1)² \ [0, 1] × [−1, 0] with n × n cells on the full square (n even).
@@ -42,6 +45,15 @@ impl Mesh {
     pub fn l_shape(n: usize, diagonal: Diagonal, grading: f64) -> Result<Self, MeshError> {
         let n = n + n % 2;
         let (mut points, triangles) = rectangle_raw([-1.0, -1.0], [1.0, 1.0], n, n, diagonal);
+        // The outer square and the two edges of the cut, x = 0 for y ≤ 0 and y = 0 for x ≥ 0.
+        let (h, outer) = (n / 2, |i: usize| i == 0 || i == n);
+        let on_boundary: Vec<bool> = (0..points.len())
+            .map(|v| {
+                grid_index(v, n, n).is_some_and(|(ix, iy)| {
+                    outer(ix) || outer(iy) || (ix == h && iy <= h) || (iy == h && ix >= h)
+                })
+            })
+            .collect();
         let inside_cut = |p: [f64; 2]| p[0] > 1e-12 && p[1] < -1e-12;
         let kept: Vec<[usize; 3]> = triangles
             .into_iter()
@@ -60,8 +72,13 @@ impl Mesh {
                 }
             }
         }
+        let used = used_vertices(points.len(), &kept);
+        let on_boundary = (on_boundary.into_iter().zip(&used))
+            .filter(|(_, &u)| u)
+            .map(|(b, _)| b)
+            .collect();
         let (points, triangles) = compact(points, kept);
-        Mesh::new(points, triangles)
+        Mesh::constructed(points, triangles, on_boundary)
     }
 }
 
@@ -74,21 +91,30 @@ fn centroid(points: &[[f64; 2]], t: &[usize; 3]) -> [f64; 2] {
 
 /// Drops unused vertices and renumbers the rest, keeping their order.
 pub(super) fn compact(points: Vec<[f64; 2]>, triangles: Vec<[usize; 3]>) -> (Vec<[f64; 2]>, Vec<[usize; 3]>) {
+    let used = used_vertices(points.len(), &triangles);
     let mut new_index = vec![usize::MAX; points.len()];
-    for t in &triangles {
-        for &v in t {
-            new_index[v] = 0;
-        }
-    }
     let mut kept = Vec::new();
-    for (v, p) in points.into_iter().enumerate() {
-        if new_index[v] == 0 {
-            new_index[v] = kept.len();
-            kept.push(p);
-        }
+    for ((v, p), _) in points.into_iter().enumerate().zip(&used).filter(|(_, &u)| u) {
+        new_index[v] = kept.len();
+        kept.push(p);
     }
     let triangles = triangles.into_iter().map(|t| t.map(|v| new_index[v])).collect();
     (kept, triangles)
+}
+
+/// Whether each of `n` vertices is a corner of one of `triangles`.
+fn used_vertices(n: usize, triangles: &[[usize; 3]]) -> Vec<bool> {
+    let mut used = vec![false; n];
+    for &v in triangles.iter().flatten() {
+        used[v] = true;
+    }
+    used
+}
+
+/// The grid position (ix, iy) of vertex v of [`rectangle_raw`]'s nx × ny cells, or `None` for a
+/// cell centre of the crossed diagonals (numbered after the grid).
+fn grid_index(v: usize, nx: usize, ny: usize) -> Option<(usize, usize)> {
+    (v < (nx + 1) * (ny + 1)).then(|| (v % (nx + 1), v / (nx + 1)))
 }
 
 fn rectangle_raw(
@@ -127,6 +153,35 @@ fn rectangle_raw(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The built-in meshes skip [`Mesh::new`]'s checks: they are what it makes of the same
+    /// vertices and triangles, boundary included.
+    #[test]
+    fn built_in_meshes_are_what_the_checks_make_of_them() {
+        let checked = |m: &Mesh| {
+            let triangles = m.triangles().map(|t| t.map(|v| v)).collect();
+            Mesh::new(m.points.clone(), triangles).unwrap()
+        };
+        let same = |m: &Mesh| {
+            let c = checked(m);
+            assert_eq!(m.points, c.points);
+            assert!(m.triangles().eq(c.triangles()));
+            assert_eq!(m.on_boundary, c.on_boundary);
+        };
+        // Without an interior vertex both refuse the mesh.
+        assert!(matches!(
+            Mesh::rectangle([0.0, 0.0], [1.0, 1.0], 1, 1, Diagonal::Right),
+            Err(MeshError::NoInteriorVertex)
+        ));
+        for diagonal in [Diagonal::Right, Diagonal::Left, Diagonal::Crossed] {
+            for (nx, ny) in [(2, 2), (2, 3), (5, 4), (7, 7)] {
+                same(&Mesh::rectangle([-1.0, 0.5], [2.0, 3.0], nx, ny, diagonal).unwrap());
+            }
+            for (n, grading) in [(4, 1.0), (6, 1.0), (7, 1.0), (8, 2.0), (12, 1.5)] {
+                same(&Mesh::l_shape(n, diagonal, grading).unwrap());
+            }
+        }
+    }
 
     #[test]
     fn rectangle_counts_and_boundary() {
