@@ -231,51 +231,86 @@ pub fn load(mesh: &Mesh, f: &Expr, quad: Quadrature) -> Result<Vec<f64>, NotFini
         // Exact for constants: (c, φ_a) = c m_a.
         return Ok(lumped_mass(mesh).into_iter().map(|m| c * m).collect());
     }
-    load_by(mesh, |triangles, each| {
+    let [load] = load_by(mesh, |triangles, each| {
         quad.visit(|t| mesh.corners(t), triangles, [f], each)
     })
+    .map_err(|(_, e)| e)?;
+    Ok(load)
 }
 
-/// The load vector (f, φ_a) of a datum resolved on `mesh` ([`crate::datum::Pieces`]): [`load`]
-/// for one expression; for a table per group, each triangle integrated by the quadrature with the
-/// expression of its own group, so that the load jumps where the groups meet.
-pub fn load_pieces(mesh: &Mesh, f: &crate::datum::Pieces, quad: Quadrature) -> Result<Vec<f64>, NotFinite> {
-    if let Some(e) = f.single() {
-        return load(mesh, e, quad);
+/// The load vectors (f_e, φ_a) of E data resolved on `mesh` ([`crate::datum::Pieces`]), in one
+/// pass of the quadrature, so that what their expressions share is evaluated once per point; for a
+/// table per group each triangle by the expression of its own group (the load jumps where the
+/// groups meet). A constant datum's load is exact, c m_a, as [`load`]'s. The error names the datum
+/// by its index.
+pub fn loads<const E: usize>(
+    mesh: &Mesh,
+    f: [&crate::datum::Pieces; E],
+    quad: Quadrature,
+) -> Result<[Vec<f64>; E], (usize, NotFinite)> {
+    let constant = f.map(|p| p.single().and_then(Expr::constant));
+    if let Some((e, c)) =
+        (constant.iter().enumerate()).find_map(|(e, c)| c.filter(|c| !c.is_finite()).map(|c| (e, c)))
+    {
+        return Err((
+            e,
+            NotFinite {
+                point: mesh.points[0],
+                value: c,
+            },
+        ));
     }
-    load_by(mesh, |triangles, each| {
-        crate::datum::visit(&quad, |t| mesh.corners(t), |t| t, triangles, [f], each)
-    })
+    let mut out = load_by(mesh, |triangles, each| {
+        crate::datum::visit(&quad, |t| mesh.corners(t), |t| t, triangles, f, each)
+    })?;
+    if constant.iter().any(Option::is_some) {
+        let mass = lumped_mass(mesh);
+        for (out, c) in out.iter_mut().zip(constant) {
+            if let Some(c) = c {
+                *out = mass.iter().map(|m| c * m).collect();
+            }
+        }
+    }
+    Ok(out)
 }
 
-/// The visit of a load's values at the quadrature points of a range of triangles.
-type Each<'a> = &'a mut dyn FnMut(usize, &[QuadraturePoint], [&[f64]; 1]);
+/// The visit of E loads' values at the quadrature points of a range of triangles.
+type Each<'a, const E: usize> = &'a mut dyn FnMut(usize, &[QuadraturePoint], [&[f64]; E]);
 
-/// The load vector from `visit`, which evaluates the load on a range of triangles: the
-/// contributions (f, φ_k)_T at corner 3 t + k of triangle t, in parallel pieces, then each
-/// vertex's sum over the triangles around it, in their order.
-fn load_by(mesh: &Mesh, visit: impl Fn(std::ops::Range<usize>, Each) + Sync) -> Result<Vec<f64>, NotFinite> {
-    let mut local = vec![0.0; 3 * mesh.n_triangles()];
+/// The load vectors from `visit`, which evaluates E loads on a range of triangles: the
+/// contributions (f_e, φ_k)_T at corner 3 t + k of triangle t, in parallel pieces, then each
+/// vertex's sum over the triangles around it, in their order. The first value that is not finite
+/// is an error, with the index of its load.
+fn load_by<const E: usize>(
+    mesh: &Mesh,
+    visit: impl Fn(std::ops::Range<usize>, Each<E>) + Sync,
+) -> Result<[Vec<f64>; E], (usize, NotFinite)> {
+    // Corner c's contribution to load e at c E + e.
+    let mut local = vec![0.0; 3 * E * mesh.n_triangles()];
     let piece = crate::parallel::PIECE;
-    let parts = crate::parallel::map_mut(&mut local, 3 * piece, |base, local| {
-        let first = base / 3;
+    let parts = crate::parallel::map_mut(&mut local, 3 * E * piece, |base, local| {
+        let first = base / (3 * E);
         let mut bad = None;
-        visit(first..first + local.len() / 3, &mut |t, points, [values]| {
-            for (p, &v) in points.iter().zip(values) {
-                if !v.is_finite() && bad.is_none() {
-                    bad = Some(NotFinite { point: p.x, value: v });
-                }
-                for (out, b) in local[3 * (t - first)..][..3].iter_mut().zip(p.barycentric) {
-                    *out += p.weight * v * b;
+        visit(first..first + local.len() / (3 * E), &mut |t, points, values| {
+            for (q, p) in points.iter().enumerate() {
+                for (e, v) in values.iter().map(|v| v[q]).enumerate() {
+                    if !v.is_finite() && bad.is_none() {
+                        bad = Some((e, NotFinite { point: p.x, value: v }));
+                    }
+                    for (k, b) in p.barycentric.iter().enumerate() {
+                        local[(3 * (t - first) + k) * E + e] += p.weight * v * b;
+                    }
                 }
             }
         });
         bad.map_or(Ok(()), Err)
     });
-    parts.into_iter().collect::<Result<(), NotFinite>>()?;
+    parts.into_iter().collect::<Result<(), (usize, NotFinite)>>()?;
     let stars = Stars::new(mesh);
-    Ok(crate::parallel::collect(mesh.n_vertices(), |a| {
-        stars.corners(a).map(|c| local[c]).sum()
+    Ok(std::array::from_fn(|e| {
+        crate::parallel::collect(mesh.n_vertices(), |a| {
+            stars.corners(a).map(|c| local[c * E + e]).sum()
+        })
     }))
 }
 

@@ -286,20 +286,30 @@ impl DiscreteProblem {
     /// Assembles (3.4) on `mesh`; the loads by the data's quadrature rule.
     pub fn new(mesh: Mesh, data: &Data) -> Result<Self, DataError> {
         let heights = boundary_values(&mesh, data)?;
-        let load = |name, f: &Datum| {
-            let pieces = f.pieces(name, &mesh, On::Surfaces)?;
-            assembly::load_pieces(&mesh, &pieces, data.quadrature).map_err(|e| DataError::NotFinite {
+        let f1 = if data.is_obstacle() { "f" } else { "f1" };
+        let not_finite = |name| {
+            move |e: assembly::NotFinite| DataError::NotFinite {
                 name,
                 point: e.point,
                 value: e.value,
-            })
+            }
         };
-        let load2 = match &data.lower {
-            Lower::Membrane { f2, .. } => load("f2", f2)?,
-            Lower::Rigid { .. } => Vec::new(),
+        let loads = match &data.lower {
+            Lower::Membrane { f2, .. } => {
+                let both = [
+                    &data.f1.pieces(f1, &mesh, On::Surfaces)?,
+                    &f2.pieces("f2", &mesh, On::Surfaces)?,
+                ];
+                assembly::loads(&mesh, both, data.quadrature)
+                    .map_err(|(e, bad)| not_finite([f1, "f2"][e])(bad))?
+            }
+            Lower::Rigid { .. } => {
+                let one = [&data.f1.pieces(f1, &mesh, On::Surfaces)?];
+                let [load] =
+                    assembly::loads(&mesh, one, data.quadrature).map_err(|(_, bad)| not_finite(f1)(bad))?;
+                [load, Vec::new()]
+            }
         };
-        let f1 = if data.is_obstacle() { "f" } else { "f1" };
-        let loads = [load(f1, &data.f1)?, load2];
         Ok(Self::with_loads(mesh, data, heights, loads))
     }
 
