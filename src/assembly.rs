@@ -260,15 +260,16 @@ pub fn loads<const E: usize>(
             },
         ));
     }
+    let exact = |c: f64| lumped_mass(mesh).into_iter().map(|m| c * m).collect();
+    if constant.iter().all(Option::is_some) {
+        return Ok(constant.map(|c| exact(c.expect("all constant"))));
+    }
     let mut out = load_by(mesh, |triangles, each| {
         crate::datum::visit(&quad, |t| mesh.corners(t), |t| t, triangles, f, each)
     })?;
-    if constant.iter().any(Option::is_some) {
-        let mass = lumped_mass(mesh);
-        for (out, c) in out.iter_mut().zip(constant) {
-            if let Some(c) = c {
-                *out = mass.iter().map(|m| c * m).collect();
-            }
+    for (out, c) in out.iter_mut().zip(constant) {
+        if let Some(c) = c {
+            *out = exact(c);
         }
     }
     Ok(out)
@@ -318,6 +319,32 @@ fn load_by<const E: usize>(
 mod tests {
     use super::*;
     use crate::mesh::{Diagonal, Mesh};
+
+    /// Two loads in one pass are each the load of its own pass, bit for bit: an expression, a
+    /// table per group and a constant (exact, c m_a); a value that is not finite names its load.
+    #[test]
+    fn loads_in_one_pass_are_the_loads_one_by_one() {
+        use crate::datum::{Datum, On};
+        let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 2.0], 6, 5, Diagonal::Left).unwrap();
+        let quad = Quadrature { degree: 4 };
+        let datum = |s: &str| Datum::from(Expr::parse(s).unwrap());
+        let (f, c) = (datum("sin(3*x)*y + x^2"), datum("2.5"));
+        fn pieces<'a>(d: &'a Datum, mesh: &'a Mesh) -> crate::datum::Pieces<'a> {
+            d.pieces("f", mesh, On::Surfaces).unwrap()
+        }
+        let (pf, pc) = (pieces(&f, &mesh), pieces(&c, &mesh));
+        let [a, b] = loads(&mesh, [&pf, &pc], quad).unwrap();
+        assert_eq!(a, load(&mesh, f.expr().unwrap(), quad).unwrap());
+        let mass = lumped_mass(&mesh);
+        assert_eq!(b, mass.iter().map(|m| 2.5 * m).collect::<Vec<_>>());
+        let [one] = loads(&mesh, [&pf], quad).unwrap();
+        assert_eq!(one, a);
+        assert_eq!(loads(&mesh, [&pc, &pc], quad).unwrap(), [b.clone(), b]);
+        let (inf, nan) = (datum("1/0"), datum("sqrt(x - 2)"));
+        let (pinf, pnan) = (pieces(&inf, &mesh), pieces(&nan, &mesh));
+        assert_eq!(loads(&mesh, [&pf, &pinf], quad).unwrap_err().0, 1);
+        assert_eq!(loads(&mesh, [&pnan, &pf], quad).unwrap_err().0, 0);
+    }
 
     #[test]
     fn stiffness_rows_sum_to_zero_and_masses_to_the_area() {

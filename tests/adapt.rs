@@ -27,7 +27,9 @@ fn adapted(mut case: Case, max_vertices: usize) -> (Adapted, tempfile::TempDir, 
 
 /// On the Part-2 disk (data/cases/part2_disk.toml: loads and λ jumping across a circle no mesh
 /// edge follows), adaptive refinement keeps the effectivity within [1, 1.2] at every step and η
-/// and the error fall at the optimal rate N^(−1/2).
+/// and the error fall at the optimal rate N^(−1/2). (The lower end holds as measured, not as a
+/// theorem: the exact solution is the disk's, η's the polygon's; new boundary vertices lie on
+/// the circle.)
 #[test]
 fn adaptivity_with_a_load_jumping_across_a_curve_keeps_a_sharp_bound_at_the_optimal_rate() {
     let case = Case::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases/part2_disk.toml")).unwrap();

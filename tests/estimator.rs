@@ -263,7 +263,9 @@ fn with_a_load_jumping_across_a_curve_the_effectivity_does_not_grow() {
 /// μ1 = μ2, loads and λ jumping across the circle r = 1/√2 that no mesh edge follows): with the
 /// defect lifted the effectivity falls from 1.16 on the first mesh and stays within [1, 1.2]
 /// (bounded by Friedrichs, the defect made it grow on such a disk, 1.31 to 1.77 over four
-/// refinements).
+/// refinements). η bounds the error against ω_h's solution, not the disk's, so 1 is no theorem
+/// here; with the new boundary vertices on the circle the two differ by O(h²) on ∂ω_h, and the
+/// effectivity stays above 1.04.
 #[test]
 fn on_the_part_2_disk_the_effectivity_falls_and_stays_within_1_and_1_2() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases/part2_disk.toml");
@@ -288,8 +290,9 @@ fn on_the_part_2_disk_the_effectivity_falls_and_stays_within_1_and_1_2() {
 /// On a disk the mesh's polygon ω_h is inscribed in the circle: the exact solution takes the
 /// boundary data at the boundary vertices but not between them, and the run says so. On
 /// part2_disk u2 = (1 − r²)/2 is largest at the midpoint of the longest boundary edge L, where
-/// r² = 1 − L²/4: u2 = L²/8 against g2 = 0, and u1 = 0.05 + 0.075 L² + 0.0125 L⁴ is the largest
-/// boundary value. On the unit square of the default case the exact solution is the data.
+/// r² = 1 − L²/4: u2 = L²/8 against g2 = 0, relative to the solution's size (the largest of |u1h|
+/// and |u2h| at the vertices, and u1 = 0.05 + 0.075 L² + 0.0125 L⁴ there). On the unit square of
+/// the default case and of full_contact the exact solution is the data.
 #[test]
 fn a_curved_domain_s_exact_solution_is_said_to_miss_the_polygon_s_boundary_data() {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases/part2_disk.toml");
@@ -309,7 +312,9 @@ fn a_curved_domain_s_exact_solution_is_said_to_miss_the_polygon_s_boundary_data(
         })
         .fold(0.0, f64::max);
     let l2 = longest * longest;
-    let expected = (l2 / 8.0) / (0.05 + 0.075 * l2 + 0.0125 * l2 * l2);
+    let size = (r.solution.u1.iter().chain(&r.solution.u2))
+        .fold(0.05 + 0.075 * l2 + 0.0125 * l2 * l2, |m: f64, u| m.max(u.abs()));
+    let expected = (l2 / 8.0) / size;
     let m = r
         .errors
         .as_ref()
@@ -329,8 +334,11 @@ fn a_curved_domain_s_exact_solution_is_said_to_miss_the_polygon_s_boundary_data(
     assert!(r
         .summary(false)
         .contains("the errors above are against the solution on another domain"));
-    let square = shipped("default", 8);
-    assert!(estimated(&square).errors.unwrap().boundary.is_none());
+    // With g = g2 = 0 the boundary values are round-off of sin(π) (full_contact): no mismatch.
+    for name in ["default", "full_contact"] {
+        let square = shipped(name, 8);
+        assert!(estimated(&square).errors.unwrap().boundary.is_none(), "{name}");
+    }
 }
 
 /// The lift of the quadrature defect (§4(c')) by multigrid on the solve's own hierarchy gives the

@@ -6,10 +6,11 @@
 //! ```
 //!
 //! zero on the two other edges, so ψ = Σ_e ψ_e ∈ H¹(ω) with ψ = g − g_h on ∂ω, and w_h + ψ ≥ 0
-//! (w_h + ψ_e ≥ (1 − s) w_h(c) + s g ≥ 0 on K, as s^k δ ≥ s δ where δ < 0). In the coordinates
+//! (w_h + ψ_e ≥ min(w_h, (1 − s) w_h(c) + s g) ≥ 0 on K, as s^k δ ≥ min(0, s δ)). In the coordinates
 //! (s, τ) ∈ [0, 1]², dx = 2|K| s ds dτ and ∇ψ_e = s^{k−1} [k δ(τ) ∇s + δ'(τ) v], v = ∇λ_q − τ∇s,
 //! so ‖∇ψ_e‖²_K = (|K|/k) ∫_0^1 |k δ∇s + δ'v|² dτ = |K| (k A + 2C + B/k) with A = ∫ δ²|∇s|²,
-//! B = ∫ δ'²|v|², C = ∫ δδ' ∇s·v: least at k = (B/A)^½ (≥ 1 unless δ is nearly flat), where it is
+//! B = ∫ δ'²|v|², C = ∫ δδ' ∇s·v: least at k = (B/A)^½ (≥ 1 except on triangles very flat towards
+//! e, as ∫δ'² ≥ π² ∫δ²; k = 1 there), where it is
 //! 2|K| ((AB)^½ + C). k = 1 is the radial extension of docs/a-posteriori.md §5; the least k takes
 //! a quarter off ‖∇ψ_e‖ for a parabola on a right triangle. ∫_K λ_h ψ_e = λ_c 2|K| ∫_0^1 δ
 //! s*^{k+2}/(k+2) dτ with s* = 1 / (1 + max(τ, 1 − τ)) bounding D_c ∩ K (λ_h = 0 on the cells of

@@ -307,14 +307,24 @@ impl Mesh {
     }
 
     /// A triangulation valid by its construction (the built-in meshes), with its boundary
-    /// vertices: its triangles turned counter-clockwise and checked for area, [`Mesh::new`]'s
-    /// other checks (which the built-in meshes' tests run on them) skipped — at 4M vertices they
-    /// take 2 s, the making of the mesh 0.4 s.
+    /// vertices: its points checked finite and its triangles for area and turned
+    /// counter-clockwise; [`Mesh::new`]'s checks of a triangulation from elsewhere, which the
+    /// built-in meshes' tests run on them, are skipped (docs/performance.md).
     pub(super) fn constructed(
         points: Vec<[f64; 2]>,
         mut triangles: Vec<[usize; 3]>,
         on_boundary: Vec<bool>,
     ) -> Result<Self, MeshError> {
+        assert!(
+            u32::try_from(points.len()).is_ok(),
+            "vertex numbers fit in 32 bits"
+        );
+        if triangles.is_empty() {
+            return Err(MeshError::Empty);
+        }
+        if let Some(vertex) = points.iter().position(|p| !p[0].is_finite() || !p[1].is_finite()) {
+            return Err(MeshError::NotFinite { vertex });
+        }
         let diameter = bounding_diameter(&points);
         orient_triangles(&points, &mut triangles, diameter)?;
         if on_boundary.iter().all(|&b| b) {
@@ -323,7 +333,7 @@ impl Mesh {
         Ok(Mesh::from_parts(points, triangles, on_boundary))
     }
 
-    /// The mesh of a valid triangulation (made by [`Mesh::new`], which checks that its vertex
+    /// The mesh of a valid triangulation (made by [`Mesh::new`] or [`Mesh::constructed`], which check that its vertex
     /// numbers fit in 32 bits, or from the vertices of one).
     pub(crate) fn from_parts(
         points: Vec<[f64; 2]>,

@@ -91,7 +91,8 @@ pub struct Errors {
 #[derive(Debug, Clone, Copy)]
 pub struct Mismatch {
     /// max |u1 − g|, |u2 − g2| (above a rigid obstacle |u − g|) at the sample points of the
-    /// boundary edges, relative to the largest of these values there.
+    /// boundary edges, relative to the size of the solution: the largest of these values and of
+    /// |u1h|, |u2h| at the vertices.
     pub relative: f64,
     /// The point where it is largest.
     pub at: [f64; 2],
@@ -142,7 +143,7 @@ impl Errors {
             hminus1_lambda: hminus1.then(|| hminus1_lambda(dual, &action.lambda, &exact.lambda)),
             quadrature,
             rigid: exact.rigid,
-            boundary: boundary_mismatch(problem, exact),
+            boundary: boundary_mismatch(problem, exact, [&solution.u1, &solution.u2]),
         }
     }
 }
@@ -166,10 +167,11 @@ fn boundary_edges(mesh: &Mesh) -> Vec<[usize; 2]> {
     edges
 }
 
-/// Where the exact solution differs from the boundary data on ∂ω_h by more than round-off, at
-/// the quarter points of each boundary edge (it agrees at the vertices wherever ω_h is inscribed
-/// in ω): u1 against g and u2 against g2, or u against g above a rigid obstacle.
-fn boundary_mismatch(problem: &DiscreteProblem, exact: &Exact) -> Option<Mismatch> {
+/// Where the exact solution differs from the boundary data on ∂ω_h by more than round-off of the
+/// solution's size (`uh`'s), at the quarter points of each boundary edge (it agrees at the vertices
+/// wherever ω_h is inscribed in ω): u1 against g and u2 against g2, or u against g above a rigid
+/// obstacle.
+fn boundary_mismatch(problem: &DiscreteProblem, exact: &Exact, uh: [&[f64]; 2]) -> Option<Mismatch> {
     let (mesh, data) = (&problem.mesh, &problem.data);
     let fit = "the data fit the mesh's groups (checked by DiscreteProblem::new)";
     let g = data.g.pieces("g", mesh, On::Curves).expect(fit);
@@ -177,7 +179,11 @@ fn boundary_mismatch(problem: &DiscreteProblem, exact: &Exact) -> Option<Mismatc
         Lower::Membrane { g2, .. } => Some(g2.pieces("g2", mesh, On::Curves).expect(fit)),
         Lower::Rigid { .. } => None,
     };
-    let (mut worst, mut scale, mut at) = (0.0_f64, 0.0_f64, [0.0; 2]);
+    let size = uh
+        .iter()
+        .flat_map(|u| u.iter())
+        .fold(0.0_f64, |m, u| m.max(u.abs()));
+    let (mut worst, mut scale, mut at) = (0.0_f64, size, [0.0; 2]);
     for [a, b] in boundary_edges(mesh) {
         let (p, q) = (mesh.points[a], mesh.points[b]);
         for t in [0.25, 0.5, 0.75] {
