@@ -273,18 +273,7 @@ impl Mesh {
     /// and one-to-one on the boundary (no two boundary edges meet but at a shared vertex), which
     /// together make the triangles cover ω exactly once.
     pub fn new(points: Vec<[f64; 2]>, mut triangles: Vec<[usize; 3]>) -> Result<Self, MeshError> {
-        // Far beyond what the memory guard lets through: an assertion rather than an error.
-        assert!(
-            u32::try_from(points.len()).is_ok(),
-            "vertex numbers fit in 32 bits"
-        );
-        if triangles.is_empty() {
-            return Err(MeshError::Empty);
-        }
-        if let Some(vertex) = points.iter().position(|p| !p[0].is_finite() || !p[1].is_finite()) {
-            return Err(MeshError::NotFinite { vertex });
-        }
-        let diameter = bounding_diameter(&points);
+        let diameter = finite_and_numbered(&points, &triangles)?;
         let used = orient_triangles(&points, &mut triangles, diameter)?;
         distinct_vertices(&points)?;
         if let Some(vertex) = used.iter().position(|u| !u) {
@@ -315,17 +304,7 @@ impl Mesh {
         mut triangles: Vec<[usize; 3]>,
         on_boundary: Vec<bool>,
     ) -> Result<Self, MeshError> {
-        assert!(
-            u32::try_from(points.len()).is_ok(),
-            "vertex numbers fit in 32 bits"
-        );
-        if triangles.is_empty() {
-            return Err(MeshError::Empty);
-        }
-        if let Some(vertex) = points.iter().position(|p| !p[0].is_finite() || !p[1].is_finite()) {
-            return Err(MeshError::NotFinite { vertex });
-        }
-        let diameter = bounding_diameter(&points);
+        let diameter = finite_and_numbered(&points, &triangles)?;
         orient_triangles(&points, &mut triangles, diameter)?;
         if on_boundary.iter().all(|&b| b) {
             return Err(MeshError::NoInteriorVertex);
@@ -415,6 +394,23 @@ impl Mesh {
         e.dedup();
         e
     }
+}
+
+/// The diameter of the bounding box of `points`, once they are checked finite, there are
+/// triangles, and vertex numbers fit in 32 bits (far beyond what the memory guard lets through:
+/// an assertion rather than an error).
+fn finite_and_numbered(points: &[[f64; 2]], triangles: &[[usize; 3]]) -> Result<f64, MeshError> {
+    assert!(
+        u32::try_from(points.len()).is_ok(),
+        "vertex numbers fit in 32 bits"
+    );
+    if triangles.is_empty() {
+        return Err(MeshError::Empty);
+    }
+    if let Some(vertex) = points.iter().position(|p| !p[0].is_finite() || !p[1].is_finite()) {
+        return Err(MeshError::NotFinite { vertex });
+    }
+    Ok(bounding_diameter(points))
 }
 
 /// Checks every triangle for valid indices and a non-zero area, and turns it counter-clockwise.
