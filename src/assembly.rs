@@ -320,8 +320,9 @@ mod tests {
     use super::*;
     use crate::mesh::{Diagonal, Mesh};
 
-    /// Two loads in one pass are each the load of its own pass, bit for bit: an expression, a
-    /// table per group and a constant (exact, c m_a); a value that is not finite names its load.
+    /// Loads in one pass are each the load of its own pass, bit for bit: an expression and a
+    /// constant (exact, c m_a), alone, together and twice; a value that is not finite, at a point
+    /// or as a constant, names its load.
     #[test]
     fn loads_in_one_pass_are_the_loads_one_by_one() {
         use crate::datum::{Datum, On};

@@ -287,12 +287,10 @@ impl DiscreteProblem {
     pub fn new(mesh: Mesh, data: &Data) -> Result<Self, DataError> {
         let heights = boundary_values(&mesh, data)?;
         let f1 = if data.is_obstacle() { "f" } else { "f1" };
-        let not_finite = |name| {
-            move |e: assembly::NotFinite| DataError::NotFinite {
-                name,
-                point: e.point,
-                value: e.value,
-            }
+        let not_finite = |name, e: assembly::NotFinite| DataError::NotFinite {
+            name,
+            point: e.point,
+            value: e.value,
         };
         let loads = match &data.lower {
             Lower::Membrane { f2, .. } => {
@@ -301,12 +299,12 @@ impl DiscreteProblem {
                     &f2.pieces("f2", &mesh, On::Surfaces)?,
                 ];
                 assembly::loads(&mesh, both, data.quadrature)
-                    .map_err(|(e, bad)| not_finite([f1, "f2"][e])(bad))?
+                    .map_err(|(e, bad)| not_finite([f1, "f2"][e], bad))?
             }
             Lower::Rigid { .. } => {
                 let one = [&data.f1.pieces(f1, &mesh, On::Surfaces)?];
                 let [load] =
-                    assembly::loads(&mesh, one, data.quadrature).map_err(|(_, bad)| not_finite(f1)(bad))?;
+                    assembly::loads(&mesh, one, data.quadrature).map_err(|(_, bad)| not_finite(f1, bad))?;
                 [load, Vec::new()]
             }
         };

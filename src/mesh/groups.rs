@@ -132,10 +132,12 @@ impl Mesh {
         self
     }
 
-    /// The boundary edges (a, b) with a < b, sorted: the edges of one triangle only.
+    /// The boundary edges (a, b) with a < b, sorted: the edges of one triangle only (among those
+    /// of two boundary vertices, the only candidates).
     pub fn boundary_edges(&self) -> Vec<(usize, usize)> {
         let mut half: Vec<(usize, usize)> = (self.triangles())
             .flat_map(|t| (0..3).map(move |k| (t[k].min(t[(k + 1) % 3]), t[k].max(t[(k + 1) % 3]))))
+            .filter(|&(a, b)| self.on_boundary[a] && self.on_boundary[b])
             .collect();
         half.sort_unstable();
         (half.chunk_by(|a, b| a == b))

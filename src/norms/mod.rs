@@ -12,7 +12,6 @@ use crate::mesh::{DualMesh, Mesh};
 use crate::problem::{DiscreteProblem, Lower};
 use crate::result::{Attribute, Describe, Field, Place};
 use cubature::{Density, Integral, Rules};
-use std::collections::HashMap;
 
 pub(crate) mod cubature;
 
@@ -148,25 +147,6 @@ impl Errors {
     }
 }
 
-/// The edges of ∂ω_h: those of one triangle only, among the edges of two boundary vertices.
-fn boundary_edges(mesh: &Mesh) -> Vec<[usize; 2]> {
-    let mut count: HashMap<[usize; 2], usize> = HashMap::new();
-    for tri in mesh.triangles() {
-        for j in 0..3 {
-            let (a, b) = (tri[j], tri[(j + 1) % 3]);
-            if mesh.on_boundary[a] && mesh.on_boundary[b] {
-                *count.entry([a.min(b), a.max(b)]).or_default() += 1;
-            }
-        }
-    }
-    let mut edges: Vec<[usize; 2]> = (count.into_iter())
-        .filter(|&(_, n)| n == 1)
-        .map(|(e, _)| e)
-        .collect();
-    edges.sort_unstable();
-    edges
-}
-
 /// Where the exact solution differs from the boundary data on ∂ω_h by more than round-off of the
 /// solution's size (`uh`'s), at the quarter points of each boundary edge (it agrees at the vertices
 /// wherever ω_h is inscribed in ω): u1 against g and u2 against g2, or u against g above a rigid
@@ -184,7 +164,7 @@ fn boundary_mismatch(problem: &DiscreteProblem, exact: &Exact, uh: [&[f64]; 2]) 
         .flat_map(|u| u.iter())
         .fold(0.0_f64, |m, u| m.max(u.abs()));
     let (mut worst, mut scale, mut at) = (0.0_f64, size, [0.0; 2]);
-    for [a, b] in boundary_edges(mesh) {
+    for (a, b) in mesh.boundary_edges() {
         let (p, q) = (mesh.points[a], mesh.points[b]);
         for t in [0.25, 0.5, 0.75] {
             let x = [p[0] + t * (q[0] - p[0]), p[1] + t * (q[1] - p[1])];
