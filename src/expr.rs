@@ -118,6 +118,21 @@ pub struct Program {
     steps: Vec<Step>,
     /// The step of each expression's value.
     outputs: Vec<u32>,
+    /// Per step, whether it is computed with another: sin(a) and cos(a) of one operand share
+    /// their argument reduction (the values are those of each alone, bit for bit).
+    fused: Vec<Fused>,
+    /// The steps that branch ([`Step::branches`]), in order.
+    branching: Vec<Step>,
+}
+
+/// A step's part in a pair computed together.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Fused {
+    Alone,
+    /// The first of sin(a), cos(a): it computes the later one, the step given, too.
+    First(u32),
+    /// The later one, already computed.
+    Done,
 }
 
 /// One step of a [`Program`], on the values of earlier steps (conditions are 1.0 / 0.0).
@@ -144,7 +159,7 @@ enum Step {
 const MAX_TOKENS: usize = 10_000;
 const MAX_NESTING: usize = 32;
 /// Points per block of [`Program::eval_many`].
-pub const BLOCK: usize = 32;
+pub const BLOCK: usize = 64;
 /// Steps of a program evaluated at one point with room on the call stack.
 const SMALL: usize = 256;
 
@@ -177,10 +192,7 @@ impl Expr {
         let mut c = Compiler::default();
         let output = c.num(&root);
         Ok(Expr {
-            program: Program {
-                steps: c.steps,
-                outputs: vec![output],
-            },
+            program: Program::of(c.steps, vec![output]),
         })
     }
 
@@ -194,6 +206,15 @@ impl Expr {
     /// The values at `points`, into `out` (see [`Program::eval_many`]).
     pub fn eval_many(&self, points: &[[f64; 2]], out: &mut [f64]) {
         self.program.eval_many(points, &mut [out]);
+    }
+
+    /// The values at `points`, by blocks in parallel (as [`Expr::eval_many`], bit for bit).
+    pub fn values_at(&self, points: &[[f64; 2]]) -> Vec<f64> {
+        let size = crate::parallel::PIECE;
+        crate::parallel::collect_by_blocks(points.len(), size, |range, values| {
+            values.resize(range.len(), 0.0);
+            self.eval_many(&points[range], values);
+        })
     }
 
     /// The value, if the expression does not read x or y.
@@ -228,9 +249,27 @@ impl Program {
                 at[p.outputs[0] as usize]
             })
             .collect();
+        Program::of(c.steps, outputs)
+    }
+
+    /// The program of `steps` with these `outputs`, each sin(a) paired with a cos(a).
+    fn of(steps: Vec<Step>, outputs: Vec<u32>) -> Program {
+        let mut fused = vec![Fused::Alone; steps.len()];
+        let mut first = std::collections::HashMap::new();
+        for (k, step) in steps.iter().enumerate() {
+            if let Step::Unary(f @ (Unary::Sin | Unary::Cos), a) = *step {
+                match first.get(&a) {
+                    Some(&(i, g)) if g != f => (fused[i], fused[k]) = (Fused::First(k as u32), Fused::Done),
+                    _ => _ = first.insert(a, (k, f)),
+                }
+            }
+        }
+        let branching = steps.iter().copied().filter(Step::branches).collect();
         Program {
-            steps: c.steps,
+            steps,
             outputs,
+            fused,
+            branching,
         }
     }
 
@@ -287,13 +326,12 @@ impl Program {
         values: &mut Vec<[f64; BLOCK]>,
         margins: &mut Vec<f64>,
     ) {
-        let branches: Vec<Step> = self.steps.iter().copied().filter(Step::branches).collect();
-        let j = branches.len();
+        let j = self.branching.len();
         margins.clear();
         self.by_blocks(points, out, values, |values, n| {
             let base = margins.len();
             margins.resize(base + n * j, 0.0);
-            for (at, step) in branches.iter().enumerate() {
+            for (at, step) in self.branching.iter().enumerate() {
                 let v = |s: u32| &values[s as usize][..n];
                 let slots = margins[base + at..].iter_mut().step_by(j);
                 match *step {
@@ -310,7 +348,7 @@ impl Program {
 
     /// The number of steps that branch (the margins of each point).
     pub(crate) fn branches(&self) -> usize {
-        self.steps.iter().filter(|s| s.branches()).count()
+        self.branching.len()
     }
 
     /// The outputs' values of a block into `out[..][range]`.
@@ -324,6 +362,14 @@ impl Program {
     fn run<const B: usize>(&self, points: &[[f64; 2]], values: &mut [[f64; B]]) {
         let m = points.len();
         for (k, step) in self.steps.iter().enumerate() {
+            match self.fused[k] {
+                Fused::Alone => {}
+                Fused::First(j) => {
+                    self.sin_cos(k, j as usize, m, values);
+                    continue;
+                }
+                Fused::Done => continue,
+            }
             let (before, slot) = values.split_at_mut(k);
             let (s, at) = (&mut slot[0][..m], |i: u32| &before[i as usize][..m]);
             match *step {
@@ -374,6 +420,26 @@ impl Program {
                     }
                 }
             }
+        }
+    }
+}
+
+impl Program {
+    /// Steps k < j, sin(a) and cos(a) in either order, on the first m points, in one pass.
+    fn sin_cos<const B: usize>(&self, k: usize, j: usize, m: usize, values: &mut [[f64; B]]) {
+        let Step::Unary(f, a) = self.steps[k] else {
+            unreachable!("a fused step is sin or cos")
+        };
+        let (head, rest) = values.split_at_mut(j);
+        let (operands, first) = head.split_at_mut(k);
+        let (a, first, later) = (&operands[a as usize][..m], &mut first[0][..m], &mut rest[0][..m]);
+        let (sin, cos) = if f == Unary::Sin {
+            (first, later)
+        } else {
+            (later, first)
+        };
+        for i in 0..m {
+            (sin[i], cos[i]) = a[i].sin_cos();
         }
     }
 }
@@ -450,7 +516,8 @@ fn sign(a: f64) -> f64 {
 /// The smaller of a and b, ignoring a NaN, and −0 of ±0 (IEEE 754-2019 minimumNumber):
 /// `f64::min` leaves the zero open, and gives +0 one by one but −0 when vectorised.
 fn min(a: f64, b: f64) -> f64 {
-    if a < b || b.is_nan() || (a == b && a.is_sign_negative()) {
+    // `|` and `&`, not `||` and `&&`: a select without branches, which vectorises.
+    if (a < b) | b.is_nan() | ((a == b) & a.is_sign_negative()) {
         a
     } else {
         b
@@ -459,7 +526,7 @@ fn min(a: f64, b: f64) -> f64 {
 
 /// The larger of a and b, ignoring a NaN, and +0 of ±0 (IEEE 754-2019 maximumNumber).
 fn max(a: f64, b: f64) -> f64 {
-    if a > b || b.is_nan() || (a == b && a.is_sign_positive()) {
+    if (a > b) | b.is_nan() | ((a == b) & a.is_sign_positive()) {
         a
     } else {
         b
@@ -1097,8 +1164,13 @@ mod tests {
             parse("0.5*pi*cos(pi*x)*sin(pi*y) + 4*max((x-0.5)^2 + (y-0.5)^2 - 0.0625, 0)*(x-0.5)"),
             // The first but for one constant, and a condition.
             parse("0.25*sin(pi*x)*sin(pi*y) + if(x < 0.5 && y > 0.25, 1, 2)"),
+            // cos before sin, computed together even in an expression alone.
+            parse("cos(2*x) - sin(2*x)*y"),
         ];
         let program = Program::new(&exprs.each_ref());
+        // sin and cos of πx, of 2x: each pair in one pass.
+        let pairs = program.fused.iter().filter(|f| **f == Fused::Done).count();
+        assert_eq!(pairs, 2, "{:?}", program.fused);
         let alone: usize = exprs.iter().map(|e| e.program.steps.len()).sum();
         assert!(
             3 * program.steps.len() < 2 * alone,
@@ -1108,12 +1180,20 @@ mod tests {
         let points: Vec<[f64; 2]> = (0..100)
             .map(|k| [k as f64 / 97.0, (k * k % 89) as f64 / 83.0])
             .collect();
-        let mut values = [[0.0; 100]; 3];
+        let mut values = [[0.0; 100]; 4];
         program.eval_many(&points, &mut values.each_mut().map(|v| &mut v[..]));
         for (e, values) in exprs.iter().zip(&values) {
             for (p, v) in points.iter().zip(values) {
                 assert_eq!(v.to_bits(), e.eval(p[0], p[1]).to_bits(), "at {p:?}");
             }
+        }
+        for (p, v) in points.iter().zip(&values[3]) {
+            let [x, y] = *p;
+            assert_eq!(
+                v.to_bits(),
+                ((2.0 * x).cos() - (2.0 * x).sin() * y).to_bits(),
+                "at {p:?}"
+            );
         }
     }
 

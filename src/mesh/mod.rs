@@ -365,12 +365,14 @@ impl Mesh {
 
     /// The mesh size h: the largest triangle diameter.
     pub fn h(&self) -> f64 {
-        (0..self.n_triangles())
-            .map(|t| {
-                let [p, q, r] = self.corners(t);
-                dist(p, q).max(dist(q, r)).max(dist(r, p))
-            })
-            .fold(0.0, f64::max)
+        let longest = |t| {
+            let [p, q, r] = self.corners(t);
+            dist(p, q).max(dist(q, r)).max(dist(r, p))
+        };
+        let pieces = crate::parallel::map(self.n_triangles(), crate::parallel::PIECE, |range| {
+            range.map(longest).fold(0.0, f64::max)
+        });
+        pieces.into_iter().fold(0.0, f64::max)
     }
 
     /// |ω|.

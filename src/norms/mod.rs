@@ -40,7 +40,7 @@ impl Exact {
     /// u1, u2 and λ interpolated at the vertices, for comparison in ParaView (u and λ above a
     /// rigid obstacle).
     pub fn fields(&self, mesh: &Mesh) -> Vec<Field<'static>> {
-        let at = |e: &Expr| mesh.points.iter().map(|p| e.eval(p[0], p[1])).collect();
+        let at = |e: &Expr| e.values_at(&mesh.points);
         if self.rigid {
             return vec![
                 Field::owned("u_exact", Place::Vertices, at(&self.u1)),
