@@ -14,7 +14,9 @@
 //!
 //! The writer streams: grids and fields go to their datasets a million rows at a time, S_h is
 //! computed as it is written, and a field constant on the dual cells is given per vertex
-//! ([`Values::PerVertex`]), so writing costs no copy of a grid or a field.
+//! ([`Values::PerVertex`]), so writing costs no copy of a grid or a field; a field computed from
+//! others (an expression at the vertices, flags as numbers) is computed as it is written
+//! ([`Values::Computed`]).
 
 use crate::mesh::{DualMesh, Mesh};
 use hdf5::types::VarLenUnicode;
@@ -24,6 +26,7 @@ use std::borrow::Cow;
 use std::fmt::Write as _;
 use std::ops::Range;
 use std::path::Path;
+use std::sync::Arc;
 
 /// The HDF5 file of a result directory.
 pub const SOLUTION_H5: &str = "solution.h5";
@@ -54,13 +57,33 @@ pub struct Field<'a> {
 }
 
 /// The values of a field.
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub enum Values<'a> {
     /// One per item of the field's place.
     Items(Cow<'a, [f64]>),
     /// One value v_a per vertex a of T_h, for the field Σ_a v_a χ_{D_a} on the cells of S_h
     /// (`Place::DualCells`), constant on each dual cell D_a: the writer expands it as it writes.
     PerVertex(Cow<'a, [f64]>),
+    /// One per item of the field's place, computed as they are written.
+    Computed {
+        /// The number of items.
+        len: usize,
+        /// Appends the values of a range of items.
+        items: Arc<Items<'a>>,
+    },
+}
+
+/// What computes the values of a range of items ([`Values::Computed`]).
+pub type Items<'a> = dyn Fn(Range<usize>, &mut Vec<f64>) + Send + Sync + 'a;
+
+impl std::fmt::Debug for Values<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Values::Items(v) => f.debug_tuple("Items").field(&v.len()).finish(),
+            Values::PerVertex(v) => f.debug_tuple("PerVertex").field(&v.len()).finish(),
+            Values::Computed { len, .. } => f.debug_tuple("Computed").field(len).finish(),
+        }
+    }
 }
 
 impl<'a> Field<'a> {
@@ -82,12 +105,30 @@ impl<'a> Field<'a> {
         }
     }
 
-    /// The same field owning its values (a copy of borrowed ones), free of what it borrowed: to
-    /// hand a run's fields out once the run is gone (the Python package's `Result`).
+    /// A field of `len` items whose values `items(range, out)` computes as they are written.
+    pub fn computed(
+        name: &'static str,
+        place: Place,
+        len: usize,
+        items: impl Fn(Range<usize>, &mut Vec<f64>) + Send + Sync + 'a,
+    ) -> Self {
+        Field {
+            name,
+            place,
+            values: Values::Computed {
+                len,
+                items: Arc::new(items),
+            },
+        }
+    }
+
+    /// The same field owning its values (a copy of borrowed ones, computed ones computed), free
+    /// of what it borrowed: to hand a run's fields out once the run is gone (the Python package's
+    /// `Result`).
     pub fn into_owned(self) -> Field<'static> {
         let values = match self.values {
-            Values::Items(v) => Values::Items(Cow::Owned(v.into_owned())),
             Values::PerVertex(v) => Values::PerVertex(Cow::Owned(v.into_owned())),
+            v => Values::Items(Cow::Owned(v.whole().into_owned())),
         };
         Field {
             name: self.name,
@@ -96,12 +137,10 @@ impl<'a> Field<'a> {
         }
     }
 
-    /// The values held: one per item of the field's place, or for [`Values::PerVertex`] one per
-    /// vertex of T_h.
-    pub fn values(&self) -> &[f64] {
-        match &self.values {
-            Values::Items(v) | Values::PerVertex(v) => v,
-        }
+    /// The values: one per item of the field's place, or for [`Values::PerVertex`] one per
+    /// vertex of T_h (computed ones computed).
+    pub fn values(&self) -> Cow<'_, [f64]> {
+        self.values.whole()
     }
 
     /// The field Σ_a v_a χ_{D_a} of S_h, constant on each dual cell D_a, by its values v_a at the
@@ -329,6 +368,7 @@ impl Grid<'_> {
     fn values(&self, f: &Field, rows: Range<usize>, out: &mut Vec<f64>) {
         match (&f.values, self.triangulation) {
             (Values::Items(v), _) => out.extend_from_slice(&v[rows]),
+            (Values::Computed { items, .. }, _) => items(rows, out),
             (Values::PerVertex(v), Triangulation::Dual(d)) => out.extend(rows.map(|s| v[d.owner(s)])),
             (Values::PerVertex(_), Triangulation::Mesh(_)) => {
                 panic!("field {}: values per vertex describe a field of S_h", f.name)
@@ -346,10 +386,23 @@ impl Grid<'_> {
 }
 
 impl Values<'_> {
-    /// The number of values held.
+    /// The number of values.
     fn len(&self) -> usize {
         match self {
             Values::Items(v) | Values::PerVertex(v) => v.len(),
+            Values::Computed { len, .. } => *len,
+        }
+    }
+
+    /// All the values, borrowed where they are held.
+    fn whole(&self) -> Cow<'_, [f64]> {
+        match self {
+            Values::Items(v) | Values::PerVertex(v) => Cow::Borrowed(v),
+            Values::Computed { len, items } => {
+                let mut out = Vec::with_capacity(*len);
+                items(0..*len, &mut out);
+                Cow::Owned(out)
+            }
         }
     }
 }
@@ -614,6 +667,10 @@ mod tests {
             Field::owned("k", Place::Cells, on_cells.clone()),
             Field::on_dual_cells("u_dual", &u[..]),
             Field::new("s", Place::DualCells, &on_dual),
+            // Computed as written, chunk by chunk: the item's index times 3.
+            Field::computed("c", Place::Vertices, u.len(), |rows, out| {
+                out.extend(rows.map(|a| 3.0 * a as f64));
+            }),
         ];
         let chunk = 5;
         assert!([u.len(), on_cells.len(), dual.n_points()]
@@ -654,5 +711,8 @@ mod tests {
         let expanded: Vec<f64> = (0..ns).map(|s| u[dual.owner(s)]).collect();
         assert_eq!(f64s("dual/u_dual", &[ns]), expanded);
         assert_eq!(f64s("dual/s", &[ns]), on_dual);
+        let thrice: Vec<f64> = (0..n).map(|a| 3.0 * a as f64).collect();
+        assert_eq!(f64s("mesh/c", &[n]), thrice);
+        assert_eq!(fields[4].values(), &thrice[..], "the values computed whole");
     }
 }

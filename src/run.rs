@@ -378,11 +378,13 @@ impl Describe for Run<'_> {
         let mut fields = self.solution.fields();
         fields.extend(self.action.fields());
         // λ_h = Σ_a λ_a χ_{D_a} (0 on the cells of boundary vertices), and the a of each D_a.
-        let vertices = (0..self.problem.mesh.n_vertices())
-            .map(|a| a as f64)
-            .collect::<Vec<_>>();
-        fields.push(Field::on_dual_cells("lambda", &self.action.lambda[..]));
-        fields.push(Field::on_dual_cells("vertex", vertices));
+        if self.writes_dual {
+            let vertices = (0..self.problem.mesh.n_vertices())
+                .map(|a| a as f64)
+                .collect::<Vec<_>>();
+            fields.push(Field::on_dual_cells("lambda", &self.action.lambda[..]));
+            fields.push(Field::on_dual_cells("vertex", vertices));
+        }
         if let Some(exact) = &self.case.exact {
             fields.extend(exact.fields(&self.problem.mesh));
         }

@@ -5,7 +5,7 @@
 
 use membrane_contact::case::Case;
 use membrane_contact::contact::{LinearSolver, Start};
-use membrane_contact::result::{Describe, Values};
+use membrane_contact::result::Describe;
 use membrane_contact::run;
 
 /// Every field and every attribute but the timings of the default case on 256² cells solved
@@ -31,9 +31,7 @@ fn everything(threads: usize) -> Vec<String> {
         let r = run::solve(&case, &options, &dir.path().join("out")).unwrap();
         assert!(r.problem.mesh.n_vertices() > 4 * membrane_contact::multigrid::BLOCK_ROWS);
         let mut out: Vec<String> = (r.fields().into_iter())
-            .map(|f| match f.values {
-                Values::Items(v) | Values::PerVertex(v) => format!("{} {:?}", f.name, v),
-            })
+            .map(|f| format!("{} {:?}", f.name, f.values()))
             .collect();
         out.extend(
             (r.attributes().into_iter())

@@ -273,7 +273,7 @@ impl PyParts {
                 Place::Cells => "cells",
                 Place::DualCells => continue,
             };
-            let values = PyArray1::from_slice_bound(py, f.values());
+            let values = PyArray1::from_slice_bound(py, &f.values());
             list.append((f.name, place, values))?;
         }
         Ok(list)

@@ -277,18 +277,16 @@ impl Solution {
 
 impl Describe for Solution {
     fn fields(&self) -> Vec<Field<'_>> {
-        let contact = self
-            .obstacle
-            .contact
-            .iter()
-            .map(|&c| f64::from(u8::from(c)))
-            .collect();
+        let contact = &self.obstacle.contact;
+        let flags = |rows: std::ops::Range<usize>, out: &mut Vec<f64>| {
+            out.extend(contact[rows].iter().map(|&c| f64::from(u8::from(c))));
+        };
         let names = if self.rigid { ["u", "psi"] } else { ["u1", "u2"] };
         vec![
             Field::new(names[0], Place::Vertices, &self.u1),
             Field::new(names[1], Place::Vertices, &self.u2),
             Field::new("gap", Place::Vertices, &self.obstacle.gap),
-            Field::owned("contact", Place::Vertices, contact),
+            Field::computed("contact", Place::Vertices, contact.len(), flags),
         ]
     }
 

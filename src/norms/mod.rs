@@ -38,19 +38,22 @@ pub struct Exact {
 
 impl Exact {
     /// u1, u2 and λ interpolated at the vertices, for comparison in ParaView (u and λ above a
-    /// rigid obstacle).
-    pub fn fields(&self, mesh: &Mesh) -> Vec<Field<'static>> {
-        let at = |e: &Expr| e.values_at(&mesh.points);
+    /// rigid obstacle), evaluated as they are written.
+    pub fn fields<'a>(&'a self, mesh: &'a Mesh) -> Vec<Field<'a>> {
+        let points = &mesh.points[..];
+        let at = |e: &'a Expr| {
+            move |rows: std::ops::Range<usize>, out: &mut Vec<f64>| out.extend(e.values_at(&points[rows]))
+        };
         if self.rigid {
             return vec![
-                Field::owned("u_exact", Place::Vertices, at(&self.u1)),
-                Field::owned("lambda_exact", Place::Vertices, at(&self.lambda)),
+                Field::computed("u_exact", Place::Vertices, points.len(), at(&self.u1)),
+                Field::computed("lambda_exact", Place::Vertices, points.len(), at(&self.lambda)),
             ];
         }
         vec![
-            Field::owned("u1_exact", Place::Vertices, at(&self.u1)),
-            Field::owned("u2_exact", Place::Vertices, at(&self.u2)),
-            Field::owned("lambda_exact", Place::Vertices, at(&self.lambda)),
+            Field::computed("u1_exact", Place::Vertices, points.len(), at(&self.u1)),
+            Field::computed("u2_exact", Place::Vertices, points.len(), at(&self.u2)),
+            Field::computed("lambda_exact", Place::Vertices, points.len(), at(&self.lambda)),
         ]
     }
 }
