@@ -15,6 +15,10 @@
 //! smooth on the cell, and refined along the curves where it jumps or bends and where the two
 //! rules see a layer differently. A jump that crosses one edge of a cell twice between its points
 //! and corners is not seen.
+//!
+//! A density may know that it is a constant on a cell ([`Density::constant`]): that cell's
+//! integral is then exact, with no rule. The norms use it for λ − λ_h on the cells of S_h where λ
+//! takes one constant branch on their triangle ([`constant_on`]): λ = 0 away from the contact set.
 
 use crate::assembly::Quadrature;
 use crate::expr::{Expr, Program, BLOCK};
@@ -48,6 +52,10 @@ pub trait Density<const M: usize>: Sync {
     fn local(&self, cell: usize) -> Self::Local;
     /// The components at the point `k` (at `x` in the cell), `values[f][k]` field f's value there.
     fn at(&self, local: &Self::Local, x: [f64; 2], values: &[Vec<f64>], k: usize) -> [f64; M];
+    /// The density on the cell, where it is known to be a constant there (no rule then).
+    fn constant(&self, _cell: usize) -> Option<[f64; M]> {
+        None
+    }
 }
 
 /// The pair of rules on each cell: the value is the higher degree's.
@@ -85,7 +93,17 @@ pub fn integrate<const M: usize, D: Density<M>>(
         PIECE,
         || Evaluator::new(density, rules),
         |ev, range| {
-            let estimates = ev.estimates(&range.map(piece).collect::<Vec<_>>());
+            let rest: Vec<Piece> = (range.clone())
+                .filter(|&c| density.constant(c).is_none())
+                .map(piece)
+                .collect();
+            let mut estimated = ev.estimates(&rest).into_iter();
+            let estimates: Vec<Estimate<M>> = range
+                .map(|c| match density.constant(c) {
+                    Some(d) => Estimate::constant(piece(c), d),
+                    None => estimated.next().expect("an estimate for each cell not constant"),
+                })
+                .collect();
             let mut whole = Integral::zero();
             estimates.iter().for_each(|e| whole.add(e));
             (
@@ -270,6 +288,63 @@ struct Estimate<const M: usize> {
     /// Where the piece lies from the branches of the fields.
     kind: Kind,
 }
+
+impl<const M: usize> Estimate<M> {
+    /// The piece of a density constant there, `d`: its integral exact.
+    fn constant(piece: Piece, d: [f64; M]) -> Self {
+        Estimate {
+            value: d.map(|d| d * piece.area()),
+            error: [0.0; M],
+            rules: [0.0; M],
+            kind: Kind::Smooth,
+            piece,
+        }
+    }
+}
+
+/// The value of `e` on each cell 0..n (`corners` of each) where it is a constant as far as its
+/// values show: the same at the points of [`CONSTANT_TEST`], the corners, the edges' midpoints
+/// and the centroid, with the same sign of every branch's margin there (as `Kind::Smooth`: the
+/// expression does not branch between them, and takes one constant branch, as λ = max(…, 0)
+/// away from the contact set).
+pub fn constant_on(n: usize, corners: impl Fn(usize) -> [[f64; 2]; 3] + Sync, e: &Expr) -> Vec<Option<f64>> {
+    let program = Program::new(&[e]);
+    let j = program.branches();
+    let rule = CONSTANT_TEST.rule();
+    let per_cell = rule.len() + 7;
+    let pieces = parallel::map(n, PIECE, |range| {
+        let (mut xs, mut values, mut scratch, mut margins) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let mut out = Vec::with_capacity(range.len());
+        for cells in range.collect::<Vec<_>>().chunks(CELLS_PER_BLOCK) {
+            xs.clear();
+            for &c in cells {
+                let [p, q, r] = corners(c);
+                let at = |l: [f64; 3]| std::array::from_fn(|d| l[0] * p[d] + l[1] * q[d] + l[2] * r[d]);
+                xs.extend(rule.iter().map(|&[xi, eta, _]| at([1.0 - xi - eta, xi, eta])));
+                let mid = |a: [f64; 2], b: [f64; 2]| [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])];
+                xs.extend([p, q, r, mid(p, q), mid(q, r), mid(r, p), at([1.0 / 3.0; 3])]);
+            }
+            values.resize(xs.len(), 0.0);
+            program.eval_with_margins(&xs, &mut [&mut values[..]], &mut scratch, &mut margins);
+            out.extend((0..cells.len()).map(|k| {
+                let points = k * per_cell..(k + 1) * per_cell;
+                let v = values[points.start];
+                let same = values[points.clone()].iter().all(|w| w.to_bits() == v.to_bits());
+                let one_side = (0..j).all(|b| {
+                    let side = |k: usize| margins[k * j + b] < 0.0;
+                    points.clone().all(|k| side(k) == side(points.start))
+                });
+                (same && one_side && v.is_finite()).then_some(v)
+            }));
+        }
+        out
+    });
+    pieces.concat()
+}
+
+/// The rule whose points [`constant_on`] tests (with the corners, midpoints and centroid): as fine
+/// as the rules on T_h of the norms.
+const CONSTANT_TEST: Quadrature = Quadrature { degree: 6 };
 
 /// A piece's place with respect to the branches of the fields (where a value or a derivative may
 /// jump), from the signs of their margins (`Program::eval_with_margins`).
@@ -551,5 +626,41 @@ mod tests {
             error <= i.error[0] && i.error[0] <= 2.0 * RTOL * exact,
             "{error:e} {i:?}"
         );
+    }
+
+    #[test]
+    fn constants_are_found_where_a_branch_is_constant_and_only_there() {
+        let mesh = crate::mesh::Mesh::rectangle([0.0, 0.0], [1.0, 1.0], 16, 16, crate::mesh::Diagonal::Right)
+            .unwrap();
+        let r2 = |p: [f64; 2]| (p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2);
+        let of = |source: &str| {
+            constant_on(
+                mesh.n_triangles(),
+                |t| mesh.corners(t),
+                &Expr::parse(source).unwrap(),
+            )
+        };
+        let quadratic = of("40*max(0.0625 - (x-0.5)^2 - (y-0.5)^2, 0)");
+        let step = of("if((x-0.5)^2 + (y-0.5)^2 < 0.0625, 10, 0)");
+        let (mut zero, mut ten) = (0, 0);
+        for t in 0..mesh.n_triangles() {
+            let r = mesh.corners(t).map(r2);
+            let inside = r.iter().all(|&r| r < 0.0625);
+            // A triangle whose corners are outside may still be crossed, one whose corner is on the
+            // circle only touch it: only the others are sure.
+            let crossed = r.iter().any(|&r| r < 0.0625) && r.iter().any(|&r| r > 0.0625);
+            match (inside, crossed) {
+                (true, _) => {
+                    assert_eq!(quadratic[t], None, "{t}: λ is not a constant inside");
+                    assert_eq!(step[t], Some(10.0), "{t}");
+                    ten += 1;
+                }
+                (_, true) => assert!(quadratic[t].is_none() && step[t].is_none(), "{t}: crossed"),
+                _ => zero += usize::from(quadratic[t] == Some(0.0) && step[t] == Some(0.0)),
+            }
+        }
+        // The disk covers about 0.2 of the square's 512 triangles.
+        assert!(ten > 50 && zero > 350, "{ten} inside, {zero} outside");
+        assert!(of("x*y").iter().all(Option::is_none), "no polynomial is constant");
     }
 }

@@ -318,16 +318,25 @@ impl Density<4> for P1Errors<'_> {
     }
 }
 
-/// ∫ (λ − λ_h)² over the cells of S_h, λ_h = `lambda_h` of each cell.
+/// ∫ (λ − λ_h)² over the cells of S_h, λ_h = `lambda_h` of each cell. Where λ is a constant on a
+/// triangle of T_h (away from the contact set, λ = 0), its six cells need no rule.
 fn lambda_error(dual: &DualMesh, lambda_h: impl Fn(usize) -> f64 + Sync, lambda: &Expr) -> Integral<1> {
-    let density = DualError { lambda, lambda_h };
+    let mesh = dual.mesh();
+    let constant = cubature::constant_on(mesh.n_triangles(), |t| mesh.corners(t), lambda);
+    let density = DualError {
+        lambda,
+        lambda_h,
+        constant,
+    };
     cubature::integrate(dual.n_cells(), |s| dual.corners(s), &density, ON_DUAL_CELLS)
 }
 
-/// The density (λ − λ_h)² on the cells of S_h.
+/// The density (λ − λ_h)² on the cells of S_h; `constant` λ's value on each triangle of T_h where
+/// it is a constant.
 struct DualError<'a, L> {
     lambda: &'a Expr,
     lambda_h: L,
+    constant: Vec<Option<f64>>,
 }
 
 impl<L: Fn(usize) -> f64 + Sync> Density<1> for DualError<'_, L> {
@@ -344,6 +353,10 @@ impl<L: Fn(usize) -> f64 + Sync> Density<1> for DualError<'_, L> {
 
     fn at(&self, lambda_h: &f64, _: [f64; 2], values: &[Vec<f64>], k: usize) -> [f64; 1] {
         [(values[0][k] - lambda_h).powi(2)]
+    }
+
+    fn constant(&self, s: usize) -> Option<[f64; 1]> {
+        self.constant[s / 6].map(|c| [(c - (self.lambda_h)(s)).powi(2)])
     }
 }
 
