@@ -227,15 +227,13 @@ fn mesh_error(case: &Case, e: &dyn std::fmt::Display) -> RunError {
 fn write_step(staging: &Staging, dir: &str, r: &Run, dual: bool) -> Result<(), RunError> {
     let path = staging.path().join(dir);
     std::fs::create_dir(&path).map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
+    let mut fields = r.fields();
+    if dual && !r.writes_dual {
+        fields.extend(r.dual_fields());
+    }
     let dual = dual.then(|| r.dual());
-    result::write(
-        &path,
-        &r.problem.mesh,
-        dual.as_ref(),
-        &r.fields(),
-        &r.attributes(),
-    )
-    .map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
+    result::write(&path, &r.problem.mesh, dual.as_ref(), &fields, &r.attributes())
+        .map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
     Ok(())
 }
 

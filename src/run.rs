@@ -171,6 +171,18 @@ pub fn on_mesh<'c>(
 }
 
 impl Run<'_> {
+    /// The fields of S_h: λ_h = Σ_a λ_a χ_{D_a} (0 on the cells of boundary vertices), and the a of
+    /// each D_a (in [`Describe::fields`] when the result holds S_h).
+    pub fn dual_fields(&self) -> Vec<Field<'_>> {
+        let vertices = (0..self.problem.mesh.n_vertices())
+            .map(|a| a as f64)
+            .collect::<Vec<_>>();
+        vec![
+            Field::on_dual_cells("lambda", &self.action.lambda[..]),
+            Field::on_dual_cells("vertex", vertices),
+        ]
+    }
+
     /// Writes the result into `staging` and puts it in place.
     pub fn write(&mut self, staging: Staging, inputs: &[PathBuf]) -> Result<(), RunError> {
         let t = Instant::now();
@@ -377,13 +389,8 @@ impl Describe for Run<'_> {
     fn fields(&self) -> Vec<Field<'_>> {
         let mut fields = self.solution.fields();
         fields.extend(self.action.fields());
-        // λ_h = Σ_a λ_a χ_{D_a} (0 on the cells of boundary vertices), and the a of each D_a.
         if self.writes_dual {
-            let vertices = (0..self.problem.mesh.n_vertices())
-                .map(|a| a as f64)
-                .collect::<Vec<_>>();
-            fields.push(Field::on_dual_cells("lambda", &self.action.lambda[..]));
-            fields.push(Field::on_dual_cells("vertex", vertices));
+            fields.extend(self.dual_fields());
         }
         if let Some(exact) = &self.case.exact {
             fields.extend(exact.fields(&self.problem.mesh));

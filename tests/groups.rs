@@ -264,6 +264,14 @@ fn adapt_runs_with_tables_per_group() {
         .all(|w| w[1].estimator < w[0].estimator && w[1].vertices > w[0].vertices));
     let last = file::read(&dir.path().join("adapt/step-004/solution.h5")).unwrap();
     assert_geometric_groups(&last);
-    // S_h asked for: in every step.
+    // S_h asked for: in every step, with λ_h and the owner vertex of each cell.
     assert!((0..5).all(|k| dir.path().join(format!("adapt/step-{k:03}/dual.xdmf")).exists()));
+    let h5 = hdf5::File::open(dir.path().join("adapt/step-004/solution.h5")).unwrap();
+    let n = last.n_vertices();
+    let vertex = h5.dataset("dual/vertex").unwrap().read_raw::<f64>().unwrap();
+    assert_eq!(vertex.len(), 6 * last.n_triangles());
+    assert!(vertex
+        .iter()
+        .all(|&a| a >= 0.0 && a < n as f64 && a.fract() == 0.0));
+    assert_eq!(h5.dataset("dual/lambda").unwrap().shape(), [vertex.len()]);
 }
