@@ -159,12 +159,12 @@ impl<'a> DualMesh<'a> {
 }
 
 /// The midpoint of pq (the same bits for qp: floating-point addition commutes).
-fn midpoint(p: [f64; 2], q: [f64; 2]) -> [f64; 2] {
+pub(crate) fn midpoint(p: [f64; 2], q: [f64; 2]) -> [f64; 2] {
     [0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])]
 }
 
 /// The barycentre of a triangle.
-fn barycentre([p, q, r]: [[f64; 2]; 3]) -> [f64; 2] {
+pub(crate) fn barycentre([p, q, r]: [[f64; 2]; 3]) -> [f64; 2] {
     [(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0]
 }
 

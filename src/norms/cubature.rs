@@ -22,6 +22,7 @@
 
 use crate::assembly::Quadrature;
 use crate::expr::{Expr, Program, BLOCK};
+use crate::mesh::dual::{barycentre, midpoint};
 
 use crate::parallel::{self, PIECE};
 
@@ -93,13 +94,14 @@ pub fn integrate<const M: usize, D: Density<M>>(
         PIECE,
         || Evaluator::new(density, rules),
         |ev, range| {
-            let rest: Vec<Piece> = (range.clone())
-                .filter(|&c| density.constant(c).is_none())
-                .map(piece)
+            let constant: Vec<Option<[f64; M]>> = range.clone().map(|c| density.constant(c)).collect();
+            let rest: Vec<Piece> = (range.clone().zip(&constant))
+                .filter(|(_, d)| d.is_none())
+                .map(|(c, _)| piece(c))
                 .collect();
             let mut estimated = ev.estimates(&rest).into_iter();
-            let estimates: Vec<Estimate<M>> = range
-                .map(|c| match density.constant(c) {
+            let estimates: Vec<Estimate<M>> = (range.zip(constant))
+                .map(|(c, d)| match d {
                     Some(d) => Estimate::constant(piece(c), d),
                     None => estimated.next().expect("an estimate for each cell not constant"),
                 })
@@ -267,8 +269,7 @@ impl Piece {
     /// The four triangles cut by the edges' midpoints, oriented as this one.
     fn quarters(&self) -> [Piece; 4] {
         let [p, q, r] = self.corners;
-        let mid = |a: [f64; 2], b: [f64; 2]| [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])];
-        let (pq, qr, rp) = (mid(p, q), mid(q, r), mid(r, p));
+        let (pq, qr, rp) = (midpoint(p, q), midpoint(q, r), midpoint(r, p));
         [[p, pq, rp], [pq, q, qr], [rp, qr, r], [qr, rp, pq]].map(|corners| Piece {
             cell: self.cell,
             corners,
@@ -321,8 +322,15 @@ pub fn constant_on(n: usize, corners: impl Fn(usize) -> [[f64; 2]; 3] + Sync, e:
                 let [p, q, r] = corners(c);
                 let at = |l: [f64; 3]| std::array::from_fn(|d| l[0] * p[d] + l[1] * q[d] + l[2] * r[d]);
                 xs.extend(rule.iter().map(|&[xi, eta, _]| at([1.0 - xi - eta, xi, eta])));
-                let mid = |a: [f64; 2], b: [f64; 2]| [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1])];
-                xs.extend([p, q, r, mid(p, q), mid(q, r), mid(r, p), at([1.0 / 3.0; 3])]);
+                xs.extend([
+                    p,
+                    q,
+                    r,
+                    midpoint(p, q),
+                    midpoint(q, r),
+                    midpoint(r, p),
+                    barycentre([p, q, r]),
+                ]);
             }
             values.resize(xs.len(), 0.0);
             program.eval_with_margins(&xs, &mut [&mut values[..]], &mut scratch, &mut margins);
