@@ -132,9 +132,7 @@ pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: &
         parallel::map_with(class.len(), PIECE, Patch::default, |work, range| {
             for &a in &class[range] {
                 work.build(mesh, dual, patches, a as usize);
-                for (i, m) in membranes.iter().enumerate() {
-                    work.solve(a as usize, m, |t| grad_u[t][i], &tau[i]);
-                }
+                work.solve(a as usize, membranes, |t, i| grad_u[t][i], &tau);
             }
         });
     }
@@ -148,7 +146,7 @@ pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: &
         .collect()
 }
 
-/// One cell of S_h in a patch.
+/// One cell of S_h in a patch, with what its local problems need of its geometry.
 #[derive(Clone, Copy, Default)]
 struct Cell {
     /// Its index in S_h.
@@ -156,12 +154,16 @@ struct Cell {
     /// Its triangle of T_h, and the position of a in it.
     triangle: usize,
     position: usize,
-    corners: [[f64; 2]; 3],
     area: f64,
     /// The stream-function unknown at each corner, or NONE.
     stream: [usize; 3],
-    /// φ_a at each corner.
-    phi: [f64; 3],
+    /// The gradients of the cell's three P1 hat functions (one per corner).
+    hat: [[f64; 2]; 3],
+    /// Edge e (corner e to e + 1) times the mean of φ_a on it: the flux of φ_a v through the
+    /// edge, for v constant, is v × this (the cross product).
+    phi_edge: [[f64; 2]; 3],
+    /// The RT0 basis function of edge e at the centroid, (c − p_{e+2}) / (2|κ|).
+    at_centroid: [[f64; 2]; 3],
     /// Whether the cell lies in D_a.
     own: bool,
     /// ∇φ_a on the triangle.
@@ -192,6 +194,7 @@ struct Patch {
     factor: Vec<f64>,
     flux: Vec<[f64; 3]>,
     accumulated: Vec<f64>,
+    /// The stream system's right-hand sides, one column of `unknowns` per membrane.
     rhs: Vec<f64>,
 }
 
@@ -234,15 +237,24 @@ impl Patch {
                     [vertex, centroid, mid]
                 };
                 let index = 6 * t + c;
-                let corners = dual.corners(index);
+                let p = dual.corners(index);
+                let area = 0.5 * orient(p[0], p[1], p[2]);
+                let phi = corners3.map(|x| x.1);
+                let centroid = [0, 1].map(|k| (p[0][k] + p[1][k] + p[2][k]) / 3.0);
                 self.cells.push(Cell {
                     index,
                     triangle: t,
                     position: k,
-                    corners,
-                    area: 0.5 * orient(corners[0], corners[1], corners[2]),
+                    area,
                     stream: corners3.map(|x| x.0),
-                    phi: corners3.map(|x| x.1),
+                    hat: gradients(p),
+                    phi_edge: std::array::from_fn(|e| {
+                        let mean = 0.5 * (phi[e] + phi[(e + 1) % 3]);
+                        [0, 1].map(|k| mean * (p[(e + 1) % 3][k] - p[e][k]))
+                    }),
+                    at_centroid: std::array::from_fn(|e| {
+                        [0, 1].map(|k| (centroid[k] - p[(e + 2) % 3][k]) / (2.0 * area))
+                    }),
                     own: v == a,
                     grad_phi,
                 });
@@ -328,7 +340,7 @@ impl Patch {
         self.factor.clear();
         self.factor.resize(n * n, 0.0);
         for cell in &self.cells {
-            let g = gradients(cell.corners);
+            let g = cell.hat;
             for p in 0..3 {
                 for q in 0..3 {
                     let (i, j) = (cell.stream[p], cell.stream[q]);
@@ -341,12 +353,50 @@ impl Patch {
         cholesky(&mut self.factor, n);
     }
 
-    /// τ_{i,a} for one membrane, added to `tau`'s normal fluxes (f64 bits; no other patch adds
-    /// to these cells meanwhile); `grad` gives μ_i ∇u_ih on a triangle.
-    fn solve(&mut self, a: usize, m: &Membrane, grad: impl Fn(usize) -> [f64; 2], tau: &[[AtomicU64; 3]]) {
-        let nodes = self.cells.len() + usize::from(self.ground);
+    /// τ_{i,a} for each membrane i, added to `tau[i]`'s normal fluxes (f64 bits; no other patch
+    /// adds to these cells meanwhile); `grad(t, i)` gives μ_i ∇u_ih on a triangle t. One solve of
+    /// the stream-function system takes all membranes' right-hand sides.
+    fn solve(
+        &mut self,
+        a: usize,
+        membranes: &[Membrane],
+        grad: impl Fn(usize, usize) -> [f64; 2],
+        tau: &[Vec<[AtomicU64; 3]>],
+    ) {
+        let (cells, n, m) = (self.cells.len(), self.unknowns, membranes.len());
         self.flux.clear();
-        self.flux.resize(self.cells.len(), [0.0; 3]);
+        self.flux.resize(m * cells, [0.0; 3]);
+        self.rhs.clear();
+        self.rhs.resize(n * m, 0.0);
+        for (i, membrane) in membranes.iter().enumerate() {
+            self.particular(a, membrane, |t| grad(t, i), i);
+        }
+        for column in self.rhs.chunks_exact_mut(n) {
+            cholesky_solve(&self.factor, n, column);
+        }
+        for (i, tau) in tau.iter().enumerate() {
+            let flux = &self.flux[i * cells..(i + 1) * cells];
+            for (cell, flux) in self.cells.iter().zip(flux) {
+                let psi = cell
+                    .stream
+                    .map(|k| if k == NONE { 0.0 } else { self.rhs[i * n + k] });
+                for e in 0..3 {
+                    // The flux of curl ψ through the edge from corner e to e + 1.
+                    let f = flux[e] + psi[(e + 1) % 3] - psi[e];
+                    let sum = &tau[cell.index][e];
+                    sum.store((f64::from_bits(sum.load(Relaxed)) + f).to_bits(), Relaxed);
+                }
+            }
+        }
+    }
+
+    /// A particular solution τ_p of membrane `m`'s divergence constraint on the patch of `a`
+    /// (column `i` of the workspace's fluxes), and the right-hand side of its correction
+    /// min ‖q + τ_p + curl ψ‖, q = Π_RT(φ_a μ ∇u_h), in column `i` of the stream system's.
+    fn particular(&mut self, a: usize, m: &Membrane, grad: impl Fn(usize) -> [f64; 2], i: usize) {
+        let (cells, n) = (self.cells.len(), self.unknowns);
+        let nodes = cells + usize::from(self.ground);
+        let flux = &mut self.flux[i * cells..(i + 1) * cells];
         self.accumulated.clear();
         self.accumulated.resize(nodes, 0.0);
         // The divergence, integrated over each cell.
@@ -358,46 +408,27 @@ impl Patch {
             }
             self.accumulated[node] = d;
         }
-        // The particular solution: leaves first, each node's net outflow through its parent link.
+        // Leaves first, each node's net outflow through its parent link.
         for &node in self.order.iter().skip(1).rev() {
             let link = self.links[self.parent[node]];
             let (mine, theirs) = link.sides(node);
             let out = self.accumulated[node];
-            self.flux[node][mine.1] += out;
-            if theirs.0 < self.cells.len() {
-                self.flux[theirs.0][theirs.1] -= out;
+            flux[node][mine.1] += out;
+            if theirs.0 < cells {
+                flux[theirs.0][theirs.1] -= out;
                 self.accumulated[theirs.0] += out;
             }
         }
-        // The correction: min ‖q + τ_p + curl ψ‖, q = Π_RT(φ_a μ ∇u_h).
-        let n = self.unknowns;
-        self.rhs.clear();
-        self.rhs.resize(n, 0.0);
-        for (node, cell) in self.cells.iter().enumerate() {
+        for (cell, flux) in self.cells.iter().zip(flux.iter()) {
             let du = grad(cell.triangle);
-            let p = cell.corners;
-            let q: [f64; 3] = std::array::from_fn(|e| {
-                let (s, t) = (p[e], p[(e + 1) % 3]);
-                0.5 * (cell.phi[e] + cell.phi[(e + 1) % 3]) * (du[0] * (t[1] - s[1]) - du[1] * (t[0] - s[0]))
-            });
-            let total: [f64; 3] = std::array::from_fn(|e| q[e] + self.flux[node][e]);
-            let v = at_centroid(&p, cell.area, &total);
-            let g = gradients(p);
-            for (k, &i) in cell.stream.iter().enumerate() {
-                if i != NONE {
+            let q = cell.phi_edge.map(|e| du[0] * e[1] - du[1] * e[0]);
+            let total: [f64; 3] = std::array::from_fn(|e| q[e] + flux[e]);
+            let v = [0, 1].map(|k| (0..3).map(|e| total[e] * cell.at_centroid[e][k]).sum::<f64>());
+            for (g, &k) in cell.hat.iter().zip(&cell.stream) {
+                if k != NONE {
                     // curl φ = (∂_y φ, −∂_x φ), constant on the cell.
-                    self.rhs[i] -= cell.area * (g[k][1] * v[0] - g[k][0] * v[1]);
+                    self.rhs[i * n + k] -= cell.area * (g[1] * v[0] - g[0] * v[1]);
                 }
-            }
-        }
-        cholesky_solve(&self.factor, n, &mut self.rhs);
-        for (node, cell) in self.cells.iter().enumerate() {
-            let psi = cell.stream.map(|i| if i == NONE { 0.0 } else { self.rhs[i] });
-            for e in 0..3 {
-                // The flux of curl ψ through the edge from corner e to e + 1.
-                let f = self.flux[node][e] + psi[(e + 1) % 3] - psi[e];
-                let sum = &tau[cell.index][e];
-                sum.store((f64::from_bits(sum.load(Relaxed)) + f).to_bits(), Relaxed);
             }
         }
     }
@@ -417,13 +448,6 @@ impl Link {
             (self.0[1], self.0[0])
         }
     }
-}
-
-/// An RT0 field at the centroid of a cell, from its outward fluxes (edge e from corner e to
-/// e + 1, basis function (x − p_{e+2}) / (2|κ|)).
-pub fn at_centroid(p: &[[f64; 2]; 3], area: f64, flux: &[f64; 3]) -> [f64; 2] {
-    let c = [0, 1].map(|i| (p[0][i] + p[1][i] + p[2][i]) / 3.0);
-    [0, 1].map(|i| (0..3).map(|e| flux[e] * (c[i] - p[(e + 2) % 3][i])).sum::<f64>() / (2.0 * area))
 }
 
 /// In-place Cholesky factorization LLᵀ of the SPD n×n row-major matrix `m` (lower triangle).
