@@ -85,7 +85,7 @@ bench: deps
 	done; done; \
 	for spec in $(BENCH_WHOLE); do for r in $$(seq $(BENCH_REPEAT)); do \
 		n=$${spec%%:*}; options=$$(echo "$${spec#$$n}" | tr ':,' '  '); \
-		out=$$( { /usr/bin/time -f "wall=%e peak_kb=%M" $(BIN) solve --quiet --n $$n $$options -o target/bench-whole; } 2>&1 ) \
+		out=$$( { /usr/bin/time -f "wall=%e sys=%S peak_kb=%M" $(BIN) solve --quiet --n $$n $$options -o target/bench-whole; } 2>&1 ) \
 			|| { echo "$$out" >&2; exit 1; }; \
 		echo "whole $$spec bytes=$$(cat target/bench-whole/* | wc -c) $$(echo "$$out" | tr '\n' ' ')"; \
 	done; done; } | tee target/bench.log | $(PY) -m reference.bench_table
