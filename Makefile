@@ -113,7 +113,7 @@ expr-property: deps
 
 # Mutation testing of the numerical core (hours; not in CI): every mutant must fail a test, or be
 # explained in docs/mutants.md. MUTANTS_FILES narrows it, e.g. MUTANTS_FILES=src/action.rs.
-MUTANTS_FILES ?= src/assembly.rs src/contact.rs src/action.rs src/flux.rs src/norms.rs src/linear.rs
+MUTANTS_FILES ?= src/assembly.rs 'src/contact/*.rs' src/action.rs src/flux.rs 'src/norms/*.rs' src/linear.rs 'src/estimator/*.rs'
 mutants: deps
 	command -v cargo-mutants >/dev/null || cargo install cargo-mutants --locked
 	cargo mutants $(addprefix -f ,$(MUTANTS_FILES)) --profile mutants --timeout 300 --output target -- --lib --tests
