@@ -267,11 +267,15 @@ fn adapt_runs_with_tables_per_group() {
     // S_h asked for: in every step, with λ_h and the owner vertex of each cell.
     assert!((0..5).all(|k| dir.path().join(format!("adapt/step-{k:03}/dual.xdmf")).exists()));
     let h5 = hdf5::File::open(dir.path().join("adapt/step-004/solution.h5")).unwrap();
-    let n = last.n_vertices();
-    let vertex = h5.dataset("dual/vertex").unwrap().read_raw::<f64>().unwrap();
+    let read = |name: &str| h5.dataset(name).unwrap().read_raw::<f64>().unwrap();
+    let (vertex, lambda, lambda_a) = (read("dual/vertex"), read("dual/lambda"), read("mesh/lambda"));
     assert_eq!(vertex.len(), 6 * last.n_triangles());
-    assert!(vertex
-        .iter()
-        .all(|&a| a >= 0.0 && a < n as f64 && a.fract() == 0.0));
-    assert_eq!(h5.dataset("dual/lambda").unwrap().shape(), [vertex.len()]);
+    // Cell s of S_h lies in D_a of the vertex a = t[(s mod 6) / 2] of its triangle t, and λ_h = λ_a
+    // there.
+    for (s, (&a, &l)) in vertex.iter().zip(&lambda).enumerate() {
+        let owner = last.triangle(s / 6)[(s % 6) / 2];
+        assert_eq!(a, owner as f64, "cell {s}");
+        assert_eq!(l, lambda_a[owner], "cell {s}");
+    }
+    assert!(lambda.iter().any(|&l| l > 0.0));
 }
