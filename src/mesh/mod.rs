@@ -621,8 +621,14 @@ fn boundary_is_simple(points: &[[f64; 2]], edges: &[(usize, usize)]) -> Result<(
     Ok(())
 }
 
-/// Whether the closed segments pq and rs have a point in common.
+/// Whether the closed segments pq and rs have a point in common. Segments whose bounding boxes
+/// are apart do not, whatever the signs of the orientations: along one line (a refined boundary
+/// edge) those are round-off, and their signs can say that two pieces far apart cross.
 fn segments_meet(p: [f64; 2], q: [f64; 2], r: [f64; 2], s: [f64; 2]) -> bool {
+    let apart = |k: usize| p[k].max(q[k]) < r[k].min(s[k]) || r[k].max(s[k]) < p[k].min(q[k]);
+    if apart(0) || apart(1) {
+        return false;
+    }
     let (d1, d2) = (orient(p, q, r), orient(p, q, s));
     let (d3, d4) = (orient(r, s, p), orient(r, s, q));
     if d1 * d2 < 0.0 && d3 * d4 < 0.0 {
@@ -782,5 +788,27 @@ mod tests {
             Mesh::new(sq[..4].to_vec(), vec![[0, 1, 2], [0, 2, 3]]),
             Err(MeshError::NoInteriorVertex)
         ));
+    }
+
+    /// Two pieces of one slanted edge of a hole after adaptive refinement (a case where `adapt`
+    /// stopped with "boundary edges … meet"): on one line up to round-off and 0.006 apart, where
+    /// the orientations' signs alone say that they cross; a segment across the line does meet.
+    #[test]
+    fn pieces_of_one_edge_do_not_meet() {
+        let (p, q) = (
+            [-0.004381416920996311, 0.15730704142195],
+            [-0.003007977224667413, 0.15550036982429277],
+        );
+        let (r, s) = (
+            [0.003859221256977079, 0.14646701183600658],
+            [0.0024857815606481805, 0.14827368343366382],
+        );
+        assert!(!segments_meet(p, q, r, s) && !segments_meet(r, s, p, q));
+        let (m, n) = (
+            [0.5 * (p[0] + q[0]), 0.5 * (p[1] + q[1])],
+            [q[1] - p[1], p[0] - q[0]],
+        );
+        let across = |t: f64| [m[0] + t * n[0], m[1] + t * n[1]];
+        assert!(segments_meet(p, q, across(-1.0), across(1.0)));
     }
 }
