@@ -403,7 +403,7 @@ fn right_of(p: [[f64; 2]; 3], x0: f64) -> (f64, [f64; 2]) {
 /// jumps across the line x = x0, which cuts cells of S_h, what the rule misses is known in closed
 /// form (∫ φ_j over the cut cells' parts, |P| φ_j(centroid of P)); lifted as η_data lifts it, it is
 /// η_data to 20 % (the finer rule's own error on the cut cells). A load the rule integrates
-/// exactly is not checked at all.
+/// exactly is not checked at all, on a mesh far from the origin too.
 #[test]
 fn what_the_rule_misses_of_a_jumping_load_is_measured() {
     let x0 = 0.3141;
@@ -458,6 +458,18 @@ fn what_the_rule_misses_of_a_jumping_load_is_measured() {
     let c = estimated(&constant);
     let c = &c.estimate.as_ref().unwrap();
     assert!(c.resolution.total == 0.0 && c.resolution.checked == 0 && c.loads_resolved());
+    // The same on a disk far from the origin, where the cells' corners are rounded to 1e-10, 1e-8
+    // of the mesh size: no triangle is taken for a load the rule misses.
+    let far = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"-1\"\nf2 = \"2\"\ng = \"0\"\n[mesh]\nkind = \"disk\"\n\
+               centre = [1e6, 0.0]\nradius = 1.0\nh = 0.05";
+    let far = Case::parse(far, "far", PathBuf::new()).unwrap();
+    let r = estimated(&far);
+    let e = r.estimate.as_ref().unwrap();
+    assert!(
+        e.resolution.checked == 0 && e.loads_resolved(),
+        "{} checked",
+        e.resolution.checked
+    );
 }
 
 /// A load with a layer far thinner than the mesh (tanh of width 1e-4) is not resolved by the

@@ -9,7 +9,8 @@
 //! ```
 //!
 //! which this module estimates with δ measured against a finer rule: on each triangle K the case's
-//! rule on K and on K's six cells give two values of ∫_K f_i; where they agree to `AGREE` the
+//! rule on K and on K's six cells give two values of ∫_K f_i; where they agree to `AGREE` (or to the
+//! round-off of the cells' geometry, on a mesh far from the origin: `agreement`) the
 //! load counts as resolved on K (δ = 0 there); elsewhere each cell is integrated again by the
 //! highest rule on its four halves. An estimate, not a bound: a load whose features fall between
 //! the points of every rule is not seen.
@@ -24,6 +25,9 @@ use crate::problem::DiscreteProblem;
 
 /// Relative agreement of the two values of ∫_K f_i within which the load counts as resolved on K.
 const AGREE: f64 = 1e-9;
+
+/// The round-off of the cells' geometry, in units of ε max|x| / h_K (see [`agreement`]).
+const GEOMETRY_ROUND_OFF: f64 = 64.0;
 
 /// η_data up to this share of η: the loads count as resolved, and η as a bound.
 pub const RESOLVED: f64 = 1e-2;
@@ -69,11 +73,12 @@ impl Resolution {
                     range,
                     f,
                     |t, points, values| {
+                        let tolerance = agreement(mesh.corners(t));
                         let agree = (0..mu.len()).all(|i| {
                             let on_k: f64 = points.iter().zip(values[i]).map(|(p, f)| p.weight * f).sum();
                             let cells = (6 * t..6 * t + 6).map(|s| on_cell(s, i).iter().sum::<f64>());
                             let size: f64 = cells.clone().map(f64::abs).sum();
-                            (cells.sum::<f64>() - on_k).abs() <= AGREE * size
+                            (cells.sum::<f64>() - on_k).abs() <= tolerance * size
                         });
                         out.push((!agree).then(|| finer(mesh, dual, t, f, &on_cell)));
                     },
@@ -100,6 +105,19 @@ impl Resolution {
             worst: worst.filter(|&t| squares[t] > 0.0).map(centroid),
         }
     }
+}
+
+/// The relative agreement the two values of ∫_K f_i can reach on the triangle of `corners`:
+/// [`AGREE`], or the round-off of the cells' geometry where it is larger. The corners of the cells
+/// (edge midpoints, centroid) are rounded to the absolute scale of the coordinates, ε max|x|, which
+/// is ε max|x| / h_K of K's size: on a mesh far from the origin the cells' areas, and with them
+/// the sum over the cells even of a constant load, differ from K's by more than [`AGREE`].
+fn agreement(corners: [[f64; 2]; 3]) -> f64 {
+    let scale = corners.iter().flatten().fold(0.0_f64, |m, x| m.max(x.abs()));
+    let shortest = (0..3)
+        .map(|e| crate::mesh::dist(corners[e], corners[(e + 1) % 3]))
+        .fold(f64::INFINITY, f64::min);
+    AGREE.max(GEOMETRY_ROUND_OFF * f64::EPSILON * scale / shortest)
 }
 
 /// z_i with K z_i = δ_i (the changes summed at each interior vertex), for `m` membranes; 0 where
