@@ -418,8 +418,12 @@ impl Case {
                 *n = [cells, cells];
                 Ok(())
             }
+            MeshSpec::Lshape { .. } if cells % 2 == 1 => Err(CaseError(format!(
+                "{}: {cells} cells per side: {EVEN_LSHAPE}",
+                self.origin
+            ))),
             MeshSpec::Lshape { n, .. } => {
-                *n = cells.max(2);
+                *n = cells;
                 Ok(())
             }
             _ => Err(CaseError(format!(
@@ -1138,10 +1142,15 @@ fn rectangle_spec(t: &MeshTable, need: impl Fn(&str) -> String) -> Result<MeshSp
     Ok(MeshSpec::Rectangle { corners, n, diagonal })
 }
 
-/// `kind = "lshape"`: n (at least 2), diagonal, grading ≥ 1.
+/// Why the L-shape's n must be even.
+const EVEN_LSHAPE: &str =
+    "the L-shape takes an even number of cells per side (its re-entrant corner is a vertex)";
+
+/// `kind = "lshape"`: n (even, at least 2), diagonal, grading ≥ 1.
 fn lshape_spec(t: &MeshTable, need: impl Fn(&str) -> String) -> Result<MeshSpec, String> {
     let n = match t.n.ok_or_else(|| need("n"))? {
-        Cells::Square(n) if n >= 2 => n,
+        Cells::Square(n) if n >= 2 && n % 2 == 0 => n,
+        Cells::Square(n) if n % 2 == 1 => return Err(format!("key 'mesh.n' = {n}: {EVEN_LSHAPE}")),
         Cells::Square(n) => return Err(format!("key 'mesh.n' = {n}: need at least 2")),
         Cells::Sides(n) => return Err(format!("key 'mesh.n' = {n:?}: the L-shape takes one number")),
     };

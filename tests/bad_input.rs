@@ -739,6 +739,20 @@ fn extreme_mesh_keys_are_named() {
     contains(&e, "grading = 2000");
 }
 
+/// The L-shape's re-entrant corner is a vertex only for an even n: an odd one, in the file or by
+/// `--n`, is refused (it was solved silently on n + 1 cells per side).
+#[test]
+fn an_odd_l_shape_is_refused() {
+    let e = case_fails(&format!("{GOOD}[mesh]\nkind = \"lshape\"\nn = 15\n"));
+    contains(
+        &e,
+        "key 'mesh.n' = 15: the L-shape takes an even number of cells per side",
+    );
+    let lshape = format!("{GOOD}[mesh]\nkind = \"lshape\"\nn = 16\n");
+    let e = fails(&lshape, |_| {}, &["--n", "7"], None);
+    contains(&e, "7 cells per side: the L-shape takes an even number");
+}
+
 #[test]
 fn oversized_case_files_are_refused() {
     let title = "x".repeat(2 << 20);
