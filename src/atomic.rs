@@ -47,8 +47,8 @@ pub struct Staging {
 impl Staging {
     /// Prepares the result directory `target`, whose `kind` ("solution" or "study") the marker
     /// records. Refuses a `target` that exists and is not a result of this program, that holds
-    /// one of `inputs`, or whose parent directory does not exist; clears stale temporaries of
-    /// earlier runs for the same `target`.
+    /// one of `inputs`, or whose parent directory cannot be made (it is made if missing, as
+    /// `mkdir -p` would); clears stale temporaries of earlier runs for the same `target`.
     pub fn new(target: &Path, inputs: &[PathBuf], kind: &str) -> Result<Staging, OutputError> {
         let err = |m: String| OutputError(format!("{}: {m}", target.display()));
         let name = target
@@ -59,12 +59,15 @@ impl Staging {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        if !parent.is_dir() {
-            return Err(err(format!(
-                "the directory {} that should hold the result does not exist",
-                parent.display()
-            )));
+        if parent.exists() && !parent.is_dir() {
+            return Err(err(format!("{} is not a directory", parent.display())));
         }
+        std::fs::create_dir_all(&parent).map_err(|e| {
+            err(format!(
+                "cannot make the directory {} that should hold the result: {e}",
+                parent.display()
+            ))
+        })?;
         check_replaceable(target, inputs)?;
         let prefix = format!(".{:016x}.", fnv1a(name.as_bytes()));
         clear_stale(&parent, &prefix);
@@ -324,6 +327,26 @@ mod tests {
         // Dropped without a commit, the staging leaves nothing.
         drop(Staging::new(&dir.path().join("never"), &[], "solution").unwrap());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
+
+    #[test]
+    fn missing_parent_directories_are_made_and_a_file_among_them_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("results").join("poly");
+        Staging::new(&target, &[], "solution")
+            .unwrap()
+            .commit(&[])
+            .unwrap();
+        assert!(target.join(MARKER).exists());
+        let file = dir.path().join("afile");
+        std::fs::write(&file, "a file").unwrap();
+        let e = Staging::new(&file.join("sub").join("out"), &[], "solution").unwrap_err();
+        assert!(
+            e.0.contains("cannot make the directory") && e.0.contains("afile/sub"),
+            "{}",
+            e.0
+        );
+        assert_eq!(std::fs::read_to_string(&file).unwrap(), "a file");
     }
 
     #[test]

@@ -478,12 +478,14 @@ fn vertex_index_out_of_range() {
     contains(&mesh_fails(&p, &c), "refers to vertex 7, which does not exist");
 }
 
+/// A file where the result's parent directory should be is named (a missing parent is made).
 #[test]
-fn output_directory_missing() {
+fn output_directory_under_a_file() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("absent").join("out");
+    std::fs::write(dir.path().join("afile"), "x").unwrap();
+    let out = dir.path().join("afile").join("out");
     let e = fails(&format!("{GOOD}{SQUARE}"), |_| {}, &[], Some(out));
-    contains(&e, "does not exist");
+    contains(&e, "afile is not a directory");
 }
 
 #[test]
