@@ -105,6 +105,7 @@ impl Staging {
     /// Puts the result in place, replacing an earlier one by one atomic exchange.
     pub fn commit(mut self, inputs: &[PathBuf]) -> Result<(), OutputError> {
         let err = |m: String| OutputError(format!("{}: {m}", self.target.display()));
+        list_contents(&self.temporary).map_err(|e| err(format!("cannot write: {e}")))?;
         // The target may have changed while the result was computed.
         check_replaceable(&self.target, inputs)?;
         let mut list = pending();
@@ -227,6 +228,21 @@ fn check_replaceable(target: &Path, inputs: &[PathBuf]) -> Result<(), OutputErro
             "exists and is not a result of membrane-contact; it is left alone: choose another name".into(),
         ));
     }
+    let marker = std::fs::read_to_string(target.join(MARKER)).unwrap_or_default();
+    let listed: Vec<&str> = marker.lines().skip(1).collect();
+    // A result written before the marker listed its contents is taken as it is.
+    if !listed.is_empty() {
+        let entries = std::fs::read_dir(target).map_err(|e| err(format!("cannot read: {e}")))?;
+        for name in entries.flatten().map(|e| e.file_name()) {
+            let name = name.to_string_lossy();
+            if name != MARKER && !listed.contains(&&*name) {
+                return Err(err(format!(
+                    "holds {name}, which is not part of the result; replacing the result would delete \
+                     it: move it away or choose another name"
+                )));
+            }
+        }
+    }
     let real = target
         .canonicalize()
         .map_err(|e| err(format!("cannot resolve: {e}")))?;
@@ -239,6 +255,19 @@ fn check_replaceable(target: &Path, inputs: &[PathBuf]) -> Result<(), OutputErro
         }
     }
     Ok(())
+}
+
+/// Adds the names in the result directory `dir` to its marker, one a line after the kind: what a
+/// later run may replace, and nothing a user put there since.
+fn list_contents(dir: &Path) -> std::io::Result<()> {
+    let mut names: Vec<String> = (std::fs::read_dir(dir)?.flatten())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n != MARKER)
+        .collect();
+    names.sort();
+    let mut marker = std::fs::read_to_string(dir.join(MARKER))?;
+    names.iter().for_each(|n| marker += &format!("{n}\n"));
+    std::fs::write(dir.join(MARKER), marker)
 }
 
 /// Swaps two paths atomically (Linux `renameat2` with `RENAME_EXCHANGE`).
@@ -327,6 +356,38 @@ mod tests {
         // Dropped without a commit, the staging leaves nothing.
         drop(Staging::new(&dir.path().join("never"), &[], "solution").unwrap());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+    }
+
+    /// A file or directory that a user put into a result is not deleted by the next result.
+    #[test]
+    fn what_a_user_added_to_a_result_is_kept() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("out");
+        let write = || {
+            let s = Staging::new(&target, &[], "solution")?;
+            std::fs::write(s.path().join("solution.h5"), "data").unwrap();
+            s.commit(&[])
+        };
+        write().unwrap();
+        write().unwrap();
+        for added in ["notes.txt", "sub"] {
+            let path = target.join(added);
+            match added {
+                "sub" => std::fs::create_dir(&path).unwrap(),
+                _ => std::fs::write(&path, "mine").unwrap(),
+            }
+            let e = write().unwrap_err();
+            assert!(
+                e.0.contains(&format!("holds {added}, which is not part of the result")),
+                "{}",
+                e.0
+            );
+            assert!(path.exists());
+            std::fs::remove_dir_all(&path)
+                .or_else(|_| std::fs::remove_file(&path))
+                .unwrap();
+        }
+        write().unwrap();
     }
 
     #[test]

@@ -42,7 +42,7 @@ enum Command {
         /// Case file (TOML); the built-in default case when omitted.
         case: Option<PathBuf>,
         /// The result directory; default results/<case name>. An existing one is replaced only by a
-        /// complete new result, and only if it is a result of this program.
+        /// complete new result, and only if it is a result of this program holding nothing else.
         #[arg(short, long)]
         output: Option<PathBuf>,
         /// Cells per side of a built-in mesh (overrides the case; an error for other kinds).
