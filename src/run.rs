@@ -79,6 +79,13 @@ pub fn solve<'c>(case: &'c Case, options: &Options, target: &Path) -> Result<Run
 
 /// Computes a run without writing it.
 pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
+    if options.hminus1 && case.exact.is_none() {
+        return Err(CaseError(format!(
+            "{}: --hminus1 is the error ‖λ − λh‖_H⁻¹ against the exact λ, and the case has no [exact] table",
+            case.origin
+        ))
+        .into());
+    }
     let clock = Instant::now();
     progress::phase(|| "meshing".into());
     // The coarser meshes serve nested iteration and multigrid.
@@ -86,7 +93,7 @@ pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
     let after = Postprocess {
         flux: options.flux,
         estimate: options.estimate,
-        hminus1: options.hminus1 && case.exact.is_some(),
+        hminus1: options.hminus1,
     };
     // Before the mesh is built: what this problem cannot compute fails at once.
     case.check_options(options.estimate)?;

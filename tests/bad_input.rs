@@ -741,6 +741,17 @@ fn extreme_mesh_keys_are_named() {
     contains(&e, "grading = 2000");
 }
 
+/// ‖λ − λh‖_H⁻¹ is an error against the exact λ: asked for on a case without one, the run fails
+/// (it was silently left out).
+#[test]
+fn hminus1_without_an_exact_solution_is_refused() {
+    let e = fails(&format!("{GOOD}{SQUARE}"), |_| {}, &["--hminus1"], None);
+    contains(
+        &e,
+        "--hminus1 is the error ‖λ − λh‖_H⁻¹ against the exact λ, and the case has no [exact] table",
+    );
+}
+
 /// The L-shape's re-entrant corner is a vertex only for an even n: an odd one, in the file or by
 /// `--n`, is refused (it was solved silently on n + 1 cells per side).
 #[test]

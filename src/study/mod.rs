@@ -240,7 +240,7 @@ pub fn run_levels(
             mesh: &r.problem.mesh,
             obstacle: &r.solution.obstacle,
         });
-        let hminus1 = side <= options.hminus1_max;
+        let hminus1 = side <= options.hminus1_max && c.exact.is_some();
         let r = run::run(
             c,
             &run::Options {
