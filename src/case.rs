@@ -63,7 +63,10 @@ struct CaseFile {
 /// given per physical group (f1, f2, f, psi per surface, g, g2 per curve), a table of them keyed
 /// by the groups' names.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "expected an expression: a string such as \"sin(pi*x)\", a number, or a table of them per physical group"
+)]
 enum Expression {
     Number(f64),
     Text(String),

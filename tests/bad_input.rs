@@ -179,6 +179,11 @@ fn wrong_type() {
     let e = case_fails(&format!("{}{SQUARE}", GOOD.replace("mu1 = 1.0", "mu1 = \"one\"")));
     contains(&e, "mu1");
     contains(&e, "invalid type");
+    let e = case_fails(&format!(
+        "{}{SQUARE}",
+        GOOD.replace("g = \"0.1*x\"", "g = [1, 2]")
+    ));
+    contains(&e, "«g = [1, 2]»): expected an expression: a string such as");
 }
 
 #[test]
@@ -902,6 +907,9 @@ fn a_refined_file_mesh_too_large_for_memory() {
     );
     contains(&e, "square.msh, refine = 14: 26306674688 vertices need about");
     contains(&e, "use a coarser mesh");
+    // 30 refinements: a count past any integer is said so, not printed as a wrapped number.
+    let e = case_fails(&format!("{GOOD}{SQUARE}").replace("[mesh]", "[mesh]\nrefine = 30"));
+    contains(&e, "the mesh would have more than 1.8e19 vertices");
 }
 
 #[test]

@@ -132,6 +132,16 @@ impl fmt::Display for MeshError {
             }
             MeshError::NoInteriorVertex => write!(f, "the mesh has no interior vertex: nothing to solve"),
             MeshError::Generation(why) => write!(f, "the mesh could not be generated: {why}"),
+            // A count that saturated (e.g. 30 refinements) is past any memory.
+            MeshError::TooLarge {
+                vertices: usize::MAX,
+                ..
+            } => write!(
+                f,
+                "the mesh would have more than {:.1e} vertices (each refinement multiplies them by 4): \
+                 use a coarser mesh",
+                usize::MAX as f64
+            ),
             MeshError::TooLarge {
                 vertices,
                 needed_gb,
