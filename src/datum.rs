@@ -88,7 +88,7 @@ impl Datum {
         let group_error = |why: String| DataError::Group { name, why };
         let Some(groups) = mesh.groups() else {
             return Err(group_error(
-                "a table per physical group needs a Gmsh mesh (.msh) with physical groups; this mesh has none"
+                "a table per physical group needs a mesh with physical groups (a Gmsh .msh file, or a result of this program read back); this mesh has none"
                     .into(),
             ));
         };

@@ -1198,7 +1198,7 @@ fn tables_per_group_name_the_group_that_does_not_fit() {
     ));
     contains(
         &e,
-        "key 'f1': a table per physical group needs a Gmsh mesh (.msh) with physical groups",
+        "key 'f1': a table per physical group needs a mesh with physical groups (a Gmsh .msh file",
     );
     // Only the data may be tables.
     let e = case_fails(&format!(

@@ -264,6 +264,8 @@ fn adapt_runs_with_tables_per_group() {
         .all(|w| w[1].estimator < w[0].estimator && w[1].vertices > w[0].vertices));
     let last = file::read(&dir.path().join("adapt/step-004/solution.h5")).unwrap();
     assert_geometric_groups(&last);
+    // Read back through its XDMF file the result keeps them too.
+    assert_geometric_groups(&file::read(&dir.path().join("adapt/step-004/solution.xdmf")).unwrap());
     // S_h asked for: in every step, with λ_h and the owner vertex of each cell.
     assert!((0..5).all(|k| dir.path().join(format!("adapt/step-{k:03}/dual.xdmf")).exists()));
     let h5 = hdf5::File::open(dir.path().join("adapt/step-004/solution.h5")).unwrap();

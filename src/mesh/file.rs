@@ -77,32 +77,44 @@ fn read_xdmf_text(path: &Path) -> Result<String, String> {
 /// ```
 pub fn read(path: &Path) -> Result<Mesh, FileError> {
     let extension = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-    let (points, cells) = match extension {
-        "xdmf" => read_xdmf(path)?,
+    let checked = |(points, cells): RawMesh| {
+        Mesh::new(points, cells).map_err(|e| FileError(format!("{}: {e}", path.display())))
+    };
+    let with = |mesh: Mesh, groups: Option<super::Groups>| match groups {
+        None => mesh,
+        Some(groups) => mesh.with_groups(groups),
+    };
+    match extension {
+        "xdmf" => {
+            let mesh = checked(read_xdmf(path)?)?;
+            // The XDMF of a result of this program: its groups are in the one HDF5 file it names.
+            let mut heavy = inputs(path).split_off(1);
+            heavy.sort();
+            heavy.dedup();
+            let groups = match &heavy[..] {
+                [h5] => read_h5_groups(h5, &mesh)?,
+                _ => None,
+            };
+            Ok(with(mesh, groups))
+        }
         "h5" | "hdf5" => {
-            let (points, cells) = read_h5_mesh(path)?;
-            let mesh = Mesh::new(points, cells).map_err(|e| FileError(format!("{}: {e}", path.display())))?;
-            return Ok(match read_h5_groups(path, &mesh)? {
-                None => mesh,
-                Some(groups) => mesh.with_groups(groups),
-            });
+            let mesh = checked(read_h5_mesh(path)?)?;
+            let groups = read_h5_groups(path, &mesh)?;
+            Ok(with(mesh, groups))
         }
         "msh" => {
             let (raw, groups) = super::msh::read(path)?;
-            let mesh = Mesh::new(raw.0, raw.1).map_err(|e| FileError(format!("{}: {e}", path.display())))?;
-            return Ok(match groups {
+            let mesh = checked(raw)?;
+            Ok(match groups {
                 None => mesh,
                 Some(g) => with_msh_groups(mesh, g, path),
-            });
+            })
         }
-        _ => {
-            return Err(FileError(format!(
-                "{}: unknown mesh file extension '{extension}': the mesh files read are {ACCEPTED}",
-                path.display()
-            )))
-        }
-    };
-    Mesh::new(points, cells).map_err(|e| FileError(format!("{}: {e}", path.display())))
+        _ => Err(FileError(format!(
+            "{}: unknown mesh file extension '{extension}': the mesh files read are {ACCEPTED}",
+            path.display()
+        ))),
+    }
 }
 
 /// The mesh with the physical groups of its MSH file: the surface of each triangle, and the
