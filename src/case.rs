@@ -5,7 +5,7 @@ use crate::assembly::Quadrature;
 use crate::contact::{LinearSolver, SolverOptions};
 use crate::datum::Datum;
 use crate::expr::{Expr, ExprError, Names};
-use crate::mesh::{self, Curves, Diagonal, Domain, Mesh, Postprocess};
+use crate::mesh::{self, Curves, Diagonal, Domain, Mesh, MeshError, Postprocess};
 use crate::norms::Exact;
 use crate::problem::{self, Data, Lower};
 use crate::result::{Attr, Attribute, Describe};
@@ -650,7 +650,10 @@ impl Case {
             MeshSpec::Domain { domain, h } => domain.mesh(*h).map(|m| m.renumbered()),
             MeshSpec::File { .. } | MeshSpec::Given { .. } => unreachable!("read above"),
         };
-        built.map_err(|e| err(format!("{keys}: the mesh is not valid: {e}")))
+        built.map_err(|e| match e {
+            MeshError::Generation(_) => err(format!("{keys}: {e}")),
+            e => err(format!("{keys}: the mesh is not valid: {e}")),
+        })
     }
 
     /// Below a disk or polygon meshed with size h, or a file mesh: the domain (a file mesh's,

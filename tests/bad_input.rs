@@ -429,7 +429,28 @@ fn non_triangle_cells() {
 fn zero_area_triangle() {
     let (p, mut c) = fan();
     c[0] = [0, 1, 0];
-    contains(&mesh_fails(&p, &c), "triangle 0 has zero area");
+    contains(
+        &mesh_fails(&p, &c),
+        "triangle 0 (near (0.3333333333333333, 0)) has zero area",
+    );
+}
+
+/// A feature of a polygon too small for double precision at its size, and a size h too coarse
+/// for a thin domain, are said as such (they were "triangle 395 has zero area" and "no interior
+/// vertex").
+#[test]
+fn a_polygon_too_fine_or_an_h_too_coarse_is_named() {
+    let e = polygon_fails("boundary = [[0, 0], [1, 0], [1, 1], [0.999999999999, 1], [0, 1]]\nh = 0.01\n");
+    contains(
+        &e,
+        "h = 0.01: the mesh could not be generated: the domain has a feature near (0.99999",
+    );
+    contains(&e, "too small to mesh at its size");
+    let e = polygon_fails("boundary = [[0, 0], [1, 0], [1, 0.001], [0, 0.001]]\nh = 0.01\n");
+    contains(
+        &e,
+        "h is too coarse for the domain: its mesh has no interior vertex; use a smaller h",
+    );
 }
 
 #[test]

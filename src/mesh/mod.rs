@@ -52,6 +52,8 @@ pub enum MeshError {
     Degenerate {
         triangle: usize,
         area: f64,
+        /// Its centroid.
+        at: [f64; 2],
     },
     DuplicateVertex {
         first: usize,
@@ -100,9 +102,11 @@ impl fmt::Display for MeshError {
             MeshError::VertexIndex { triangle, index } => {
                 write!(f, "triangle {triangle} refers to vertex {index}, which does not exist")
             }
-            MeshError::Degenerate { triangle, area } => {
-                write!(f, "triangle {triangle} has zero area ({area:e}) or repeats a vertex")
-            }
+            MeshError::Degenerate { triangle, area, at } => write!(
+                f,
+                "triangle {triangle} (near ({}, {})) has zero area ({area:e}) or repeats a vertex",
+                at[0], at[1]
+            ),
             MeshError::DuplicateVertex { first, second } => {
                 write!(f, "vertices {first} and {second} have the same coordinates")
             }
@@ -447,9 +451,11 @@ fn orient_triangles(
             || tri[1] == tri[2]
             || tri[0] == tri[2]
         {
+            let corners = tri.map(|v| points[v]);
             return Err(MeshError::Degenerate {
                 triangle: t,
                 area: 0.5 * area,
+                at: [0, 1].map(|k| corners.iter().map(|p| p[k]).sum::<f64>() / 3.0),
             });
         }
         if area < 0.0 {
