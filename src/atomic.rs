@@ -42,6 +42,9 @@ pub struct Staging {
     temporary: PathBuf,
     target: PathBuf,
     committed: bool,
+    /// The directories made to hold the result (the parent and those above it that were
+    /// missing), removed again if the result is not committed.
+    made: Vec<PathBuf>,
 }
 
 impl Staging {
@@ -62,6 +65,10 @@ impl Staging {
         if parent.exists() && !parent.is_dir() {
             return Err(err(format!("{} is not a directory", parent.display())));
         }
+        let made: Vec<PathBuf> = (parent.ancestors())
+            .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+            .map(Path::to_path_buf)
+            .collect();
         std::fs::create_dir_all(&parent).map_err(|e| {
             err(format!(
                 "cannot make the directory {} that should hold the result: {e}",
@@ -83,6 +90,7 @@ impl Staging {
             temporary,
             target: target.to_path_buf(),
             committed: false,
+            made,
         };
         std::fs::write(
             staging.temporary.join(MARKER),
@@ -130,6 +138,12 @@ impl Drop for Staging {
             let mut list = pending();
             let _ = std::fs::remove_dir_all(&self.temporary);
             list.retain(|d| *d != self.temporary);
+            // Innermost first; one that something else has written into since stays.
+            for dir in &self.made {
+                if std::fs::remove_dir(dir).is_err() {
+                    break;
+                }
+            }
         }
     }
 }
@@ -391,7 +405,7 @@ mod tests {
     }
 
     #[test]
-    fn missing_parent_directories_are_made_and_a_file_among_them_is_named() {
+    fn missing_parent_directories_are_made_and_unmade_and_a_file_among_them_is_named() {
         let dir = tempfile::tempdir().unwrap();
         let target = dir.path().join("results").join("poly");
         Staging::new(&target, &[], "solution")
@@ -399,6 +413,9 @@ mod tests {
             .commit(&[])
             .unwrap();
         assert!(target.join(MARKER).exists());
+        // A result not committed leaves no directory made for it.
+        drop(Staging::new(&dir.path().join("a").join("b").join("out"), &[], "solution").unwrap());
+        assert!(!dir.path().join("a").exists());
         let file = dir.path().join("afile");
         std::fs::write(&file, "a file").unwrap();
         let e = Staging::new(&file.join("sub").join("out"), &[], "solution").unwrap_err();
