@@ -458,8 +458,8 @@ fn what_the_rule_misses_of_a_jumping_load_is_measured() {
     let c = estimated(&constant);
     let c = &c.estimate.as_ref().unwrap();
     assert!(c.resolution.total == 0.0 && c.resolution.checked == 0 && c.loads_resolved());
-    // The same on a disk far from the origin, where the cells' corners are rounded to 1e-10, 1e-8
-    // of the mesh size: no triangle is taken for a load the rule misses.
+    // The same on a disk far from the origin, where the cells' corners are rounded by about
+    // 1e-10, some 1e-9 of the mesh size: no triangle is taken for a load the rule misses.
     let far = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"-1\"\nf2 = \"2\"\ng = \"0\"\n[mesh]\nkind = \"disk\"\n\
                centre = [1e6, 0.0]\nradius = 1.0\nh = 0.05";
     let far = Case::parse(far, "far", PathBuf::new()).unwrap();
