@@ -5,9 +5,10 @@
 //! there by one system call: `renameat2(RENAME_EXCHANGE)` swaps it with an earlier result, a plain
 //! `rename` puts it where there was none. Whatever instant the process is killed at, the path
 //! shows the complete earlier result or the complete new one, never a mix. SIGINT, SIGTERM and
-//! SIGHUP remove the temporaries of the run, which then exits with 128 + the signal's number (130,
-//! 143, 129), as a shell reports a process the signal killed; after a SIGKILL, the next run for
-//! the same path recognises them by name and removes them.
+//! SIGHUP remove the temporaries of the run and the directories it made to hold the result, and it
+//! then exits with 128 + the signal's number (130, 143, 129), as a shell reports a process the
+//! signal killed; after a SIGKILL, the next run for the same path recognises them by name and
+//! removes them once that process has ended (or is ending: a zombie).
 //!
 //! An existing path is replaced only when it is a result of this program (it holds the marker
 //! file [`MARKER`]) and holds none of the run's inputs; anything else is left alone with an error.
@@ -26,13 +27,27 @@ message_error!(
     OutputError
 );
 
-/// Temporary directories of this process, removed on SIGINT, SIGTERM or SIGHUP. Held while a
-/// result is swapped in, so that a signal waits for the swap to finish.
-static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+/// Temporary directories of this process, each with the directories made to hold its result,
+/// removed on SIGINT, SIGTERM or SIGHUP. Held while a result is swapped in, so that a signal waits
+/// for the swap to finish.
+static PENDING: Mutex<Vec<Pending>> = Mutex::new(Vec::new());
 static HANDLER: Once = Once::new();
 
-fn pending() -> MutexGuard<'static, Vec<PathBuf>> {
+/// A temporary directory and the directories made to hold its result, innermost first.
+type Pending = (PathBuf, Vec<PathBuf>);
+
+fn pending() -> MutexGuard<'static, Vec<Pending>> {
     PENDING.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Removes the directories `made` for a result, innermost first, each only while empty: one that
+/// something else has written into since stays, with those above it.
+fn remove_made(made: &[PathBuf]) {
+    for dir in made {
+        if std::fs::remove_dir(dir).is_err() {
+            break;
+        }
+    }
 }
 
 /// A result directory being written: files go into [`Staging::path`], and [`Staging::commit`]
@@ -83,7 +98,7 @@ impl Staging {
         let mut list = pending();
         std::fs::create_dir(&temporary)
             .map_err(|e| err(format!("cannot create a directory beside it: {}", e)))?;
-        list.push(temporary.clone());
+        list.push((temporary.clone(), made.clone()));
         drop(list);
         // From here on the staging exists: dropped on any error, it removes the temporary.
         let staging = Staging {
@@ -126,7 +141,7 @@ impl Staging {
             std::fs::rename(&self.temporary, &self.target)
                 .map_err(|e| err(format!("cannot put the result in place: {}", e)))?;
         }
-        list.retain(|d| *d != self.temporary);
+        list.retain(|(d, _)| *d != self.temporary);
         self.committed = true;
         Ok(())
     }
@@ -137,13 +152,8 @@ impl Drop for Staging {
         if !self.committed {
             let mut list = pending();
             let _ = std::fs::remove_dir_all(&self.temporary);
-            list.retain(|d| *d != self.temporary);
-            // Innermost first; one that something else has written into since stays.
-            for dir in &self.made {
-                if std::fs::remove_dir(dir).is_err() {
-                    break;
-                }
-            }
+            list.retain(|(d, _)| *d != self.temporary);
+            remove_made(&self.made);
         }
     }
 }
@@ -205,12 +215,13 @@ fn install_handler() {
         }
         // The writer goes on while this runs and may add a file after remove_dir_all has listed
         // the directory (its last rmdir then fails): again until it is gone.
-        for dir in pending().iter() {
+        for (dir, made) in pending().iter() {
             for _ in 0..100 {
                 if std::fs::remove_dir_all(dir).is_ok() || !dir.exists() {
                     break;
                 }
             }
+            remove_made(made);
         }
         // No exit handlers: another thread may be inside the HDF5 library.
         unsafe { libc::_exit(128 + i32::from(signal)) }
@@ -305,7 +316,7 @@ fn exchange(a: &Path, b: &Path) -> std::io::Result<()> {
     }
 }
 
-/// Removes the temporaries `PREFIX<pid>.mc-partial` in `dir` whose process is gone.
+/// Removes the temporaries `PREFIX<pid>.mc-partial` in `dir` whose process is gone or ending.
 fn clear_stale(dir: &Path, prefix: &str) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
@@ -320,10 +331,23 @@ fn clear_stale(dir: &Path, prefix: &str) {
         else {
             continue;
         };
-        if !Path::new(&format!("/proc/{pid}")).exists() {
+        if !alive(pid) {
             let _ = std::fs::remove_dir_all(entry.path());
         }
     }
+}
+
+/// Whether process `pid` exists and is not ending: after SIGKILL its entry in /proc stays, in
+/// state Z (zombie) or X (dead), until its parent has collected its status.
+fn alive(pid: u32) -> bool {
+    let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
+        return false;
+    };
+    // "pid (comm) state …": comm may hold spaces and parentheses, so the state follows the last ')'.
+    let state = stat
+        .rsplit_once(')')
+        .and_then(|(_, rest)| rest.trim_start().chars().next());
+    !matches!(state, Some('Z' | 'X'))
 }
 
 /// The 64-bit FNV-1a hash: a short name for a temporary that is the same in every version.
@@ -336,6 +360,34 @@ fn fnv1a(bytes: &[u8]) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A killed run's temporary is cleared once its process is a zombie (its /proc entry stays
+    /// until its parent collects it), not only once the entry is gone.
+    #[test]
+    fn a_zombie_holds_no_temporary() {
+        assert!(alive(std::process::id()));
+        let mut child = std::process::Command::new("true").spawn().unwrap();
+        let pid = child.id();
+        let t = std::time::Instant::now();
+        while alive(pid) {
+            assert!(t.elapsed().as_secs() < 30, "the child never ended");
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        // Not yet collected: its entry is there, a zombie.
+        assert!(Path::new(&format!("/proc/{pid}")).exists());
+        let dir = tempfile::tempdir().unwrap();
+        let prefix = ".0123456789abcdef.";
+        let stale = dir.path().join(format!("{prefix}{pid}.mc-partial"));
+        let running = dir
+            .path()
+            .join(format!("{prefix}{}.mc-partial", std::process::id()));
+        std::fs::create_dir(&stale).unwrap();
+        std::fs::create_dir(&running).unwrap();
+        clear_stale(dir.path(), prefix);
+        assert!(!stale.exists() && running.exists());
+        child.wait().unwrap();
+        assert!(!alive(pid));
+    }
 
     #[test]
     fn a_result_replaces_only_an_earlier_result() {

@@ -228,8 +228,9 @@ fn killed_runs_leave_the_earlier_result_or_the_new_one() {
     assert!(seen[0] > 0, "some kills hit the run before its end: {seen:?}");
 }
 
-/// SIGINT, SIGTERM and SIGHUP in the middle of a run: its temporary is removed and it exits with
-/// 128 + the signal's number (130, 143, 129), as a shell reports a process the signal killed. The
+/// SIGINT, SIGTERM and SIGHUP in the middle of a run: its temporary is removed, and the directories
+/// it made to hold the result, and it exits with 128 + the signal's number (130, 143, 129), as a
+/// shell reports a process the signal killed. The
 /// signal is sent once the run has made its temporary, which is while it writes (with S_h, to make
 /// that take a while); a run that still ends first (the test descheduled on a loaded machine)
 /// exits 0 with its result whole, and is tried again, up to 5 times.
@@ -253,13 +254,14 @@ fn signals_exit_with_128_plus_their_number() {
             };
             let mut child = command
                 .args(["solve", "--n", "256", "--dual", "-o"])
-                .arg(dir.path().join("out"))
+                .arg(dir.path().join("made/deeper/out"))
                 .stdout(Stdio::null())
                 .stderr(Stdio::null())
                 .spawn()
                 .unwrap();
             // The handler is in place once the run has made its temporary.
-            let partial = || listing(dir.path()).iter().any(|f| f.ends_with(".mc-partial"));
+            let parent = dir.path().join("made/deeper");
+            let partial = || parent.exists() && listing(&parent).iter().any(|f| f.ends_with(".mc-partial"));
             let t = Instant::now();
             while !partial() {
                 assert!(
@@ -271,7 +273,7 @@ fn signals_exit_with_128_plus_their_number() {
             unsafe { libc::kill(child.id() as i32, signal) };
             let status = child.wait().unwrap().code();
             let expected = match status {
-                Some(0) => vec!["out".to_string()],
+                Some(0) => vec!["made".to_string()],
                 _ => Vec::new(),
             };
             assert_eq!(listing(dir.path()), expected, "signal {signal}: exit {status:?}");
