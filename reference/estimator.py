@@ -52,6 +52,7 @@ from . import common, cubature, expr
 
 DEGREE = 10  # quadrature on the cells of S_h (the Rust error rule is degree 10 on T_h)
 GAUSS_1D = 12  # Gauss-Legendre points per piece for the boundary lifting
+CROSS_POINTS = 16  # Gauss-Legendre points per direction of the collapsed rules of a corner triangle
 VARIANTS = ("dual", "dualmin", "patch")
 
 
@@ -332,6 +333,44 @@ def case_gradient(source):
     return grad
 
 
+def edge_gradient(g, dg, P, Q, ends, gl, lq, lc, k):
+    """grad psi_e = s^(k-1) [k delta(tau) grad s + delta'(tau) v] at barycentric coordinates l
+    (rows: points; columns: the local vertices of K), e = [P, Q] (local q = lq, third vertex lc)."""
+    gp, gq = ends
+    ds = -gl[lc]
+
+    def gradient(l):
+        s = 1.0 - l[:, lc]
+        tau = l[:, lq] / s
+        y = P[None] + tau[:, None] * (Q - P)[None]
+        delta = g(y[:, 0], y[:, 1]) - ((1 - tau) * gp + tau * gq)
+        ddelta = dg(y[:, 0], y[:, 1]) @ (Q - P) - (gq - gp)
+        v = gl[lq][None] - tau[:, None] * ds[None]
+        return (s ** (k - 1))[:, None] * (k * delta[:, None] * ds[None] + ddelta[:, None] * v)
+
+    return gradient
+
+
+def cross_term(area, c1, c2, g1, g2):
+    """(grad psi_e1, grad psi_e2)_K on a corner triangle K (c1, c2: the local vertices opposite
+    e1, e2): K cut from the common vertex to the midpoint m of c1, c2, each half by a Gauss rule
+    collapsed at the vertex where its lifting's gradient depends on the direction (docs, section 5)."""
+    t, w = np.polynomial.legendre.leggauss(CROSS_POINTS)
+    r, wr = (t + 1) / 2, w / 2
+    R, TH = np.meshgrid(r, r, indexing="ij")
+    W = np.outer(wr, wr).ravel()
+    R, TH = R.ravel(), TH.ravel()
+    eye = np.eye(3)
+    q = 3 - c1 - c2
+    m = 0.5 * (eye[c1] + eye[c2])
+    total = 0.0
+    for v, a, b in [(eye[c1], eye[q], m), (eye[c2], m, eye[q])]:
+        l = v[None] + R[:, None] * ((1 - TH)[:, None] * a[None] + TH[:, None] * b[None] - v[None])
+        dot = np.sum(g1(l) * g2(l), axis=1)
+        total += np.sum(2 * (area / 2) * R * W * dot)  # each half has area |K|/2
+    return float(total)
+
+
 def boundary_lifting(geo, case, lam, gap):
     """psi, the lifting of g - g_h into the triangles of the boundary edges (docs, section 5):
     per triangle ||grad psi||_K^2 and int_K lambda_h psi. lam: lambda_a (0 at the boundary
@@ -374,14 +413,17 @@ def boundary_lifting(geo, case, lam, gap):
             n2 = max(0.0, geo.area_K[K] * (k * A + 2 * C + B / k))
             sstar = 1.0 / (1.0 + np.maximum(tau, 1 - tau))
             lampsi[K] += lam[c] * 2 * geo.area_K[K] * np.sum(wt * delta * sstar ** (k + 2) / (k + 2))
-            parts.append((math.sqrt(n2), min(0.0, float(np.min(delta))), (gp, gq)))
+            gradient = edge_gradient(g, dg, P, Qp, (gp, gq), gl, lq, lc, k)
+            parts.append((math.sqrt(n2), min(0.0, float(np.min(delta))), lc, gradient))
         if len(parts) == 1:
             grad2[K] = parts[0][0] ** 2  # w_h + psi = (1 - s) w_c + s g >= 0: psi is the lifting
         else:
-            # two (or three) boundary edges: psi0 = sum of the edge liftings; psi = max(psi0, -w_h)
+            # two boundary edges: psi0 = sum of the edge liftings; psi = max(psi0, -w_h)
             wmin = float(gap[verts].min())
-            need = sum(max(0.0, -d) for _, d, _ in parts)  # d = min(0, min of delta at the Gauss points)
-            n = sum(x for x, _, _ in parts) ** 2
+            need = sum(max(0.0, -d) for _, d, _, _ in parts)  # d = min(0, min of delta at the Gauss points)
+            (n1, _, c1, g1), (n2, _, c2, g2) = parts
+            cross = cross_term(geo.area_K[K], c1, c2, g1, g2)
+            n = min((n1 + n2) ** 2, max(0.0, n1 ** 2 + n2 ** 2 + 2 * cross))
             if wmin < need:  # max(psi0, -w_h) may differ from psi0: |grad psi|^2 <= |grad psi0|^2 + |grad w_h|^2
                 n += geo.area_K[K] * float(np.sum((gap[verts] @ gl) ** 2))
             grad2[K] = n

@@ -14,7 +14,9 @@
 //! 2|K| ((AB)^½ + C). k = 1 is the radial extension of docs/a-posteriori.md §5; the least k takes
 //! a quarter off ‖∇ψ_e‖ for a parabola on a right triangle. ∫_K λ_h ψ_e = λ_c 2|K| ∫_0^1 δ
 //! s*^{k+2}/(k+2) dτ with s* = 1 / (1 + max(τ, 1 − τ)) bounding D_c ∩ K (λ_h = 0 on the cells of
-//! p and q). The integrals in τ: Gauss–Legendre on [0, ½] and [½, 1] (s* has a kink at ½).
+//! p and q). The integrals in τ: Gauss–Legendre on [0, ½] and [½, 1] (s* has a kink at ½). On a
+//! corner triangle (two boundary edges) the two liftings' cross term (∇ψ_e1, ∇ψ_e2)_K is added by
+//! a two-dimensional rule ([`cross_term`]).
 
 use crate::assembly::gradients;
 use crate::datum::Pieces;
@@ -25,6 +27,8 @@ use crate::mesh::Mesh;
 const POINTS: usize = 12;
 /// The step, in τ, of the difference quotient for δ'(τ) (fourth order: error O(step⁴ g⁽⁵⁾)).
 const STEP: f64 = 1e-3;
+/// Gauss–Legendre points per direction of the collapsed rules of [`cross_term`].
+const CROSS_POINTS: usize = 16;
 
 /// The lifting's contribution on one triangle.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -57,7 +61,7 @@ pub fn lifting(
             let edge = |j: usize| on_edge(mesh, t, j, g.on_edge(tri[j], tri[(j + 1) % 3]), lambda, &rule);
             match on_boundary[..] {
                 [] => OnTriangle::default(),
-                [j] => edge(j),
+                [j] => edge(j).0,
                 [i, j] => corner(mesh, t, [edge(i), edge(j)], gap),
                 _ => unreachable!("a mesh with an interior vertex has no triangle bounded by ∂ω alone"),
             }
@@ -65,27 +69,84 @@ pub fn lifting(
         .collect()
 }
 
+/// ψ_e = s^k δ(τ) on K for one boundary edge e = [p, q] of K (third vertex c): what its norms and
+/// its gradient at any point of K need.
+struct EdgeLifting<'a> {
+    /// The position j of p in K (q at j + 1, c at j + 2).
+    j: usize,
+    p: [f64; 2],
+    q: [f64; 2],
+    g: &'a Expr,
+    /// g(p), g(q).
+    ends: [f64; 2],
+    /// ∇λ_q and ∇s = −∇λ_c.
+    grad_q: [f64; 2],
+    grad_s: [f64; 2],
+    /// The exponent k.
+    k: f64,
+}
+
+impl EdgeLifting<'_> {
+    /// δ(τ) and δ'(τ) (by the difference quotient of fourth order).
+    fn delta(&self, tau: f64) -> (f64, f64) {
+        let (p, q, [gp, gq]) = (self.p, self.q, self.ends);
+        let along = |tau: f64| {
+            self.g
+                .eval(p[0] + tau * (q[0] - p[0]), p[1] + tau * (q[1] - p[1]))
+        };
+        let derivative = (8.0 * (along(tau + STEP) - along(tau - STEP)) - along(tau + 2.0 * STEP)
+            + along(tau - 2.0 * STEP))
+            / (12.0 * STEP);
+        (along(tau) - ((1.0 - tau) * gp + tau * gq), derivative - (gq - gp))
+    }
+
+    /// v = ∇λ_q − τ∇s.
+    fn v(&self, tau: f64) -> [f64; 2] {
+        [0, 1].map(|k| self.grad_q[k] - tau * self.grad_s[k])
+    }
+
+    /// ∇ψ_e = s^{k−1} [k δ(τ) ∇s + δ'(τ) v] at the point of barycentric coordinates `l` (s > 0).
+    fn gradient(&self, l: [f64; 3]) -> [f64; 2] {
+        let s = 1.0 - l[(self.j + 2) % 3];
+        let tau = l[(self.j + 1) % 3] / s;
+        let (delta, d1) = self.delta(tau);
+        let v = self.v(tau);
+        [0, 1].map(|i| s.powf(self.k - 1.0) * (self.k * delta * self.grad_s[i] + d1 * v[i]))
+    }
+}
+
 /// ψ_e on K for the boundary edge j of triangle t.
-fn on_edge(mesh: &Mesh, t: usize, j: usize, g: &Expr, lambda: &[f64], rule: &[(f64, f64)]) -> OnTriangle {
+fn on_edge<'a>(
+    mesh: &Mesh,
+    t: usize,
+    j: usize,
+    g: &'a Expr,
+    lambda: &[f64],
+    rule: &[(f64, f64)],
+) -> (OnTriangle, EdgeLifting<'a>) {
     let tri = mesh.triangle(t);
     let corners = mesh.corners(t);
     let (p, q, c) = (corners[j], corners[(j + 1) % 3], corners[(j + 2) % 3]);
     let grads = gradients(corners);
-    let (grad_q, grad_s) = (grads[(j + 1) % 3], grads[(j + 2) % 3].map(|x| -x));
     let area = 0.5 * crate::mesh::orient(p, q, c);
-    let along = |tau: f64| g.eval(p[0] + tau * (q[0] - p[0]), p[1] + tau * (q[1] - p[1]));
-    let (gp, gq) = (along(0.0), along(1.0));
+    let mut edge = EdgeLifting {
+        j,
+        p,
+        q,
+        g,
+        ends: [g.eval(p[0], p[1]), g.eval(q[0], q[1])],
+        grad_q: grads[(j + 1) % 3],
+        grad_s: grads[(j + 2) % 3].map(|x| -x),
+        k: 1.0,
+    };
     let lambda_c = lambda[tri[(j + 2) % 3]];
     let dot = |a: [f64; 2], b: [f64; 2]| a[0] * b[0] + a[1] * b[1];
+    let grad_s = edge.grad_s;
     let (mut a, mut b, mut c, mut range) = (0.0, 0.0, 0.0, [0.0_f64; 2]);
     let deltas: Vec<f64> = (rule.iter())
         .map(|&(tau, w)| {
-            let delta = along(tau) - ((1.0 - tau) * gp + tau * gq);
-            let derivative = (8.0 * (along(tau + STEP) - along(tau - STEP)) - along(tau + 2.0 * STEP)
-                + along(tau - 2.0 * STEP))
-                / (12.0 * STEP);
-            let d1 = derivative - (gq - gp);
-            let v = [0, 1].map(|k| grad_q[k] - tau * grad_s[k]);
+            let (delta, d1) = edge.delta(tau);
+            let v = edge.v(tau);
             a += w * delta * delta * dot(grad_s, grad_s);
             b += w * d1 * d1 * dot(v, v);
             c += w * delta * d1 * dot(grad_s, v);
@@ -94,25 +155,31 @@ fn on_edge(mesh: &Mesh, t: usize, j: usize, g: &Expr, lambda: &[f64], rule: &[(f
         })
         .collect();
     let k = if a > 0.0 { (b / a).sqrt().max(1.0) } else { 1.0 };
+    edge.k = k;
     let with_lambda: f64 = (rule.iter().zip(&deltas))
         .map(|(&(tau, w), delta)| {
             let s_star = 1.0 / (1.0 + tau.max(1.0 - tau));
             w * delta * s_star.powf(k + 2.0) / (k + 2.0)
         })
         .sum();
-    OnTriangle {
+    let on = OnTriangle {
         grad_norm: (area * (k * a + 2.0 * c + b / k)).max(0.0).sqrt(),
         with_lambda: lambda_c * 2.0 * area * with_lambda,
         range,
-    }
+    };
+    (on, edge)
 }
 
 /// A triangle with two boundary edges (all its vertices on ∂ω, so λ_h = 0 on it): ψ_0 = ψ_e1 +
-/// ψ_e2, bounded by the triangle inequality; where ψ_0 might dip below −w_h (g small at the
+/// ψ_e2, ‖∇ψ_0‖²_K = ‖∇ψ_e1‖² + ‖∇ψ_e2‖² + 2 (∇ψ_e1, ∇ψ_e2)_K ([`cross_term`]; at most the
+/// triangle inequality's (‖∇ψ_e1‖ + ‖∇ψ_e2‖)²); where ψ_0 might dip below −w_h (g small at the
 /// vertices, δ negative), ψ = max(ψ_0, −w_h) instead, with |∇ψ|² ≤ |∇ψ_0|² + |∇w_h|².
-fn corner(mesh: &Mesh, t: usize, edges: [OnTriangle; 2], gap: Option<&[f64]>) -> OnTriangle {
-    let norm0 = edges[0].grad_norm + edges[1].grad_norm;
-    let range = [0, 1].map(|k| edges[0].range[k] + edges[1].range[k]);
+fn corner(mesh: &Mesh, t: usize, edges: [(OnTriangle, EdgeLifting); 2], gap: Option<&[f64]>) -> OnTriangle {
+    let [(e1, l1), (e2, l2)] = &edges;
+    let (n1, n2) = (e1.grad_norm, e2.grad_norm);
+    let cross = cross_term(mesh.corners(t), l1, l2);
+    let norm0 = (n1 * n1 + n2 * n2 + 2.0 * cross).max(0.0).sqrt().min(n1 + n2);
+    let range = [0, 1].map(|k| e1.range[k] + e2.range[k]);
     let tri = mesh.triangle(t);
     let grad_norm = match gap {
         Some(gap) if tri.iter().map(|&a| gap[a]).fold(f64::INFINITY, f64::min) < -range[0] => {
@@ -127,6 +194,37 @@ fn corner(mesh: &Mesh, t: usize, edges: [OnTriangle; 2], gap: Option<&[f64]>) ->
         with_lambda: 0.0,
         range,
     }
+}
+
+/// (∇ψ_e1, ∇ψ_e2)_K for the two boundary edges of a corner triangle K. ∇ψ_e is smooth on K but at
+/// the vertex opposite e, where it depends on the direction (τ is constant on the rays from it).
+/// K is cut by the segment from the two edges' common vertex to the midpoint m of the other two
+/// vertices, and each half integrated by a Gauss rule collapsed at the one such vertex it holds
+/// (x = v + r((1 − θ) a + θ b − v), dx = 2|T| r dr dθ): smooth in (r, θ).
+fn cross_term(corners: [[f64; 2]; 3], e1: &EdgeLifting, e2: &EdgeLifting) -> f64 {
+    // c1 = the vertex opposite e1 (on e2), c2 = the one opposite e2 (on e1), q their common one.
+    let (c1, c2) = ((e1.j + 2) % 3, (e2.j + 2) % 3);
+    let q = 3 - c1 - c2;
+    let unit = |i: usize| std::array::from_fn::<f64, 3, _>(|k| f64::from(u8::from(k == i)));
+    let m: [f64; 3] = std::array::from_fn(|k| 0.5 * (unit(c1)[k] + unit(c2)[k]));
+    let rule: Vec<(f64, f64)> = (gauss_legendre(CROSS_POINTS).into_iter())
+        .map(|(x, w)| (0.5 * (x + 1.0), 0.5 * w))
+        .collect();
+    let mut sum = 0.0;
+    for (v, a, b) in [(unit(c1), unit(q), m), (unit(c2), m, unit(q))] {
+        let at =
+            |l: [f64; 3]| std::array::from_fn::<f64, 2, _>(|d| (0..3).map(|i| l[i] * corners[i][d]).sum());
+        let area = 0.5 * crate::mesh::orient(at(v), at(a), at(b)).abs();
+        for &(r, wr) in &rule {
+            for &(theta, wt) in &rule {
+                let l: [f64; 3] =
+                    std::array::from_fn(|i| v[i] + r * ((1.0 - theta) * a[i] + theta * b[i] - v[i]));
+                let (g1, g2) = (e1.gradient(l), e2.gradient(l));
+                sum += 2.0 * area * r * wr * wt * (g1[0] * g2[0] + g1[1] * g2[1]);
+            }
+        }
+    }
+    sum
 }
 
 /// Gauss–Legendre points and weights on [0, ½] and on [½, 1].
@@ -177,6 +275,54 @@ mod tests {
             let integral: f64 = rule.iter().map(|&(x, w)| w * x.powi(k as i32)).sum();
             assert!((integral - 1.0 / (k as f64 + 1.0)).abs() < 1e-14, "x^{k}");
         }
+    }
+
+    /// A corner triangle K = (0,0), (1,0), (0,1) with both legs on ∂ω and g = x² + y²: on each leg
+    /// δ = τ² − τ and k = √14, ψ_0 = s1^k δ(τ1) + s2^k δ(τ2) with s1 = 1 − y, τ1 = x/(1 − y),
+    /// s2 = 1 − x, τ2 = (1 − x − y)/(1 − x). ‖∇ψ_0‖_K against the gradient of its P1 interpolant
+    /// on a fine grid of K (from ψ_0's values alone), well below the triangle inequality's bound.
+    #[test]
+    fn a_corner_triangle_gets_the_norm_of_the_sum() {
+        let mesh = Mesh::from_parts(
+            vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
+            vec![[0, 1, 2]],
+            vec![true; 3],
+        );
+        let neighbour = [[usize::MAX, 0, usize::MAX]];
+        let datum = crate::datum::Datum::from(Expr::parse("x^2 + y^2").unwrap());
+        let pieces = datum.pieces("g", &mesh, crate::datum::On::Curves).unwrap();
+        let on = lifting(&mesh, &neighbour, &pieces, &[0.0; 3], None);
+        let k = 14f64.sqrt();
+        let leg = |s: f64, tau: f64| {
+            if s > 0.0 {
+                s.powf(k) * (tau * tau - tau)
+            } else {
+                0.0
+            }
+        };
+        let psi = |x: f64, y: f64| leg(1.0 - y, x / (1.0 - y)) + leg(1.0 - x, (1.0 - x - y) / (1.0 - x));
+        let n = 1000;
+        let h = 1.0 / n as f64;
+        let (mut brute, value) = (0.0, |i: usize, j: usize| psi(i as f64 * h, j as f64 * h));
+        for i in 0..n {
+            for j in 0..n - i {
+                // The lower grid triangle (i, j), (i + 1, j), (i, j + 1), and the upper one beside it.
+                let (a, b, c) = (value(i, j), value(i + 1, j), value(i, j + 1));
+                brute += ((b - a).powi(2) + (c - a).powi(2)) * 0.5;
+                if i + j + 1 < n {
+                    let d = value(i + 1, j + 1);
+                    brute += ((d - c).powi(2) + (d - b).powi(2)) * 0.5;
+                }
+            }
+        }
+        let single = (2.0 * 14f64.sqrt() + 1.0) / 60.0;
+        let computed = on[0].grad_norm.powi(2);
+        assert!((computed - brute).abs() < 1e-4 * brute, "{computed} vs {brute}");
+        assert!(
+            computed < 0.8 * 4.0 * single,
+            "{computed} against (2 ‖∇ψ_e‖)² = {}",
+            4.0 * single
+        );
     }
 
     /// K = (0,0), (1,0), (0,1), the edge y = 0 on ∂ω, g = x²: s = 1 − y, τ = x/(1 − y),
