@@ -21,8 +21,8 @@ static ALLOCATOR: membrane_contact::pages::HugePages = membrane_contact::pages::
 struct Cli {
     #[command(subcommand)]
     command: Command,
-    /// Threads to compute on (default: RAYON_NUM_THREADS, else one per core). The results are
-    /// the same bit for bit on any number.
+    /// Threads to compute on, at most 1024 (default: RAYON_NUM_THREADS, else one per core). The
+    /// results are the same bit for bit on any number.
     #[arg(long, global = true)]
     threads: Option<std::num::NonZeroUsize>,
     /// Show no progress on stderr (by default the phases are shown as they happen: a live line
@@ -140,11 +140,9 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    if let Some(threads) = cli.threads {
-        if let Err(e) = membrane_contact::parallel::use_threads(threads.get()) {
-            eprintln!("error: {e}");
-            return ExitCode::FAILURE;
-        }
+    if let Err(e) = membrane_contact::parallel::use_threads(cli.threads.map(|t| t.get())) {
+        eprintln!("error: {e}");
+        return ExitCode::FAILURE;
     }
     if !cli.quiet {
         membrane_contact::progress::show();

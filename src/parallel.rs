@@ -163,13 +163,28 @@ pub fn join<A: Send, B: Send>(a: impl FnOnce() -> A + Send, b: impl FnOnce() -> 
     rayon::join(a, b)
 }
 
-/// Sets the number of threads of the pool, before its first use (the `--threads` option);
-/// without it, rayon's default: `RAYON_NUM_THREADS`, or else one per core.
-pub fn use_threads(threads: usize) -> Result<(), String> {
+/// The most threads a run may ask for: more than any machine's cores, so that a slip of the
+/// keyboard (`--threads 100000`) is an error, not thousands of threads that mostly wait.
+pub const MAX_THREADS: usize = 1024;
+
+/// Sets the number of threads of the pool, before its first use: `threads` (the `--threads`
+/// option), or else rayon's default, `RAYON_NUM_THREADS` or one per core. More than
+/// [`MAX_THREADS`], from either, is an error naming where it came from.
+pub fn use_threads(threads: Option<usize>) -> Result<(), String> {
+    let (threads, from) = match threads {
+        Some(t) => (t, format!("--threads {t}")),
+        None => match std::env::var("RAYON_NUM_THREADS").map(|v| v.trim().parse::<usize>()) {
+            Ok(Ok(t)) => (t, format!("RAYON_NUM_THREADS={t}")),
+            _ => return Ok(()),
+        },
+    };
+    if threads > MAX_THREADS {
+        return Err(format!("{from}: at most {MAX_THREADS} threads"));
+    }
     (rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build_global())
-    .map_err(|e| format!("--threads {threads}: {e}"))
+    .map_err(|e| format!("{from}: {e}"))
 }
 
 /// The number of threads the pool has.

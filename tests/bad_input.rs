@@ -191,6 +191,26 @@ fn invalid_toml() {
     contains(&case_fails("mu1 = = 1\n"), "line 1, column 7 («mu1 = = 1»): ");
 }
 
+/// Thousands of threads are a slip of the keyboard, refused at once whether they come from
+/// `--threads` or from `RAYON_NUM_THREADS` (a run once started 6 000 threads and ran for minutes).
+#[test]
+fn too_many_threads() {
+    let case = format!("{GOOD}{SQUARE}");
+    let err = fails(&case, |_| {}, &["--threads", "100000"], None);
+    contains(&err, "--threads 100000: at most 1024 threads");
+    let err = limited_command_fails(
+        "solve",
+        &case,
+        |_| {},
+        &[],
+        None,
+        |c| {
+            c.env("RAYON_NUM_THREADS", "100000");
+        },
+    );
+    contains(&err, "RAYON_NUM_THREADS=100000: at most 1024 threads");
+}
+
 #[test]
 fn missing_case_file() {
     let dir = tempfile::tempdir().unwrap();
