@@ -267,6 +267,15 @@ fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
 mod tests {
     use super::*;
 
+    /// The mesh of the one triangle (0,0), (1,0), (0,1).
+    fn reference_triangle() -> Mesh {
+        Mesh::from_parts(
+            vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
+            vec![[0, 1, 2]],
+            vec![true; 3],
+        )
+    }
+
     #[test]
     fn gauss_legendre_integrates_degree_2n_minus_1() {
         let rule = gauss_legendre_halves();
@@ -283,11 +292,7 @@ mod tests {
     /// on a fine grid of K (from ψ_0's values alone), well below the triangle inequality's bound.
     #[test]
     fn a_corner_triangle_gets_the_norm_of_the_sum() {
-        let mesh = Mesh::from_parts(
-            vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
-            vec![[0, 1, 2]],
-            vec![true; 3],
-        );
+        let mesh = reference_triangle();
         let neighbour = [[usize::MAX, 0, usize::MAX]];
         let datum = crate::datum::Datum::from(Expr::parse("x^2 + y^2").unwrap());
         let pieces = datum.pieces("g", &mesh, crate::datum::On::Curves).unwrap();
@@ -331,11 +336,7 @@ mod tests {
     /// 4/15 for the radial extension ψ = s δ (k = 1).
     #[test]
     fn the_lifting_of_a_parabola_has_its_closed_form_norm() {
-        let mesh = Mesh::from_parts(
-            vec![[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]],
-            vec![[0, 1, 2]],
-            vec![true; 3],
-        );
+        let mesh = reference_triangle();
         let neighbour = [[usize::MAX, 0, 0]];
         let g = Expr::parse("x^2").unwrap();
         let datum = crate::datum::Datum::from(g.clone());
