@@ -257,15 +257,12 @@ fn check_replaceable(target: &Path, inputs: &[PathBuf]) -> Result<(), OutputErro
     let listed: Vec<&str> = marker.lines().skip(1).collect();
     // A result written before the marker listed its contents is taken as it is.
     if !listed.is_empty() {
-        let entries = std::fs::read_dir(target).map_err(|e| err(format!("cannot read: {e}")))?;
-        for name in entries.flatten().map(|e| e.file_name()) {
-            let name = name.to_string_lossy();
-            if name != MARKER && !listed.contains(&&*name) {
-                return Err(err(format!(
-                    "holds {name}, which is not part of the result; replacing the result would delete \
-                     it: move it away or choose another name"
-                )));
-            }
+        let foreign = foreign_entry(target, "", &listed).map_err(|e| err(format!("cannot read: {e}")))?;
+        if let Some(name) = foreign {
+            return Err(err(format!(
+                "holds {name}, which is not part of the result; replacing the result would delete \
+                 it: move it away or choose another name"
+            )));
         }
     }
     let real = target
@@ -282,13 +279,52 @@ fn check_replaceable(target: &Path, inputs: &[PathBuf]) -> Result<(), OutputErro
     Ok(())
 }
 
-/// Adds the names in the result directory `dir` to its marker, one a line after the kind: what a
-/// later run may replace, and nothing a user put there since.
+/// The first entry below `dir` (its path relative to the result, `prefix` the path of `dir`) that
+/// the marker's list `listed` does not hold. A directory is listed as `name/`, and its entries
+/// are then checked too; listed as `name` (a marker that listed the top level alone), it is taken
+/// as it is.
+fn foreign_entry(dir: &Path, prefix: &str, listed: &[&str]) -> std::io::Result<Option<String>> {
+    for entry in std::fs::read_dir(dir)? {
+        let entry = entry?;
+        let path = format!("{prefix}{}", entry.file_name().to_string_lossy());
+        if path == MARKER {
+            continue;
+        }
+        let is_dir = entry.file_type()?.is_dir();
+        let as_dir = format!("{path}/");
+        if is_dir && listed.contains(&as_dir.as_str()) {
+            if let Some(inside) = foreign_entry(&entry.path(), &as_dir, listed)? {
+                return Ok(Some(inside));
+            }
+        } else if !listed.contains(&path.as_str()) {
+            return Ok(Some(path));
+        }
+    }
+    Ok(None)
+}
+
+/// The entries below `dir`, as paths relative to the result (`prefix` that of `dir`),
+/// directories as `name/` followed by their entries.
+fn entries(dir: &Path, prefix: &str) -> std::io::Result<Vec<String>> {
+    let mut all = Vec::new();
+    for entry in std::fs::read_dir(dir)? {
+        let entry = entry?;
+        let path = format!("{prefix}{}", entry.file_name().to_string_lossy());
+        if entry.file_type()?.is_dir() {
+            let as_dir = format!("{path}/");
+            all.extend(entries(&entry.path(), &as_dir)?);
+            all.push(as_dir);
+        } else if path != MARKER {
+            all.push(path);
+        }
+    }
+    Ok(all)
+}
+
+/// Adds the entries of the result directory `dir`, at every depth, to its marker, one a line
+/// after the kind: what a later run may replace, and nothing a user put there since.
 fn list_contents(dir: &Path) -> std::io::Result<()> {
-    let mut names: Vec<String> = (std::fs::read_dir(dir)?.flatten())
-        .map(|e| e.file_name().to_string_lossy().into_owned())
-        .filter(|n| n != MARKER)
-        .collect();
+    let mut names = entries(dir, "")?;
     names.sort();
     let mut marker = std::fs::read_to_string(dir.join(MARKER))?;
     names.iter().for_each(|n| marker += &format!("{n}\n"));
@@ -429,17 +465,20 @@ mod tests {
     fn what_a_user_added_to_a_result_is_kept() {
         let dir = tempfile::tempdir().unwrap();
         let target = dir.path().join("out");
+        // As `adapt` writes: files at the top and in a directory per step.
         let write = || {
             let s = Staging::new(&target, &[], "solution")?;
             std::fs::write(s.path().join("solution.h5"), "data").unwrap();
+            std::fs::create_dir(s.path().join("step-001")).unwrap();
+            std::fs::write(s.path().join("step-001/solution.h5"), "data").unwrap();
             s.commit(&[])
         };
         write().unwrap();
         write().unwrap();
-        for added in ["notes.txt", "sub"] {
+        for added in ["notes.txt", "sub", "step-001/notes.txt", "step-001/plots"] {
             let path = target.join(added);
             match added {
-                "sub" => std::fs::create_dir(&path).unwrap(),
+                "sub" | "step-001/plots" => std::fs::create_dir(&path).unwrap(),
                 _ => std::fs::write(&path, "mine").unwrap(),
             }
             let e = write().unwrap_err();
@@ -453,6 +492,15 @@ mod tests {
                 .or_else(|_| std::fs::remove_file(&path))
                 .unwrap();
         }
+        write().unwrap();
+        // A marker that lists the top level alone (an earlier version's) takes its directories
+        // as they are.
+        std::fs::write(
+            target.join(MARKER),
+            "membrane-contact solution\nsolution.h5\nstep-001\n",
+        )
+        .unwrap();
+        std::fs::write(target.join("step-001/older.txt"), "older").unwrap();
         write().unwrap();
     }
 
