@@ -268,8 +268,8 @@ fn uniform(case: &Case, vertices: usize) -> Result<Vec<Step>, RunError> {
 fn progress(steps: &[Step]) {
     let s = steps.last().expect("a step");
     crate::progress::suspend(|| {
-        println!(
-            "step {:3}  N = {:8}  η = {:.4e}{}  iterations {}  marked {}  {:.2} s",
+        crate::progress::print(&format!(
+            "step {:3}  N = {:8}  η = {:.4e}{}  iterations {}  marked {}  {:.2} s\n",
             steps.len() - 1,
             s.vertices,
             s.estimator,
@@ -280,7 +280,7 @@ fn progress(steps: &[Step]) {
             s.iterations,
             s.marked,
             s.seconds
-        )
+        ))
     });
 }
 

@@ -4,8 +4,10 @@ use clap::builder::PossibleValuesParser;
 use clap::{Parser, Subcommand};
 use membrane_contact::case::{Case, CaseError, Levels};
 use membrane_contact::contact::{LinearSolver, Start};
+use membrane_contact::progress::print as say;
 use membrane_contact::run;
 use membrane_contact::study::{self, StudyOptions};
+use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
@@ -141,7 +143,7 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if let Err(e) = membrane_contact::parallel::use_threads(cli.threads.map(|t| t.get())) {
-        eprintln!("error: {e}");
+        let _ = writeln!(std::io::stderr(), "error: {e}");
         return ExitCode::FAILURE;
     }
     if !cli.quiet {
@@ -152,7 +154,7 @@ fn main() -> ExitCode {
         Command::Solve {
             print_default: true, ..
         } => {
-            print!("{}", membrane_contact::case::DEFAULT_CASE);
+            say(membrane_contact::case::DEFAULT_CASE);
             Ok(())
         }
         Command::Solve {
@@ -200,11 +202,15 @@ fn main() -> ExitCode {
         } => adapt(case, n, (theta, target, max_vertices, steps), dual, output),
     };
     membrane_contact::atomic::exit_as_signalled();
+    let result = result.and_then(|()| match membrane_contact::progress::stdout_error() {
+        Some(e) => Err(format!("cannot write the summary to stdout: {e} (the result is written)").into()),
+        None => Ok(()),
+    });
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             membrane_contact::progress::finish();
-            eprintln!("error: {e}");
+            let _ = writeln!(std::io::stderr(), "error: {e}");
             ExitCode::FAILURE
         }
     }
@@ -269,8 +275,8 @@ fn solve(
         .into());
     }
     match case.title.as_str() {
-        "" => println!("case        {}", case.origin),
-        title => println!("case        {} — {title}", case.origin),
+        "" => say(&format!("case        {}\n", case.origin)),
+        title => say(&format!("case        {} — {title}\n", case.origin)),
     }
     let start = if cold { Start::Cold } else { Start::Nested };
     let options = run::Options {
@@ -282,7 +288,7 @@ fn solve(
     };
     let r = run::solve(&case, &options, &output)?;
     membrane_contact::progress::finish();
-    print!("{}", r.summary(verbose));
+    say(&r.summary(verbose));
     // ParaView's Xdmf3 reader crashes on a bare relative name: the path to open is absolute.
     let open = std::path::absolute(&output).unwrap_or_else(|_| output.clone());
     let dual = if r.writes_dual {
@@ -290,11 +296,11 @@ fn solve(
     } else {
         String::new()
     };
-    println!(
-        "result      {} — open {}/solution.xdmf{dual} in ParaView (Xdmf3 reader)",
+    say(&format!(
+        "result      {} — open {}/solution.xdmf{dual} in ParaView (Xdmf3 reader)\n",
         output.display(),
         open.display()
-    );
+    ));
     Ok(())
 }
 
@@ -317,10 +323,10 @@ fn study(
     };
     study::study(&case, &name, &options, &dir)?;
     membrane_contact::progress::finish();
-    println!(
-        "study       {} (study.md, .csv, .json, errors.png, iterations*.png)",
+    say(&format!(
+        "study       {} (study.md, .csv, .json, errors.png, iterations*.png)\n",
         dir.display()
-    );
+    ));
     Ok(())
 }
 
@@ -348,10 +354,10 @@ fn adapt(
     membrane_contact::adapt::adapt(&case, &settings, dual, &dir)?;
     membrane_contact::progress::finish();
     let open = std::path::absolute(&dir).unwrap_or_else(|_| dir.clone());
-    println!(
-        "adapt       {} (adapt.md, .csv, .json, adapt.png; open {}/adapt.xdmf in ParaView (Xdmf3 reader): one time step per adapt step)",
+    say(&format!(
+        "adapt       {} (adapt.md, .csv, .json, adapt.png; open {}/adapt.xdmf in ParaView (Xdmf3 reader): one time step per adapt step)\n",
         dir.display(),
         open.display()
-    );
+    ));
     Ok(())
 }

@@ -6,7 +6,7 @@
 //! written.
 
 use indicatif::{ProgressBar, ProgressStyle};
-use std::io::IsTerminal;
+use std::io::{IsTerminal, Write};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
@@ -35,13 +35,37 @@ pub fn show() {
     let _ = DISPLAY.set(display);
 }
 
-/// Reports that the phase `what` begins (its text is made only when it is shown).
+/// Reports that the phase `what` begins (its text is made only when it is shown). A stderr that
+/// cannot be written (a closed pipe) does not stop the run.
 pub fn phase(what: impl FnOnce() -> String) {
     match DISPLAY.get() {
         Some(Display::Live(bar)) => bar.set_message(what()),
-        Some(Display::Lines(start)) => eprintln!("[{:8.2} s] {}", start.elapsed().as_secs_f64(), what()),
+        Some(Display::Lines(start)) => {
+            let line = format!("[{:8.2} s] {}\n", start.elapsed().as_secs_f64(), what());
+            let _ = std::io::stderr().write_all(line.as_bytes());
+        }
         None => {}
     }
+}
+
+/// The first failure to write to stdout other than a closed pipe.
+static STDOUT_ERROR: OnceLock<String> = OnceLock::new();
+
+/// Writes `text` to stdout (the command line's summary and tables). A reader that has gone (a
+/// closed pipe: `| head -1`) does not stop the run, nor does another failure (a full disk), which
+/// [`stdout_error`] then gives.
+pub fn print(text: &str) {
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        if e.kind() != std::io::ErrorKind::BrokenPipe {
+            let _ = STDOUT_ERROR.set(e.to_string());
+        }
+    }
+}
+
+/// Why stdout could not be written, if it could not (not for a closed pipe).
+pub fn stdout_error() -> Option<&'static str> {
+    STDOUT_ERROR.get().map(String::as_str)
 }
 
 /// Reports an active-set iteration on the final mesh as it ends: its number and how many

@@ -68,3 +68,36 @@ fn phases_on_stderr_in_order_and_none_when_quiet() {
     assert_eq!(quiet_stderr, "", "--quiet shows nothing");
     assert_eq!(steady(&quiet_stdout, dir.path()), steady(&stdout, dir.path()));
 }
+
+/// A reader that has gone (`… | head -1`: stdout and stderr are pipes whose read ends are
+/// closed) does not stop the run, which writes its result and exits 0; a stdout that cannot be
+/// written otherwise (a full disk) is one line of error after the result is written, exit 1.
+#[test]
+fn a_closed_pipe_or_a_full_stdout_does_not_cost_the_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .args(["solve", "--n", "16", "-o"])
+        .arg(dir.path().join("piped"))
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Closing the read ends makes every write to them fail with EPIPE.
+    drop(child.stdout.take());
+    drop(child.stderr.take());
+    assert!(child.wait().unwrap().success());
+    assert!(dir.path().join("piped/solution.h5").exists());
+    let out = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .args(["solve", "--n", "16", "--quiet", "-o"])
+        .arg(dir.path().join("full"))
+        .stdout(std::fs::File::create("/dev/full").unwrap())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.starts_with("error: cannot write the summary to stdout: ") && stderr.lines().count() == 1,
+        "{stderr}"
+    );
+    assert!(dir.path().join("full/solution.h5").exists());
+}

@@ -128,7 +128,7 @@ pub fn study(
             });
         })?;
         let table = markdown_table(&title, &result);
-        crate::progress::suspend(|| println!("{table}"));
+        crate::progress::suspend(|| crate::progress::print(&format!("{table}\n")));
         markdown += &table;
         markdown += "\n";
         let dir = staging.path();
