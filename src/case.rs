@@ -413,12 +413,15 @@ impl Case {
         })
     }
 
-    /// Sets the cells per side of a built-in mesh; an error for a mesh file.
+    /// Sets the cells per side of a built-in mesh (of a rectangle, along its longer side, the other
+    /// side's in the case's proportion); an error for the other kinds.
     pub fn set_cells(&mut self, cells: usize) -> Result<(), CaseError> {
         match &mut self.mesh {
             _ if cells == 0 => Err(CaseError("the cells per side must be at least 1".into())),
             MeshSpec::Rectangle { n, .. } => {
-                *n = [cells, cells];
+                // The longer side gets `cells`, the other as many as keep the case's proportion.
+                let long = n[0].max(n[1]) as f64;
+                *n = n.map(|m| ((m as f64 * cells as f64 / long).round() as usize).max(1));
                 Ok(())
             }
             MeshSpec::Lshape { .. } if cells % 2 == 1 => Err(CaseError(format!(
@@ -689,8 +692,9 @@ impl Case {
         meshes
     }
 
-    /// The meshes of nested iteration below a built-in mesh of n cells per side: ⌈n/2⌉, ⌈n/4⌉, …
-    /// cells, down to [`COARSEST`]; none for the other kinds.
+    /// The meshes of nested iteration below a built-in mesh of n cells per side (along its longer
+    /// side): ⌈n/2⌉, ⌈n/4⌉, … cells in the same proportion, down to [`COARSEST`] along the longer
+    /// side and 2 along the shorter; none for the other kinds.
     fn coarser_builtin(&self) -> Result<Vec<Mesh>, CaseError> {
         let Some(n) = self.cells() else {
             return Ok(Vec::new());
@@ -700,6 +704,9 @@ impl Case {
         while cells >= COARSEST {
             let mut coarse = self.clone();
             coarse.set_cells(cells)?;
+            if matches!(coarse.mesh, MeshSpec::Rectangle { n, .. } if n[0].min(n[1]) < 2) {
+                break;
+            }
             meshes.push(coarse.mesh()?);
             cells = cells.div_ceil(2);
         }

@@ -47,7 +47,8 @@ enum Command {
         /// complete new result, and only if it is a result of this program holding nothing else.
         #[arg(short, long)]
         output: Option<PathBuf>,
-        /// Cells per side of a built-in mesh (overrides the case; an error for other kinds).
+        /// Cells per side of a built-in mesh (of a rectangle, along its longer side, the other in the
+        /// case's proportion; overrides the case; an error for other kinds).
         #[arg(long)]
         n: Option<usize>,
         /// Uniform refinements of the case's mesh, any kind (overrides `[mesh] refine`).
@@ -115,7 +116,8 @@ enum Command {
     Adapt {
         /// Case file (TOML); the built-in default case when omitted.
         case: Option<PathBuf>,
-        /// Cells per side of a built-in initial mesh (overrides the case; an error for other kinds).
+        /// Cells per side of a built-in initial mesh (of a rectangle, along its longer side, the other
+        /// in the case's proportion; overrides the case; an error for other kinds).
         #[arg(long)]
         n: Option<usize>,
         /// Dörfler's θ in (0, 1]: refine the fewest triangles carrying this share of η².

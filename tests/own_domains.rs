@@ -369,3 +369,32 @@ fn given_vertices_stay_as_given_and_refined_circles_stay_round_far_out() {
         .fold(0.0_f64, f64::max);
     assert!(off < 1e-8, "{off:e}");
 }
+
+/// A long strip as a built-in rectangle (100 × 1, 2560 × 8 cells): its coarser levels keep its
+/// proportion (they were square grids of 1280², 640², … cells, 70 times the strip's vertices, and
+/// the smoother then failed), each at most half the one above with 2 cells across at least, and
+/// multigrid gives Cholesky's solution; `--n` sets the longer side, the other in proportion.
+#[test]
+fn a_strip_keeps_its_proportion_on_every_level() {
+    let text = "mu1 = 1.0\nmu2 = 2.0\nf1 = -10\nf2 = 2\ng = 0.1\n[mesh]\nkind = \"rectangle\"\n\
+                corners = [[0.0, 0.0], [100.0, 1.0]]\nn = [2560, 8]\n";
+    let mut case = Case::parse(text, "strip", PathBuf::new()).unwrap();
+    let (mesh, coarser) = case.hierarchy(true, Default::default()).unwrap();
+    assert_eq!(mesh.n_vertices(), 2561 * 9);
+    assert_halving(&mesh, &coarser);
+    assert_eq!(
+        coarser.iter().map(Mesh::n_vertices).collect::<Vec<_>>(),
+        [1281 * 5, 641 * 3]
+    );
+    let multigrid = solve(&case).solution.u1.clone();
+    case.solver.linear = membrane_contact::contact::LinearSolver::Direct;
+    let direct = solve(&case).solution.u1.clone();
+    let diff = multigrid
+        .iter()
+        .zip(&direct)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(diff < 1e-12, "{diff}");
+    case.set_cells(640).unwrap();
+    assert_eq!(case.mesh().unwrap().n_vertices(), 641 * 3);
+}
