@@ -92,10 +92,13 @@ impl Datum {
                     .into(),
             ));
         };
-        let names = match on {
-            On::Surfaces => &groups.surfaces,
-            On::Curves => &groups.curves,
+        let (names, ambiguous) = match on {
+            On::Surfaces => (&groups.surfaces, &groups.ambiguous[0]),
+            On::Curves => (&groups.curves, &groups.ambiguous[1]),
         };
+        if let Some(why) = ambiguous {
+            return Err(group_error(format!("{}: {why}", groups.source)));
+        }
         let listed = || {
             names
                 .iter()

@@ -281,3 +281,47 @@ fn adapt_runs_with_tables_per_group() {
     }
     assert!(lambda.iter().any(|&l| l > 0.0));
 }
+
+/// A Gmsh entity in two physical groups (surface 1 in "loaded" and "free", curve 1 in "clamped"
+/// and "rim"): the mesh is read, and solves with data that do not depend on the groups; data per
+/// group on that dimension are refused, naming the entity.
+#[test]
+fn an_entity_in_two_groups_is_refused_only_by_data_per_group() {
+    let text = std::fs::read_to_string(MESH).unwrap();
+    let text = (text.replacen(
+        "\n1 0 0 0 1 1 0 1 3 4 1 7 5 6\n",
+        "\n1 0 0 0 1 1 0 2 3 4 4 1 7 5 6\n",
+        1,
+    ))
+    .replacen(
+        "\n1 0 0 0 1 0 0 1 1 2 1 -2\n",
+        "\n1 0 0 0 1 0 0 2 1 2 2 1 -2\n",
+        1,
+    );
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("twice.msh"), text).unwrap();
+    let case = |data: &str| {
+        let text =
+            format!("mu1 = 1.0\nmu2 = 2.0\nf2 = 5\n{data}\n[mesh]\nkind = \"file\"\npath = \"twice.msh\"\n");
+        Case::parse(&text, "case.toml", dir.path().to_path_buf())
+    };
+    let plain = case("f1 = -20\ng = 0.05").unwrap();
+    assert!(solved(&plain).u1.iter().all(|u| u.is_finite()));
+    let error = |data: &str| match case(data) {
+        Err(e) => e.0,
+        Ok(c) => match DiscreteProblem::new(c.mesh().unwrap(), &c.data) {
+            Err(e) => e.to_string(),
+            Ok(_) => panic!("{data}: accepted"),
+        },
+    };
+    let surfaces = error("f1 = { loaded = -20, free = 0 }\ng = 0.05");
+    assert!(
+        surfaces.contains("the surface entity 1 belongs to the physical groups [3, 4]"),
+        "{surfaces}"
+    );
+    let curves = error("f1 = -20\ng = { clamped = 0.05, rim = 0.05 }");
+    assert!(
+        curves.contains("the curve entity 1 belongs to the physical groups [1, 2]"),
+        "{curves}"
+    );
+}

@@ -133,13 +133,14 @@ fn with_msh_groups(mesh: Mesh, raw: super::msh::RawGroups, path: &Path) -> Mesh 
             .map_or(super::groups::NONE, |l| l.1);
         (e, g)
     });
-    let groups = super::Groups::new(
+    let mut groups = super::Groups::new(
         path.display().to_string(),
         raw.surfaces,
         raw.curves,
         raw.triangle,
         edges,
     );
+    groups.ambiguous = raw.ambiguous;
     mesh.with_groups(groups)
 }
 

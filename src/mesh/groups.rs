@@ -22,6 +22,10 @@ pub struct Groups {
     triangle: Vec<u32>,
     /// Every boundary edge (smaller vertex first), sorted, with its curve or [`NONE`].
     edge: Vec<((u32, u32), u32)>,
+    /// Of the surfaces and of the curves: why the group of an element is ambiguous (a Gmsh
+    /// entity in several physical groups, its elements kept in the first), if one is: data per
+    /// group are then refused, data without groups take the mesh as it is.
+    pub ambiguous: [Option<String>; 2],
 }
 
 impl Groups {
@@ -44,6 +48,7 @@ impl Groups {
             curves,
             triangle,
             edge,
+            ambiguous: [None, None],
         }
     }
 
@@ -92,25 +97,31 @@ impl Groups {
             let g = (self.edge.binary_search_by_key(&key, |e| e.0)).map_or(NONE, |i| self.edge[i].1);
             (e, g)
         });
-        Groups::new(
-            self.source.clone(),
-            self.surfaces.clone(),
-            self.curves.clone(),
-            triangle,
-            edges,
-        )
+        Groups {
+            ambiguous: self.ambiguous.clone(),
+            ..Groups::new(
+                self.source.clone(),
+                self.surfaces.clone(),
+                self.curves.clone(),
+                triangle,
+                edges,
+            )
+        }
     }
 
     /// The groups with the vertices renumbered (`new[a]`) and the triangles reordered
     /// (triangle i of the result is `order[i]` of `self`).
     pub(crate) fn renumbered(&self, new: &[usize], order: &[usize]) -> Groups {
-        Groups::new(
-            self.source.clone(),
-            self.surfaces.clone(),
-            self.curves.clone(),
-            order.iter().map(|&t| self.triangle[t]).collect(),
-            (self.boundary_edges()).map(|((a, b), g)| ((new[a], new[b]), g)),
-        )
+        Groups {
+            ambiguous: self.ambiguous.clone(),
+            ..Groups::new(
+                self.source.clone(),
+                self.surfaces.clone(),
+                self.curves.clone(),
+                order.iter().map(|&t| self.triangle[t]).collect(),
+                (self.boundary_edges()).map(|((a, b), g)| ((new[a], new[b]), g)),
+            )
+        }
     }
 }
 

@@ -22,6 +22,9 @@ pub(super) struct RawGroups {
     pub curves: Vec<String>,
     pub triangle: Vec<u32>,
     pub lines: Vec<([usize; 2], u32)>,
+    /// Of the surfaces and of the curves: why an element's group is ambiguous (an entity in
+    /// several physical groups, kept in the first), if one is.
+    pub ambiguous: [Option<String>; 2],
 }
 
 /// Reads the triangles of a MSH 4.1 file and the nodes they use (in the order of their tags), and
@@ -38,7 +41,7 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>), FileErro
         let kinds: Vec<String> = trace.iter().rev().map(|(_, k)| k.to_string()).collect();
         err(format!("not a readable MSH {VERSION} file: {}", kinds.join(": ")))
     })?;
-    let (triangles, triangle_tag, lines) = elements(&msh, &err)?;
+    let (triangles, triangle_tag, lines, ambiguous) = elements(&msh, &err)?;
     if triangles.is_empty() {
         return Err(err(
             "the file has no triangles: the mesh must be made of triangles".into(),
@@ -66,7 +69,10 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>), FileErro
         .collect::<Result<Vec<_>, _>>()?;
     let names = super::groups::physical_names(&bytes).map_err(err)?;
     let has_groups = triangle_tag.iter().any(Option::is_some) || !lines.is_empty();
-    let groups = has_groups.then(|| raw_groups(&names, &triangle_tag, &lines, &index));
+    let groups = has_groups.then(|| RawGroups {
+        ambiguous,
+        ..raw_groups(&names, &triangle_tag, &lines, &index)
+    });
     Ok((
         (
             points,
@@ -76,41 +82,52 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>), FileErro
     ))
 }
 
-/// The triangles of the file (their node tags), the physical tag of each, and the lines of a
-/// physical group with their tag.
+/// The triangles of the file (their node tags), the physical tag of each, the lines of a
+/// physical group with their tag, and of the surfaces and of the curves why a group is ambiguous.
 #[allow(clippy::type_complexity)]
 fn elements(
     msh: &mshio::MshFile<u64, i32, f64>,
     err: &dyn Fn(String) -> FileError,
-) -> Result<(Vec<[u64; 3]>, Vec<Option<i32>>, Vec<([u64; 2], i32)>), FileError> {
-    // The physical tag of each triangle and each line, by its entity.
-    let physical = |dim: i32, entity: i32| -> Result<Option<i32>, FileError> {
+) -> Result<
+    (
+        Vec<[u64; 3]>,
+        Vec<Option<i32>>,
+        Vec<([u64; 2], i32)>,
+        [Option<String>; 2],
+    ),
+    FileError,
+> {
+    let mut ambiguous: [Option<String>; 2] = [None, None];
+    // The physical tag of each triangle and each line, by its entity: the first of its groups,
+    // and the entity named in `ambiguous` if it has several (an error only for data per group).
+    let mut physical = |dim: i32, entity: i32| -> Option<i32> {
         let tags: &[i32] = match (&msh.data.entities, dim) {
             (Some(e), 1) => (e.curves.iter().find(|c| c.tag == entity)).map_or(&[], |c| &c.physical_tags),
             (Some(e), _) => (e.surfaces.iter().find(|c| c.tag == entity)).map_or(&[], |c| &c.physical_tags),
             (None, _) => &[],
         };
-        match tags {
-            [] => Ok(None),
-            [t] => Ok(Some(*t)),
-            _ => Err(err(format!(
-                "the {} entity {entity} belongs to the physical groups {tags:?}: each element may \
-                 belong to one physical group only",
-                if dim == 1 { "curve" } else { "surface" }
-            ))),
+        let noun = if dim == 1 { "curve" } else { "surface" };
+        if tags.len() > 1 {
+            ambiguous[usize::from(dim == 1)].get_or_insert_with(|| {
+                format!(
+                    "the {noun} entity {entity} belongs to the physical groups {tags:?}: data per \
+                     group need each element in one physical {noun} only"
+                )
+            });
         }
+        tags.first().copied()
     };
     let (mut triangles, mut triangle_tag, mut lines) = (Vec::new(), Vec::new(), Vec::new());
     for block in msh.data.elements.iter().flat_map(|e| &e.element_blocks) {
         match (block.entity_dim, block.element_type) {
             (1, ElementType::Lin2) => {
-                if let Some(tag) = physical(1, block.entity_tag)? {
+                if let Some(tag) = physical(1, block.entity_tag) {
                     lines.extend(block.elements.iter().map(|e| ([e.nodes[0], e.nodes[1]], tag)));
                 }
             }
             (0 | 1, _) => {}
             (2, ElementType::Tri3) => {
-                let tag = physical(2, block.entity_tag)?;
+                let tag = physical(2, block.entity_tag);
                 triangle_tag.extend(std::iter::repeat_n(tag, block.elements.len()));
                 triangles.extend(
                     block
@@ -136,7 +153,7 @@ fn elements(
             }
         }
     }
-    Ok((triangles, triangle_tag, lines))
+    Ok((triangles, triangle_tag, lines, ambiguous))
 }
 
 /// The physical groups of the triangles and lines, numbered by increasing tag and named by
@@ -163,6 +180,7 @@ fn raw_groups(
     let (curve_tags, curves) = numbering(1, &mut lines.iter().map(|l| l.1));
     let group = |tags: &[i32], t: i32| tags.binary_search(&t).expect("a tag numbered") as u32;
     RawGroups {
+        ambiguous: [None, None],
         surfaces,
         curves,
         triangle: (triangle_tag.iter())
