@@ -84,11 +84,11 @@ struct ExactFile {
     u: Option<Expression>,
     lambda: Expression,
     #[serde(default)]
-    grad_u1: Option<[Expression; 2]>,
+    grad_u1: Option<Vec<Expression>>,
     #[serde(default)]
-    grad_u2: Option<[Expression; 2]>,
+    grad_u2: Option<Vec<Expression>>,
     #[serde(default)]
-    grad_u: Option<[Expression; 2]>,
+    grad_u: Option<Vec<Expression>>,
 }
 
 /// The problems a case may state, and the keys of each (beside `g` and the tables).
@@ -121,7 +121,10 @@ struct MeshTable {
 
 /// `n = 8` or `n = [8, 4]`.
 #[derive(Debug, Clone, Copy, Deserialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "expected the cells per side: a whole number, n = 64, or two, n = [64, 32]"
+)]
 enum Cells {
     Square(usize),
     Sides([usize; 2]),
@@ -890,10 +893,16 @@ fn exact_solution(
     expr: &dyn Fn(&str, &Expression) -> Result<Expr, String>,
 ) -> Result<Exact, String> {
     let one = |key: &str, v: &Option<Expression>| v.as_ref().map(|v| expr(key, v)).transpose();
-    let grad = |key: &str, g: &Option<[Expression; 2]>| -> Result<Option<[Expr; 2]>, String> {
+    let grad = |key: &str, g: &Option<Vec<Expression>>| -> Result<Option<[Expr; 2]>, String> {
         let parse = |v| expr(key, v);
-        g.as_ref()
-            .map(|[gx, gy]| Ok([parse(gx)?, parse(gy)?]))
+        (g.as_deref())
+            .map(|g| match g {
+                [gx, gy] => Ok([parse(gx)?, parse(gy)?]),
+                _ => Err(format!(
+                    "key '{key}' has {} entries: a gradient has two, [∂/∂x, ∂/∂y]",
+                    g.len()
+                )),
+            })
             .transpose()
     };
     let (keys, other): (&[&str], &[&str]) = match data.lower {

@@ -963,6 +963,33 @@ fn a_nan_exact_gradient_is_refused() {
     );
 }
 
+/// Cells per side that are neither a number nor two say what is expected, not serde's words.
+#[test]
+fn cells_per_side_of_another_shape() {
+    for n in ["[8, 8, 8]", "-4", "\"8\""] {
+        let case = format!("{GOOD}[mesh]\nkind = \"rectangle\"\nn = {n}\n");
+        let e = case_fails(&case);
+        contains(
+            &e,
+            "expected the cells per side: a whole number, n = 64, or two, n = [64, 32]",
+        );
+        assert!(!e.contains("untagged"), "{e}");
+    }
+}
+
+/// A gradient has two components: more (a third was dropped, "((( bogus" too) or fewer are
+/// refused, naming the key.
+#[test]
+fn an_exact_gradient_of_other_than_two_entries_is_refused() {
+    for (grad, n) in [("[\"0\", \"0\", \"((( bogus\"]", 3), ("[\"0\"]", 1)] {
+        let exact = format!("[exact]\nu1 = 0\nu2 = 0\nlambda = 0\ngrad_u1 = {grad}\n");
+        contains(
+            &case_fails(&format!("{GOOD}{exact}{SQUARE}")),
+            &format!("key 'exact.grad_u1' has {n} entries: a gradient has two"),
+        );
+    }
+}
+
 /// `adapt` with settings it cannot use, from the case file or the command line.
 #[test]
 fn adapt_settings_out_of_range() {

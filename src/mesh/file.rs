@@ -385,7 +385,7 @@ fn read_points(path: &Path, dataset: &str) -> Result<Vec<[f64; 2]>, FileError> {
         .map(|(i, r)| {
             if dim == 3 && r[2] != 0.0 {
                 Err(err(format!(
-                    "vertex {i} has z = {}: the mesh must be planar",
+                    "vertex {i} has z = {}: the mesh must lie in the plane z = 0",
                     r[2]
                 )))
             } else {

@@ -71,6 +71,10 @@ pub enum MeshError {
         triangle: usize,
         neighbour: usize,
     },
+    DuplicateTriangle {
+        triangle: usize,
+        first: usize,
+    },
     HangingNode {
         vertex: usize,
     },
@@ -113,6 +117,9 @@ impl fmt::Display for MeshError {
             MeshError::UnusedVertex { vertex } => write!(f, "vertex {vertex} belongs to no triangle"),
             MeshError::NonManifoldEdge { a, b, count } => {
                 write!(f, "edge ({a}, {b}) is shared by {count} triangles")
+            }
+            MeshError::DuplicateTriangle { triangle, first } => {
+                write!(f, "triangle {triangle} repeats triangle {first} (the same three vertices)")
             }
             MeshError::Inverted { triangle, neighbour } => write!(
                 f,
@@ -546,6 +553,15 @@ fn match_edges(n: usize, triangles: &[[usize; 3]]) -> Result<EdgeMatch, MeshErro
                 }
                 [(_, t), (_, s)] => {
                     // Counter-clockwise neighbours traverse a shared edge in opposite directions.
+                    let sorted = |t: usize| {
+                        let mut v = triangles[t];
+                        v.sort_unstable();
+                        v
+                    };
+                    if sorted(*t) == sorted(*s) {
+                        let (first, triangle) = (*t.min(s), *t.max(s));
+                        return Err(MeshError::DuplicateTriangle { triangle, first });
+                    }
                     if traverses(&triangles[*t], a, b) == traverses(&triangles[*s], a, b) {
                         return Err(MeshError::Inverted {
                             triangle: *s,
@@ -741,6 +757,15 @@ mod tests {
         assert!(
             Mesh::new(sq.clone(), flipped).is_ok(),
             "orientation alone is normalised"
+        );
+        let mut twice = fan.clone();
+        twice.push([4, 2, 3]);
+        assert_eq!(
+            Mesh::new(sq.clone(), twice).unwrap_err(),
+            MeshError::DuplicateTriangle {
+                triangle: 4,
+                first: 2
+            }
         );
         let mut folded = sq.clone();
         folded[4] = [1.2, 0.5];

@@ -58,7 +58,7 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>), FileErro
     let points = (used.iter())
         .map(|tag| match coordinates.get(tag) {
             Some(p) if p[2] != 0.0 => Err(err(format!(
-                "node {tag} has z = {}: the mesh must be planar",
+                "node {tag} has z = {}: the mesh must lie in the plane z = 0",
                 p[2]
             ))),
             Some(p) => Ok([p[0], p[1]]),
