@@ -70,6 +70,8 @@ pub struct Adapted {
     pub adaptive: Vec<Step>,
     /// Uniform refinement of the initial mesh, up to about the final adaptive N.
     pub uniform: Vec<Step>,
+    /// Why the adaptive loop stopped: the target, the step count or the vertex budget.
+    pub stopped: String,
 }
 
 /// Dörfler marking: the fewest triangles (largest indicators first) whose η_K² sum to at least
@@ -111,7 +113,12 @@ pub fn adapt(case: &Case, settings: &Adaptivity, dual: bool, target: &Path) -> R
     let dir = staging.path();
     crate::progress::phase(|| "writing adapt.xdmf, the tables and the plot".into());
     result::time_series(&dir.join("adapt.xdmf"), &grids).map_err(OutputError)?;
-    let adapted = Adapted { adaptive, uniform };
+    let stopped = stopped(settings, &adaptive);
+    let adapted = Adapted {
+        adaptive,
+        uniform,
+        stopped,
+    };
     write_text(&dir.join("adapt.md"), &markdown(case, settings, &adapted))?;
     write_text(&dir.join("adapt.csv"), &csv(&adapted))?;
     let json = serde_json::to_string_pretty(&adapted).expect("steps serialise");
@@ -153,11 +160,29 @@ fn check_memory(case: &Case, settings: &Adaptivity) -> Result<(), RunError> {
     let price = mesh::DIRECT_BYTES_PER_VERTEX.max(after.bytes_per_vertex());
     mesh::check_memory(settings.max_vertices, price).map_err(|e| {
         CaseError(format!(
-            "{}: [adapt] max_vertices = {}: {e}",
+            "{}: adapt's vertex budget of {} ([adapt] max_vertices or --max-vertices): {e}",
             case.origin, settings.max_vertices
         ))
     })?;
     Ok(())
+}
+
+/// Why the adaptive loop that made `steps` with `settings` stopped.
+fn stopped(settings: &Adaptivity, steps: &[Step]) -> String {
+    let (first, last) = (&steps[0], &steps[steps.len() - 1]);
+    match settings.target {
+        Some(t) if last.estimator <= t => return format!("η = {:.4e} ≤ the target {t:e}", last.estimator),
+        _ if steps.len() > settings.steps => return format!("the step count, {}", settings.steps),
+        _ => {}
+    }
+    let budget = settings.max_vertices;
+    match first.vertices > budget {
+        true => format!(
+            "the vertex budget, {budget}: the initial mesh has {} vertices already, and was not refined",
+            first.vertices
+        ),
+        false => format!("the vertex budget, {budget}: the next mesh would have had more vertices"),
+    }
 }
 
 /// The adaptive loop on `case` with `settings`, writing nothing: solve → estimate → mark →
@@ -284,15 +309,21 @@ fn progress(steps: &[Step]) {
     });
 }
 
-/// The rate s of value ∝ N^(−s): the least-squares slope of −log value against log N over the
-/// steps of the last two decades of N (all steps if they span less).
-pub fn rate(steps: &[Step], value: impl Fn(&Step) -> Option<f64>) -> Option<f64> {
-    let last = steps.last()?.vertices as f64;
+/// The steps a rate is fitted over: those of the last two decades of N (with the step before
+/// them), all steps if they span less.
+fn last_decades(steps: &[Step]) -> &[Step] {
+    let last = steps.last().map_or(0.0, |s| s.vertices as f64);
     let from = steps
         .iter()
         .position(|s| (s.vertices as f64) * 100.0 >= last)
         .unwrap_or(0);
-    let points: Vec<(f64, f64)> = steps[from.saturating_sub(1)..]
+    &steps[from.saturating_sub(1)..]
+}
+
+/// The rate s of value ∝ N^(−s): the least-squares slope of −log value against log N over
+/// [`last_decades`].
+pub fn rate(steps: &[Step], value: impl Fn(&Step) -> Option<f64>) -> Option<f64> {
+    let points: Vec<(f64, f64)> = last_decades(steps)
         .iter()
         .filter_map(|s| Some(((s.vertices as f64).ln(), -value(s)?.ln())))
         .collect();
@@ -312,8 +343,8 @@ pub fn rate(steps: &[Step], value: impl Fn(&Step) -> Option<f64>) -> Option<f64>
 fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted) -> String {
     let mut s = format!(
         "# Adaptive refinement: {} ({})\n\nDörfler marking with θ = {}, newest-vertex bisection; \
-         η is the guaranteed bound of the energy error (docs/a-posteriori.md).\n\n",
-        case.title, case.origin, settings.theta
+         η is the guaranteed bound of the energy error (docs/a-posteriori.md). Stopped by {}.\n\n",
+        case.title, case.origin, settings.theta, a.stopped
     );
     for (title, steps) in [("Adaptive", &a.adaptive), ("Uniform", &a.uniform)] {
         let _ = writeln!(
@@ -342,9 +373,13 @@ fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted) -> String {
             total / last.max(f64::MIN_POSITIVE)
         );
         let slope = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.3}"));
+        let fitted = last_decades(steps);
+        let (first, last) = (fitted[0].vertices, fitted[fitted.len() - 1].vertices);
         let _ = writeln!(
             s,
-            "Rate s of ∝ N^(−s), fitted over the last two decades of N: η {}, error {} (optimal for P1: 0.5).\n",
+            "Rate s of ∝ N^(−s), fitted over N = {first} … {last} ({:.2} decades; the last two at \
+             most): η {}, error {} (optimal for P1: 0.5).\n",
+            (last as f64 / first as f64).log10(),
             slope(rate(steps, |st| Some(st.estimator))),
             slope(rate(steps, |st| st.error))
         );

@@ -353,8 +353,9 @@ fn adapt(
         .check(|k| format!("--{}", k.replace('_', "-")))
         .map_err(CaseError)?;
     let dir = output_dir(output, "adapt", &name)?;
-    membrane_contact::adapt::adapt(&case, &settings, dual, &dir)?;
+    let adapted = membrane_contact::adapt::adapt(&case, &settings, dual, &dir)?;
     membrane_contact::progress::finish();
+    say(&format!("stopped     by {}\n", adapted.stopped));
     let open = std::path::absolute(&dir).unwrap_or_else(|_| dir.clone());
     say(&format!(
         "adapt       {} (adapt.md, .csv, .json, adapt.png; open {}/adapt.xdmf in ParaView (Xdmf3 reader): one time step per adapt step)\n",

@@ -190,3 +190,29 @@ fn adaptivity_follows_the_true_error_in_and_out_of_contact() {
         );
     }
 }
+
+/// The run says why it stopped (adapt.md and `Adapted::stopped`): the target, the step count,
+/// or the vertex budget, also when the initial mesh exceeds it.
+#[test]
+fn adapt_says_why_it_stopped() {
+    let case = Case::default_case();
+    let why = |target: Option<f64>, max_vertices: usize, steps: usize| {
+        let mut c = case.clone();
+        c.set_cells(8).unwrap();
+        let settings = Adaptivity {
+            theta: 0.5,
+            target,
+            max_vertices,
+            steps,
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let a = adapt(&c, &settings, false, &dir.path().join("adapt")).unwrap();
+        let md = std::fs::read_to_string(dir.path().join("adapt/adapt.md")).unwrap();
+        assert!(md.contains(&format!("Stopped by {}.", a.stopped)), "{md}");
+        a.stopped
+    };
+    assert!(why(Some(10.0), 10_000, 40).contains("≤ the target 1e1"));
+    assert_eq!(why(None, 10_000, 1), "the step count, 1");
+    assert!(why(None, 50, 40).contains("the initial mesh has 81 vertices already"));
+    assert!(why(None, 200, 40).contains("the next mesh would have had more vertices"));
+}

@@ -1012,7 +1012,8 @@ fn adapt_settings_out_of_range() {
     // before the first solve.
     contains(
         &adapt("", &["--max-vertices=1000000000000"]),
-        "[adapt] max_vertices = 1000000000000: 1000000000000 vertices need about",
+        "adapt's vertex budget of 1000000000000 ([adapt] max_vertices or --max-vertices): \
+         1000000000000 vertices need about",
     );
     contains(
         &adapt("[adapt]\ntarget = -1.0\n", &[]),
