@@ -161,6 +161,21 @@ impl Datum {
                 })
                 .collect::<Result<Vec<u32>, _>>()?,
         };
+        // An entry no element takes: a physical curve inside ω (boundary values live on ∂ω).
+        let mut used = vec![false; table.len()];
+        of_group.iter().for_each(|&e| used[e as usize] = true);
+        if let Some(i) = used.iter().position(|u| !u) {
+            let element = match on {
+                On::Surfaces => "triangle",
+                On::Curves => "boundary edge: values on curves are taken on ∂ω only",
+            };
+            return Err(group_error(format!(
+                "the {} '{}' of {} has no {element}",
+                on.noun(),
+                table[i].0,
+                groups.source
+            )));
+        }
         Ok(Pieces {
             exprs,
             of_group,

@@ -325,3 +325,24 @@ fn an_entity_in_two_groups_is_refused_only_by_data_per_group() {
         "{curves}"
     );
 }
+
+/// An entry for a physical curve with no boundary edge (a curve inside ω) is refused, not
+/// silently ignored: boundary values are taken on ∂ω only.
+#[test]
+fn an_entry_for_a_curve_inside_the_domain_is_refused() {
+    let mesh = two_regions();
+    let mut groups = mesh.groups().unwrap().clone();
+    groups.curves.push("interface".into());
+    let mesh = mesh.with_groups(groups);
+    let g = table(&[("clamped", "0.05"), ("rim", "0.05"), ("interface", "7")]);
+    let e = g
+        .pieces("g", &mesh, membrane_contact::datum::On::Curves)
+        .unwrap_err();
+    assert!(
+        e.to_string().contains("the physical curve 'interface' of")
+            && e.to_string().contains("has no boundary edge"),
+        "{e}"
+    );
+    let g = table(&[("clamped", "0.05"), ("rim", "0.05")]);
+    assert!(g.pieces("g", &mesh, membrane_contact::datum::On::Curves).is_ok());
+}
