@@ -156,6 +156,8 @@ fn study_command_writes_tables_and_plots() {
     let stdout = String::from_utf8_lossy(&run.stdout);
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
     assert!(stdout.contains("| 16² |"), "{stdout}");
+    // On a polygon that is ω itself, no note that the exact solution misses the boundary data.
+    assert!(!stdout.contains("misses the boundary data"), "{stdout}");
     for f in [
         "study.md",
         "study.csv",
@@ -213,6 +215,9 @@ fn disk_study_by_refinement_converges_at_rate_one() {
         "EOCs {h1}, {l2}"
     );
     assert_eq!(json[3]["refine"], 3);
+    // The exact solution is the disk's: the table says that its errors are not of ω_h's problem.
+    let md = std::fs::read_to_string(dir.path().join("study/study.md")).unwrap();
+    assert!(md.contains("The exact solution misses the boundary data on ∂ω_h"), "{md}");
     assert!(
         (1..4).all(|i| json[i]["iterations"].as_u64().unwrap() <= 4),
         "{json}"

@@ -100,6 +100,18 @@ pub struct Mismatch {
     pub at: [f64; 2],
 }
 
+impl Mismatch {
+    /// The note of a table of errors over meshes whose largest mismatch is `relative`.
+    pub fn note(relative: f64) -> String {
+        format!(
+            "The exact solution misses the boundary data on ∂ω_h, the meshes' polygons, by up to \
+             {relative:.1e} of their size: the errors are against the solution on another domain \
+             (a curved ω), while η bounds the error against the solution on ω_h, so η/error may \
+             fall below 1 (docs/a-posteriori.md §12).\n\n"
+        )
+    }
+}
+
 /// A mismatch below this part of the boundary values is round-off.
 const MISMATCH: f64 = 1e-9;
 
