@@ -19,6 +19,10 @@ pub const DEFAULT_CASE: &str = include_str!("../data/cases/default.toml");
 /// The largest case file read.
 const MAX_CASE_BYTES: u64 = 1 << 20;
 
+/// The round-off, relative to the values' size (at least 1), within which an exact solution may
+/// miss λ ≥ 0 and u1 ≥ u2.
+const EXACT_ROUND_OFF: f64 = 1e-12;
+
 /// The fewest vertices of a generated coarser level of nested iteration.
 const COARSEST_VERTICES: usize = 20;
 
@@ -730,7 +734,7 @@ impl Case {
             ("exact.u2", &exact.u2),
             ("exact.lambda", &exact.lambda),
         ] {
-            if let Some(p) = first_not_finite(mesh, e).map(|a| mesh.points[a]) {
+            if let Some(p) = first_vertex(mesh, &[e], |v| !v[0].is_finite()).map(|a| mesh.points[a]) {
                 return Err(err(format!(
                     "key '{key}' is {} at the vertex ({}, {}): an exact solution must be finite",
                     e.eval(p[0], p[1]),
@@ -738,6 +742,28 @@ impl Case {
                     p[1]
                 )));
             }
+        }
+        // The conditions of the problem, to round-off of the values' size: λ ≥ 0, u1 ≥ u2 (u ≥ ψ).
+        let below = |a: f64, b: f64| a - b < -EXACT_ROUND_OFF * a.abs().max(b.abs()).max(1.0);
+        if let Some(p) = first_vertex(mesh, &[&exact.lambda], |v| below(v[0], 0.0)).map(|a| mesh.points[a]) {
+            return Err(err(format!(
+                "key 'exact.lambda' is {} at the vertex ({}, {}): the contact pressure λ must be ≥ 0",
+                exact.lambda.eval(p[0], p[1]),
+                p[0],
+                p[1]
+            )));
+        }
+        let pair = [&exact.u1, &exact.u2];
+        if let Some(p) = first_vertex(mesh, &pair, |v| below(v[0], v[1])).map(|a| mesh.points[a]) {
+            let gap = exact.u1.eval(p[0], p[1]) - exact.u2.eval(p[0], p[1]);
+            let (what, must) = match exact.rigid {
+                true => ("u − ψ", "u must lie above the obstacle ψ"),
+                false => ("u1 − u2", "the membranes must not cross, u1 ≥ u2"),
+            };
+            return Err(err(format!(
+                "the exact {what} is {gap:e} at the vertex ({}, {}): {must}",
+                p[0], p[1]
+            )));
         }
         Ok(())
     }
@@ -1208,15 +1234,19 @@ fn validation_levels(v: &ValidationTable, mesh: &MeshSpec) -> Result<Levels, Str
     Ok(levels)
 }
 
-/// The first vertex of `mesh` where `e` is not a finite number, the vertices evaluated in parallel
-/// pieces.
-fn first_not_finite(mesh: &Mesh, e: &Expr) -> Option<usize> {
+/// The first vertex of `mesh` where the values of `exprs` there are `bad`, the vertices evaluated
+/// in parallel pieces.
+fn first_vertex(mesh: &Mesh, exprs: &[&Expr], bad: impl Fn(&[f64]) -> bool + Sync) -> Option<usize> {
     let pieces = crate::parallel::map(mesh.n_vertices(), crate::parallel::PIECE, |range| {
-        let mut values = vec![0.0; range.len()];
-        e.eval_many(&mesh.points[range.clone()], &mut values);
-        values
-            .iter()
-            .position(|v| !v.is_finite())
+        let values: Vec<Vec<f64>> = (exprs.iter())
+            .map(|e| {
+                let mut v = vec![0.0; range.len()];
+                e.eval_many(&mesh.points[range.clone()], &mut v);
+                v
+            })
+            .collect();
+        (0..range.len())
+            .position(|k| bad(&values.iter().map(|v| v[k]).collect::<Vec<f64>>()))
             .map(|k| range.start + k)
     });
     pieces.into_iter().flatten().next()

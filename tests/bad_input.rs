@@ -977,6 +977,23 @@ fn cells_per_side_of_another_shape() {
     }
 }
 
+/// An exact solution that breaks the problem's conditions is refused at the first vertex where
+/// it does: λ < 0, u1 < u2 (the membranes crossing), u below the obstacle.
+#[test]
+fn an_exact_solution_against_the_conditions_is_refused() {
+    let exact = |u1: &str, u2: &str, lambda: &str| {
+        format!("{GOOD}[exact]\nu1 = \"{u1}\"\nu2 = \"{u2}\"\nlambda = \"{lambda}\"\n{SQUARE}")
+    };
+    let e = case_fails(&exact("0.1*x", "0", "-1"));
+    contains(&e, "key 'exact.lambda' is -1 at the vertex");
+    contains(&e, "the contact pressure λ must be ≥ 0");
+    let e = case_fails(&exact("0.1*x", "0.1*x + 0.5", "0"));
+    contains(&e, "the exact u1 − u2 is -5e-1 at the vertex");
+    contains(&e, "the membranes must not cross, u1 ≥ u2");
+    let e = case_fails(&format!("{OBSTACLE}[exact]\nu = \"-1\"\nlambda = 0\n{SQUARE}"));
+    contains(&e, "u must lie above the obstacle ψ");
+}
+
 /// A gradient has two components: more (a third was dropped, "((( bogus" too) or fewer are
 /// refused, naming the key.
 #[test]
