@@ -324,7 +324,7 @@ fn last_decades(steps: &[Step]) -> &[Step] {
 }
 
 /// The rate s of value ∝ N^(−s): the least-squares slope of −log value against log N over
-/// [`last_decades`].
+/// the steps of the last two decades of N (with the step before them; all if they span less).
 pub fn rate(steps: &[Step], value: impl Fn(&Step) -> Option<f64>) -> Option<f64> {
     let points: Vec<(f64, f64)> = last_decades(steps)
         .iter()
@@ -470,6 +470,7 @@ mod tests {
                     marked: 0,
                     estimator: 3.0 * (vertices as f64).powf(-0.4),
                     error: Some((vertices as f64).powf(-0.5)),
+                    mismatch: None,
                     iterations: 1,
                     seconds: 0.0,
                 }

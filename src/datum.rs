@@ -161,20 +161,8 @@ impl Datum {
                 })
                 .collect::<Result<Vec<u32>, _>>()?,
         };
-        // An entry no element takes: a physical curve inside ω (boundary values live on ∂ω).
-        let mut used = vec![false; table.len()];
-        of_group.iter().for_each(|&e| used[e as usize] = true);
-        if let Some(i) = used.iter().position(|u| !u) {
-            let element = match on {
-                On::Surfaces => "triangle",
-                On::Curves => "boundary edge: values on curves are taken on ∂ω only",
-            };
-            return Err(group_error(format!(
-                "the {} '{}' of {} has no {element}",
-                on.noun(),
-                table[i].0,
-                groups.source
-            )));
+        if let Some(why) = unused_entry(table, &of_group, on, &groups.source) {
+            return Err(group_error(why));
         }
         Ok(Pieces {
             exprs,
@@ -183,6 +171,19 @@ impl Datum {
             on,
         })
     }
+}
+
+/// Why an entry of `table` is of no use, if one is: no element takes it (`of_group`: the entry
+/// of each element), as a physical curve inside ω, whose boundary values would be ignored.
+fn unused_entry<T>(table: &[(String, T)], of_group: &[u32], on: On, source: &str) -> Option<String> {
+    let mut used = vec![false; table.len()];
+    of_group.iter().for_each(|&e| used[e as usize] = true);
+    let key = &table[used.iter().position(|u| !u)?].0;
+    let element = match on {
+        On::Surfaces => "triangle",
+        On::Curves => "boundary edge: values on curves are taken on ∂ω only",
+    };
+    Some(format!("the {} '{key}' of {source} has no {element}", on.noun()))
 }
 
 fn centroid([p, q, r]: [[f64; 2]; 3]) -> [f64; 2] {

@@ -217,7 +217,10 @@ fn disk_study_by_refinement_converges_at_rate_one() {
     assert_eq!(json[3]["refine"], 3);
     // The exact solution is the disk's: the table says that its errors are not of ω_h's problem.
     let md = std::fs::read_to_string(dir.path().join("study/study.md")).unwrap();
-    assert!(md.contains("The exact solution misses the boundary data on ∂ω_h"), "{md}");
+    assert!(
+        md.contains("The exact solution misses the boundary data on ∂ω_h"),
+        "{md}"
+    );
     assert!(
         (1..4).all(|i| json[i]["iterations"].as_u64().unwrap() <= 4),
         "{json}"

@@ -16,7 +16,7 @@
 //! s*^{k+2}/(k+2) dτ with s* = 1 / (1 + max(τ, 1 − τ)) bounding D_c ∩ K (λ_h = 0 on the cells of
 //! p and q). The integrals in τ: Gauss–Legendre on [0, ½] and [½, 1] (s* has a kink at ½). On a
 //! corner triangle (two boundary edges) the two liftings' cross term (∇ψ_e1, ∇ψ_e2)_K is added by
-//! a two-dimensional rule ([`cross_term`]).
+//! a two-dimensional rule (`cross_term`).
 
 use crate::assembly::gradients;
 use crate::datum::Pieces;
