@@ -97,6 +97,20 @@ impl Groups {
             let g = (self.edge.binary_search_by_key(&key, |e| e.0)).map_or(NONE, |i| self.edge[i].1);
             (e, g)
         });
+        self.on(triangle, edges)
+    }
+
+    /// The groups with the vertices renumbered (`new[a]`) and the triangles reordered
+    /// (triangle i of the result is `order[i]` of `self`).
+    pub(crate) fn renumbered(&self, new: &[usize], order: &[usize]) -> Groups {
+        self.on(
+            order.iter().map(|&t| self.triangle[t]).collect(),
+            (self.boundary_edges()).map(|((a, b), g)| ((new[a], new[b]), g)),
+        )
+    }
+
+    /// These groups (their names, source and ambiguity) on other triangles and boundary edges.
+    fn on(&self, triangle: Vec<u32>, edges: impl IntoIterator<Item = ((usize, usize), u32)>) -> Groups {
         Groups {
             ambiguous: self.ambiguous.clone(),
             ..Groups::new(
@@ -105,21 +119,6 @@ impl Groups {
                 self.curves.clone(),
                 triangle,
                 edges,
-            )
-        }
-    }
-
-    /// The groups with the vertices renumbered (`new[a]`) and the triangles reordered
-    /// (triangle i of the result is `order[i]` of `self`).
-    pub(crate) fn renumbered(&self, new: &[usize], order: &[usize]) -> Groups {
-        Groups {
-            ambiguous: self.ambiguous.clone(),
-            ..Groups::new(
-                self.source.clone(),
-                self.surfaces.clone(),
-                self.curves.clone(),
-                order.iter().map(|&t| self.triangle[t]).collect(),
-                (self.boundary_edges()).map(|((a, b), g)| ((new[a], new[b]), g)),
             )
         }
     }
