@@ -150,8 +150,10 @@ impl Data {
     }
 }
 
+/// A tension is a positive, finite, normal number: a subnormal one (below 2.2e-308) has lost
+/// significant bits, and the loads divided by it overflow.
 fn check_tension(name: &'static str, value: f64) -> Result<(), DataError> {
-    match value > 0.0 && value.is_finite() {
+    match value >= f64::MIN_POSITIVE && value.is_finite() {
         true => Ok(()),
         false => Err(DataError::Tension { name, value }),
     }
@@ -211,7 +213,16 @@ impl fmt::Display for DataError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             DataError::Tension { name, value } => {
-                write!(f, "key '{name}' = {value}: the tension must be a positive number")
+                if *value > 0.0 && value.is_finite() {
+                    write!(
+                        f,
+                        "key '{name}' = {value:e}: the tension is below double precision's normal \
+                         range ({:e}), where it loses significant digits: rescale the data",
+                        f64::MIN_POSITIVE
+                    )
+                } else {
+                    write!(f, "key '{name}' = {value}: the tension must be a positive number")
+                }
             }
             DataError::NotFinite { name, point, value } => write!(
                 f,

@@ -295,6 +295,10 @@ fn the_obstacle_problem_and_g2_run_and_their_keys_are_checked() {
         &OBSTACLE.replace("mu = 1.0", "mu = -1.0"),
         "key 'mu' = -1: the tension must be a positive number",
     );
+    key(
+        &OBSTACLE.replace("mu = 1.0", "mu = 1e-320"),
+        "key 'mu' = 1e-320: the tension is below double precision's normal range (2.2250738585072014e-308)",
+    );
     // g < ψ at (1, 0): ψ = 0.1 − x² there is −0.9, so lift ψ by 1.
     key(
         &OBSTACLE.replace("0.1 - x*x", "1.1 - x*x"),
@@ -485,7 +489,10 @@ fn duplicate_vertices() {
     let (mut p, mut c) = fan();
     p.push([0.5, 0.5]);
     c[3] = [3, 0, 5];
-    contains(&mesh_fails(&p, &c), "vertices 4 and 5 have the same coordinates");
+    contains(
+        &mesh_fails(&p, &c),
+        "vertex 4 and vertex 5 have the same coordinates",
+    );
 }
 
 #[test]
@@ -930,6 +937,28 @@ fn gmsh_files_without_triangles_or_of_old_versions() {
         "mesh.msh: not a readable MSH 4.1 file",
     );
     contains(&msh_fails("solid cube\n"), "mesh.msh: not a Gmsh MSH file");
+}
+
+/// A Gmsh file's mesh errors name its node and element tags, not the mesh's numbers from 0.
+#[test]
+fn gmsh_mesh_errors_name_node_and_element_tags() {
+    // The fan of the unit square about its centre (nodes 11–15), with a sixth node 16 on the
+    // centre that element 24 uses in place of 15.
+    const DUPLICATE: &str = concat!(
+        "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 6 11 16\n2 1 0 6\n11\n12\n13\n14\n15\n16\n",
+        "0 0 0\n1 0 0\n1 1 0\n0 1 0\n0.5 0.5 0\n0.5 0.5 0\n$EndNodes\n",
+        "$Elements\n1 4 21 24\n2 1 2 4\n21 11 12 15\n22 12 13 15\n23 13 14 15\n24 14 11 16\n$EndElements\n"
+    );
+    contains(
+        &msh_fails(DUPLICATE),
+        "mesh.msh: node 15 and node 16 have the same coordinates",
+    );
+    const REPEATED: &str = concat!(
+        "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 5 11 15\n2 1 0 5\n11\n12\n13\n14\n15\n",
+        "0 0 0\n1 0 0\n1 1 0\n0 1 0\n0.5 0.5 0\n$EndNodes\n",
+        "$Elements\n1 4 21 24\n2 1 2 4\n21 11 12 15\n22 12 13 12\n23 13 14 15\n24 14 11 15\n$EndElements\n"
+    );
+    contains(&msh_fails(REPEATED), "mesh.msh: triangle element 22 (near");
 }
 
 #[test]

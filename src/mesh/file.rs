@@ -103,8 +103,10 @@ pub fn read(path: &Path) -> Result<Mesh, FileError> {
             Ok(with(mesh, groups))
         }
         "msh" => {
-            let (raw, groups) = super::msh::read(path)?;
-            let mesh = checked(raw)?;
+            let (raw, groups, tags) = super::msh::read(path)?;
+            let (points, cells) = raw;
+            let mesh = Mesh::new(points, cells)
+                .map_err(|e| FileError(format!("{}: {}", path.display(), e.with_tags(&tags))))?;
             Ok(match groups {
                 None => mesh,
                 Some(g) => with_msh_groups(mesh, g, path),

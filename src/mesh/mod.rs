@@ -100,55 +100,101 @@ pub enum MeshError {
 
 impl fmt::Display for MeshError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let names = Names {
+            vertex: &|v| format!("vertex {v}"),
+            triangle: &|t| format!("triangle {t}"),
+        };
+        f.write_str(&self.message(&names))
+    }
+}
+
+/// How a message names a vertex and a triangle of the mesh.
+struct Names<'a> {
+    vertex: &'a dyn Fn(usize) -> String,
+    triangle: &'a dyn Fn(usize) -> String,
+}
+
+/// The tags a mesh file gives its vertices and triangles (a Gmsh file's node and element tags),
+/// in the order of the mesh's numbers.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Tags {
+    /// The node tag of each vertex.
+    pub nodes: Vec<u64>,
+    /// The element tag of each triangle.
+    pub triangles: Vec<u64>,
+}
+
+impl MeshError {
+    /// The message, with the vertices and triangles named by the file's `tags` ("node 12",
+    /// "triangle element 40") instead of their numbers from 0.
+    pub fn with_tags(&self, tags: &Tags) -> String {
+        let tag = |list: &[u64], i: usize| list.get(i).map_or(i.to_string(), u64::to_string);
+        let names = Names {
+            vertex: &|v| format!("node {}", tag(&tags.nodes, v)),
+            triangle: &|t| format!("triangle element {}", tag(&tags.triangles, t)),
+        };
+        self.message(&names)
+    }
+
+    /// The message, naming vertices and triangles by `names`.
+    fn message(&self, names: &Names) -> String {
+        let (v, t) = (names.vertex, names.triangle);
         match self {
-            MeshError::Empty => write!(f, "the mesh has no triangles"),
-            MeshError::NotFinite { vertex } => write!(f, "vertex {vertex} has a non-finite coordinate"),
+            MeshError::Empty => "the mesh has no triangles".into(),
+            MeshError::NotFinite { vertex } => format!("{} has a non-finite coordinate", v(*vertex)),
             MeshError::VertexIndex { triangle, index } => {
-                write!(f, "triangle {triangle} refers to vertex {index}, which does not exist")
+                format!("{} refers to vertex {index}, which does not exist", t(*triangle))
             }
-            MeshError::Degenerate { triangle, area, at } => write!(
-                f,
-                "triangle {triangle} (near ({}, {})) has zero area ({area:e}) or repeats a vertex",
-                at[0], at[1]
+            MeshError::Degenerate { triangle, area, at } => format!(
+                "{} (near ({}, {})) has zero area ({area:e}) or repeats a vertex",
+                t(*triangle),
+                at[0],
+                at[1]
             ),
             MeshError::DuplicateVertex { first, second } => {
-                write!(f, "vertices {first} and {second} have the same coordinates")
+                format!("{} and {} have the same coordinates", v(*first), v(*second))
             }
-            MeshError::UnusedVertex { vertex } => write!(f, "vertex {vertex} belongs to no triangle"),
+            MeshError::UnusedVertex { vertex } => format!("{} belongs to no triangle", v(*vertex)),
             MeshError::NonManifoldEdge { a, b, count } => {
-                write!(f, "edge ({a}, {b}) is shared by {count} triangles")
+                format!(
+                    "the edge from {} to {} is shared by {count} triangles",
+                    v(*a),
+                    v(*b)
+                )
             }
             MeshError::DuplicateTriangle { triangle, first } => {
-                write!(f, "triangle {triangle} repeats triangle {first} (the same three vertices)")
+                format!("{} repeats {} (the same three vertices)", t(*triangle), t(*first))
             }
-            MeshError::Inverted { triangle, neighbour } => write!(
-                f,
-                "triangle {triangle} overlaps its neighbour {neighbour}: it is inverted (folded mesh)"
+            MeshError::Inverted { triangle, neighbour } => format!(
+                "{} overlaps its neighbour {}: it is inverted (folded mesh)",
+                t(*triangle),
+                t(*neighbour)
             ),
-            MeshError::HangingNode { vertex } => write!(
-                f,
-                "vertex {vertex} lies inside an edge of another triangle: a hanging node (non-conforming mesh)"
+            MeshError::HangingNode { vertex } => format!(
+                "{} lies inside an edge of another triangle: a hanging node (non-conforming mesh)",
+                v(*vertex)
             ),
-            MeshError::Overlap { vertex, turns } => write!(
-                f,
-                "the triangles around vertex {vertex} turn {turns:.3} times around it: the mesh overlaps itself"
+            MeshError::Overlap { vertex, turns } => format!(
+                "the triangles around {} turn {turns:.3} times around it: the mesh overlaps itself",
+                v(*vertex)
             ),
-            MeshError::BoundaryCrossing { first, second } => write!(
-                f,
-                "boundary edges ({}, {}) and ({}, {}) meet away from a shared vertex: the mesh overlaps itself",
-                first.0, first.1, second.0, second.1
+            MeshError::BoundaryCrossing { first, second } => format!(
+                "the boundary edges {}–{} and {}–{} meet away from a shared vertex: the mesh \
+                 overlaps itself",
+                v(first.0),
+                v(first.1),
+                v(second.0),
+                v(second.1)
             ),
             MeshError::Disconnected { components } => {
-                write!(f, "the mesh has {components} separate components; ω must be connected")
+                format!("the mesh has {components} separate components; ω must be connected")
             }
-            MeshError::NoInteriorVertex => write!(f, "the mesh has no interior vertex: nothing to solve"),
-            MeshError::Generation(why) => write!(f, "the mesh could not be generated: {why}"),
+            MeshError::NoInteriorVertex => "the mesh has no interior vertex: nothing to solve".into(),
+            MeshError::Generation(why) => format!("the mesh could not be generated: {why}"),
             // A count that saturated (e.g. 30 refinements) is past any memory.
             MeshError::TooLarge {
-                vertices: usize::MAX,
-                ..
-            } => write!(
-                f,
+                vertices: usize::MAX, ..
+            } => format!(
                 "the mesh would have more than {:.1e} vertices (each refinement multiplies them by 4): \
                  use a coarser mesh",
                 usize::MAX as f64
@@ -157,8 +203,7 @@ impl fmt::Display for MeshError {
                 vertices,
                 needed_gb,
                 available_gb,
-            } => write!(
-                f,
+            } => format!(
                 "{vertices} vertices need about {needed_gb:.1} GB of memory, but only {available_gb:.1} GB \
                  are available: use a coarser mesh"
             ),

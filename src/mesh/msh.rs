@@ -6,6 +6,7 @@
 //! (2-node) element, with the names of `$PhysicalNames` (or the tag, for a group without a name).
 
 use super::file::{FileError, RawMesh};
+use super::Tags;
 use mshio::mshfile::ElementType;
 use std::collections::HashMap;
 use std::path::Path;
@@ -27,9 +28,9 @@ pub(super) struct RawGroups {
     pub ambiguous: [Option<String>; 2],
 }
 
-/// Reads the triangles of a MSH 4.1 file and the nodes they use (in the order of their tags), and
-/// the physical groups, if the file has any.
-pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>), FileError> {
+/// Reads the triangles of a MSH 4.1 file and the nodes they use (in the order of their tags), the
+/// physical groups, if the file has any, and the tags of the nodes and triangles, for messages.
+pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>, Tags), FileError> {
     let err = |m: String| FileError(format!("{}: {m}", path.display()));
     // A file larger than the memory available could not be read, let alone solved on; the header
     // is checked first, so that a file of another format is not read whole.
@@ -41,7 +42,13 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>), FileErro
         let kinds: Vec<String> = trace.iter().rev().map(|(_, k)| k.to_string()).collect();
         err(format!("not a readable MSH {VERSION} file: {}", kinds.join(": ")))
     })?;
-    let (triangles, triangle_tag, lines, ambiguous) = elements(&msh, &err)?;
+    let Elements {
+        triangles,
+        triangle_tags,
+        physical: triangle_tag,
+        lines,
+        ambiguous,
+    } = elements(&msh, &err)?;
     if triangles.is_empty() {
         return Err(err(
             "the file has no triangles: the mesh must be made of triangles".into(),
@@ -73,30 +80,33 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>), FileErro
         ambiguous,
         ..raw_groups(&names, &triangle_tag, &lines, &index)
     });
-    Ok((
-        (
-            points,
-            triangles.iter().map(|t| t.map(|tag| index[&tag])).collect(),
-        ),
-        groups,
-    ))
+    let triangles = triangles.iter().map(|t| t.map(|tag| index[&tag])).collect();
+    let tags = Tags {
+        nodes: used,
+        triangles: triangle_tags,
+    };
+    Ok(((points, triangles), groups, tags))
 }
 
-/// The triangles of the file (their node tags), the physical tag of each, the lines of a
-/// physical group with their tag, and of the surfaces and of the curves why a group is ambiguous.
-#[allow(clippy::type_complexity)]
+/// The elements of a file that make the mesh and its groups.
+struct Elements {
+    /// The triangles (their node tags).
+    triangles: Vec<[u64; 3]>,
+    /// The element tag of each triangle.
+    triangle_tags: Vec<u64>,
+    /// The physical tag of each triangle, if it has one.
+    physical: Vec<Option<i32>>,
+    /// The lines of a physical group, with its tag.
+    lines: Vec<([u64; 2], i32)>,
+    /// Of the surfaces and of the curves, why a group is ambiguous.
+    ambiguous: [Option<String>; 2],
+}
+
+/// The triangles and the lines of physical groups of the file.
 fn elements(
     msh: &mshio::MshFile<u64, i32, f64>,
     err: &dyn Fn(String) -> FileError,
-) -> Result<
-    (
-        Vec<[u64; 3]>,
-        Vec<Option<i32>>,
-        Vec<([u64; 2], i32)>,
-        [Option<String>; 2],
-    ),
-    FileError,
-> {
+) -> Result<Elements, FileError> {
     let mut ambiguous: [Option<String>; 2] = [None, None];
     // The physical tag of each triangle and each line, by its entity: the first of its groups,
     // and the entity named in `ambiguous` if it has several (an error only for data per group).
@@ -117,7 +127,8 @@ fn elements(
         }
         tags.first().copied()
     };
-    let (mut triangles, mut triangle_tag, mut lines) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut triangles, mut triangle_tags) = (Vec::new(), Vec::new());
+    let (mut triangle_tag, mut lines) = (Vec::new(), Vec::new());
     for block in msh.data.elements.iter().flat_map(|e| &e.element_blocks) {
         match (block.entity_dim, block.element_type) {
             (1, ElementType::Lin2) => {
@@ -129,6 +140,7 @@ fn elements(
             (2, ElementType::Tri3) => {
                 let tag = physical(2, block.entity_tag);
                 triangle_tag.extend(std::iter::repeat_n(tag, block.elements.len()));
+                triangle_tags.extend(block.elements.iter().map(|e| e.element_tag));
                 triangles.extend(
                     block
                         .elements
@@ -153,7 +165,13 @@ fn elements(
             }
         }
     }
-    Ok((triangles, triangle_tag, lines, ambiguous))
+    Ok(Elements {
+        triangles,
+        triangle_tags,
+        physical: triangle_tag,
+        lines,
+        ambiguous,
+    })
 }
 
 /// The physical groups of the triangles and lines, numbered by increasing tag and named by
