@@ -215,9 +215,6 @@ fn write_in_chunks(
     attrs: &[Attribute],
     chunk: usize,
 ) -> Result<(), String> {
-    // A mesh with physical groups: the cell field `group` and the names of the groups.
-    let (fields, attrs) = (with_group_field(mesh, fields), with_group_names(mesh, attrs));
-    let (fields, attrs) = (&fields[..], &attrs[..]);
     let mut grids = vec![Grid {
         name: "mesh",
         xdmf: "solution.xdmf",
@@ -239,36 +236,31 @@ fn write_in_chunks(
     Ok(())
 }
 
-/// `fields` and, on a mesh with physical groups, the cell field `group`: the index of each
-/// triangle's physical surface in the attribute `surface_groups` (−1 for none).
-fn with_group_field<'a>(mesh: &Mesh, fields: &[Field<'a>]) -> Vec<Field<'a>> {
-    let mut all = fields.to_vec();
-    if let Some(groups) = mesh.groups() {
-        let index = (groups.triangle_groups().iter())
-            .map(|&g| {
-                if g == crate::mesh::groups::NONE {
-                    -1.0
-                } else {
-                    f64::from(g)
-                }
-            })
-            .collect();
-        all.push(Field::owned("group", Place::Cells, index));
-    }
-    all
+/// On a mesh with physical groups, the cell field `group`: the index of each triangle's physical
+/// surface in the attribute `surface_groups` (−1 for none).
+pub(crate) fn group_field(mesh: &Mesh) -> Option<Field<'static>> {
+    let groups = mesh.groups()?;
+    let index = (groups.triangle_groups().iter())
+        .map(|&g| match g {
+            crate::mesh::groups::NONE => -1.0,
+            g => f64::from(g),
+        })
+        .collect();
+    Some(Field::owned("group", Place::Cells, index))
 }
 
-/// `attrs` and, on a mesh with physical groups, `surface_groups` and `curve_groups`: the names of
-/// the groups in the order of their indices (a JSON list), and `groups_source`, the mesh file.
-fn with_group_names(mesh: &Mesh, attrs: &[Attribute]) -> Vec<Attribute> {
-    let mut all = attrs.to_vec();
-    if let Some(groups) = mesh.groups() {
-        let list = |names: &[String]| Attr::Text(serde_json::to_string(names).expect("strings"));
-        all.push(("surface_groups", list(&groups.surfaces)));
-        all.push(("curve_groups", list(&groups.curves)));
-        all.push(("groups_source", Attr::Text(groups.source.clone())));
-    }
-    all
+/// On a mesh with physical groups, `surface_groups` and `curve_groups`: the names of the groups in
+/// the order of their indices (a JSON list), and `groups_source`, the mesh file.
+pub(crate) fn group_attributes(mesh: &Mesh) -> Vec<Attribute> {
+    let Some(groups) = mesh.groups() else {
+        return Vec::new();
+    };
+    let list = |names: &[String]| Attr::Text(serde_json::to_string(names).expect("strings"));
+    vec![
+        ("surface_groups", list(&groups.surfaces)),
+        ("curve_groups", list(&groups.curves)),
+        ("groups_source", Attr::Text(groups.source.clone())),
+    ]
 }
 
 /// Writes `/mesh/boundary_edges` (the boundary edges of T_h, two vertices each, sorted) and

@@ -395,6 +395,7 @@ impl Run<'_> {
 impl Describe for Run<'_> {
     fn fields(&self) -> Vec<Field<'_>> {
         let mut fields = self.solution.fields();
+        fields.extend(result::group_field(&self.problem.mesh));
         fields.extend(self.action.fields());
         if self.writes_dual {
             fields.extend(self.dual_fields());
@@ -417,6 +418,7 @@ impl Describe for Run<'_> {
             ("triangles", mesh.n_triangles().into()),
             ("h", mesh.h().into()),
         ]);
+        attrs.extend(result::group_attributes(mesh));
         attrs.extend(self.solution.attributes());
         attrs.extend(self.action.attributes());
         attrs.extend(self.errors.iter().flat_map(Describe::attributes));

@@ -15,6 +15,7 @@ line's one-line messages. Ctrl-C stops a run.
 """
 
 import json
+import numbers
 import os
 
 import numpy as np
@@ -100,9 +101,30 @@ def _mesh(mesh):
         raise InputError(f"mesh: triangles need shape (M, 3), got {triangles.shape}")
     if not np.issubdtype(triangles.dtype, np.integer):
         raise InputError(f"mesh: triangles need integer vertex numbers, got dtype {triangles.dtype}")
+    too_large = triangles > np.iinfo(np.int64).max if triangles.dtype.kind == "u" else None
+    if too_large is not None and too_large.any():
+        t = int(np.argmax(too_large.any(axis=1)))
+        v = int(triangles[t][too_large[t]][0])
+        raise InputError(f"mesh: triangle {t} refers to vertex {v}, which does not exist")
     points = np.ascontiguousarray(points, dtype=np.float64)
     triangles = np.ascontiguousarray(triangles, dtype=np.int64)
     return points, triangles
+
+
+def _count(name, value):
+    """`value` if it is None or a whole number ≥ 0 (as the command line's options take), else an
+    InputError naming the argument."""
+    if value is None:
+        return None
+    whole = isinstance(value, numbers.Integral) and not isinstance(value, bool)
+    if not whole or value < 0 or value >= 2**64:
+        raise InputError(f"{name} = {value!r}: need a whole number ≥ 0")
+    return int(value)
+
+
+def _counts(name, values):
+    """A list of `_count`s, or None."""
+    return None if values is None else [_count(name, v) for v in values]
 
 
 class Result:
@@ -215,8 +237,8 @@ def solve(
         dual=dual,
         hminus1=hminus1,
         linear=linear,
-        refine=refine,
-        n=n,
+        refine=_count("refine", refine),
+        n=_count("n", n),
         start=start,
         verbose=verbose,
     )
@@ -259,11 +281,11 @@ def study(
         origin,
         points,
         triangles,
-        levels=None if levels is None else list(levels),
-        refine=None if refine is None else list(refine),
+        levels=_counts("levels", levels),
+        refine=_counts("refine", refine),
         cold=cold,
         grading=None if grading is None else [float(g) for g in grading],
-        hminus1_max=hminus1_max,
+        hminus1_max=_count("hminus1_max", hminus1_max),
         linear=linear,
     )
     table, results = [], []
@@ -302,11 +324,11 @@ def adapt(
         origin,
         points,
         triangles,
-        n=n,
+        n=_count("n", n),
         theta=theta,
         target=target,
-        max_vertices=max_vertices,
-        steps=steps,
+        max_vertices=_count("max_vertices", max_vertices),
+        steps=_count("steps", steps),
     )
     table = json.loads(steps_json)
     for row in table:

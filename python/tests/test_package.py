@@ -1,5 +1,6 @@
 """The package against the command line, its input forms, its errors, and its other entry points."""
 
+import json
 import os
 import signal
 import subprocess
@@ -96,6 +97,37 @@ def test_bad_mesh_raises_input_error(small):
         bad = triangles.copy()
         bad[2, 0] = -1
         mc.solve(small, (points, bad))
+    with pytest.raises(mc.InputError, match=f"triangle 3 refers to vertex {2**64 - 1},"):
+        huge = triangles.astype(np.uint64)
+        huge[3, 1] = 2**64 - 1
+        mc.solve(small, (points, huge))
+
+
+@pytest.mark.parametrize(
+    "call, message",
+    [
+        (lambda: mc.solve(refine=-1), "refine = -1: need a whole number ≥ 0"),
+        (lambda: mc.solve(n=2.5), "n = 2.5: need a whole number ≥ 0"),
+        (lambda: mc.solve(n=True), "n = True: need"),
+        (lambda: mc.study(levels=[8, -16]), "levels = -16: need"),
+        (lambda: mc.adapt(max_vertices=2**70), f"max_vertices = {2**70}: need"),
+    ],
+)
+def test_bad_counts_raise_input_error(call, message):
+    with pytest.raises(mc.InputError, match=message):
+        call()
+
+
+def test_groups_of_a_gmsh_mesh_are_in_the_result(tmp_path):
+    case = CASES / "two_regions.toml"
+    data, attrs = cli_solve(tmp_path, case)
+    r = mc.solve(case)
+    mesh_data = {k: v for k, v in data.items() if not k.startswith("boundary_")}
+    check_against_cli(r, mesh_data)
+    assert r.places["group"] == "cells" and set(np.unique(r.group)) == {0.0, 1.0}
+    assert json.loads(r.surface_groups) == ["loaded", "free"]
+    for name in ("surface_groups", "curve_groups", "groups_source"):
+        assert r.attributes[name] == attrs[name], name
 
 
 def test_obstacle_with_estimate_and_g2_with_estimate(tmp_path):
