@@ -607,7 +607,8 @@ impl Case {
         self.price(self.linear_solver(), after)
     }
 
-    fn price(&self, linear: LinearSolver, after: Postprocess) -> f64 {
+    /// The memory guard's peak per vertex with the linear solver `linear`.
+    pub(crate) fn price(&self, linear: LinearSolver, after: Postprocess) -> f64 {
         let solver = match linear {
             LinearSolver::Multigrid => mesh::MULTIGRID_BYTES_PER_VERTEX,
             LinearSolver::Direct => mesh::DIRECT_BYTES_PER_VERTEX,

@@ -8,7 +8,7 @@ use crate::case::{Case, CaseError};
 use crate::contact::{self, LinearSolver, Solution, SolveError, SolverOptions, Start};
 use crate::estimator::Estimate;
 use crate::flux::Fluxes;
-use crate::mesh::{DualMesh, Edges, Mesh, Postprocess};
+use crate::mesh::{self, DualMesh, Edges, Mesh, Postprocess};
 use crate::norms::Errors;
 use crate::problem::DiscreteProblem;
 use crate::progress;
@@ -57,6 +57,17 @@ pub struct Run<'c> {
     pub writes_dual: bool,
 }
 
+impl Options<'_> {
+    /// What is computed after the solve, which the memory guard prices.
+    fn postprocess(&self) -> Postprocess {
+        Postprocess {
+            flux: self.flux,
+            estimate: self.estimate,
+            hminus1: self.hminus1,
+        }
+    }
+}
+
 /// Solves `case` and writes its result directory `target` whole: an earlier result there is
 /// replaced only once this one is complete, and nothing is written when the run fails.
 ///
@@ -90,11 +101,7 @@ pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
     progress::phase(|| "meshing".into());
     // The coarser meshes serve nested iteration and multigrid.
     let multigrid = case.solver.linear == LinearSolver::Multigrid;
-    let after = Postprocess {
-        flux: options.flux,
-        estimate: options.estimate,
-        hminus1: options.hminus1,
-    };
+    let after = options.postprocess();
     // Before the mesh is built: what this problem cannot compute fails at once.
     case.check_options(options.estimate)?;
     let (mesh, coarser) = case.hierarchy(multigrid || matches!(options.start, Start::Nested), after)?;
@@ -123,8 +130,7 @@ pub fn on_mesh<'c>(
         ..case.solver
     };
     progress::phase(|| "contact solve".into());
-    let solution = (contact::solve(&problem, options.start, coarser, solver))
-        .map_err(|e| RunError::Solve(case.origin.clone(), e))?;
+    let solution = contact_solve(case, &problem, options, coarser, solver)?;
     clock.lap();
     if progress::cancelled() {
         return Err(RunError::Solve(case.origin.clone(), SolveError::Cancelled));
@@ -175,6 +181,35 @@ pub fn on_mesh<'c>(
         timings,
         writes_dual: options.dual || options.flux,
     })
+}
+
+/// The contact solve of `problem`. Where multigrid CG does not converge (on cells stretched
+/// about 100:1 its point smoother no longer smooths), the problem is solved again by Cholesky from
+/// a cold start, if that fits in memory, and the solver's statistics say why.
+fn contact_solve(
+    case: &Case,
+    problem: &DiscreteProblem,
+    options: &Options,
+    coarser: Vec<Mesh>,
+    solver: SolverOptions,
+) -> Result<Solution, RunError> {
+    let failed = |e| RunError::Solve(case.origin.clone(), e);
+    let cg = match contact::solve(problem, options.start, coarser, solver) {
+        Err(SolveError::NotConverged(cg)) => cg,
+        other => return other.map_err(failed),
+    };
+    let bytes = case.price(LinearSolver::Direct, options.postprocess());
+    if mesh::check_memory(problem.mesh.n_vertices(), bytes).is_err() {
+        return Err(failed(SolveError::NotConverged(cg)));
+    }
+    progress::phase(|| "contact solve again, by Cholesky: multigrid CG did not converge".into());
+    let direct = SolverOptions {
+        linear: LinearSolver::Direct,
+        ..solver
+    };
+    let mut solution = contact::solve(problem, Start::Cold, Vec::new(), direct).map_err(failed)?;
+    solution.obstacle.stats.multigrid_failed = Some(cg);
+    Ok(solution)
 }
 
 impl Run<'_> {
@@ -287,26 +322,32 @@ impl Run<'_> {
     fn solver_line(&self, verbose: bool) -> String {
         let s = &self.solution.obstacle.stats;
         let contact = s.active_sizes.last().copied().unwrap_or(0);
+        // Why Cholesky ran where multigrid was asked for.
+        let fallback = match (&s.multigrid_failed, s.linear, self.case.linear_solver()) {
+            (Some(cg), ..) => format!(" (multigrid CG did not converge in {} iterations)", cg.iterations),
+            (None, LinearSolver::Direct, LinearSolver::Multigrid) => {
+                " (not multigrid: this mesh has no coarser levels)".into()
+            }
+            (None, LinearSolver::Direct, _) if self.case.solver.linear == LinearSolver::Multigrid => {
+                " (not multigrid: the coarser levels of a file mesh, meshed from its boundary, give the \
+                 guess only)"
+                    .into()
+            }
+            _ => String::new(),
+        };
         if !verbose {
             let solver = match s.linear {
                 LinearSolver::Direct => "Cholesky",
                 LinearSolver::Multigrid => "multigrid",
             };
+            let failed = (s.multigrid_failed.as_ref()).map_or(String::new(), |cg| {
+                format!("; multigrid CG did not converge in {} iterations", cg.iterations)
+            });
             return format!(
-                "solver      {} active-set iterations ({solver}); contact at {contact} vertices\n",
+                "solver      {} active-set iterations ({solver}{failed}); contact at {contact} vertices\n",
                 s.iterations
             );
         }
-        let fallback = if s.linear == LinearSolver::Direct
-            && self.case.solver.linear == LinearSolver::Multigrid
-        {
-            match self.case.linear_solver() {
-                LinearSolver::Direct => " (not multigrid: the coarser levels of a file mesh, meshed from its boundary, give the guess only)",
-                LinearSolver::Multigrid => " (not multigrid: this mesh has no coarser levels)",
-            }
-        } else {
-            ""
-        };
         format!(
             "solver      {} unknowns per membrane; {} active-set iterations + {} local ones (coarser levels: {:?}); {}{fallback}; contact at {contact} vertices\n",
             s.unknowns,

@@ -515,3 +515,34 @@ fn annulus_and_polygon_with_hole_solve() {
         }
     }
 }
+
+/// On cells stretched 100:1 multigrid CG does not converge; the run solves again by Cholesky and
+/// says so, with the solution an explicit direct solve gives.
+#[test]
+fn where_multigrid_fails_the_run_solves_by_cholesky() {
+    let text = |linear: &str| {
+        format!(
+            "mu1 = 1.0\nmu2 = 1.0\nf1 = \"-20\"\nf2 = \"5\"\ng = \"0.05\"\n[mesh]\nkind = \"rectangle\"\n\
+             n = [10, 1000]\n[solver]\nlinear = \"{linear}\"\n"
+        )
+    };
+    let parse = |t: String| Case::parse(&t, "stretched", PathBuf::new()).unwrap();
+    let (asked, direct) = (parse(text("multigrid")), parse(text("direct")));
+    let fell_back = solve(&asked, Start::Nested);
+    let stats = &fell_back.solution.obstacle.stats;
+    let cg = stats
+        .multigrid_failed
+        .as_ref()
+        .expect("multigrid CG fails on these cells");
+    assert_eq!((stats.linear, cg.iterations), (LinearSolver::Direct, 200));
+    assert!(fell_back
+        .summary(false)
+        .contains("(Cholesky; multigrid CG did not converge in 200 iterations)"));
+    let reference = solve(&direct, Start::Nested);
+    assert!(reference.solution.obstacle.stats.multigrid_failed.is_none());
+    assert_eq!(
+        fell_back.solution.obstacle.contact,
+        reference.solution.obstacle.contact
+    );
+    assert!(max_abs_diff(&fell_back.solution.u1, &reference.solution.u1) < 1e-12);
+}

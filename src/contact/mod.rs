@@ -300,7 +300,7 @@ impl Describe for Solution {
                     .collect(),
             )
         };
-        vec![
+        let mut attrs = vec![
             ("linear_solver", Attr::Text(st.linear.name().into())),
             ("multigrid_levels", st.multigrid_levels.into()),
             ("cg_iterations", floats(&st.cg_iterations)),
@@ -319,7 +319,15 @@ impl Describe for Solution {
             ("seconds_numeric", st.numeric_seconds.into()),
             ("seconds_solve", st.solve_seconds.into()),
             ("seconds_contact_solve", st.wall_seconds.into()),
-        ]
+        ];
+        let failed = st.multigrid_failed.as_ref();
+        attrs.extend(failed.map(|cg| {
+            (
+                "multigrid_failed",
+                Attr::Text(SolveError::NotConverged(cg.clone()).to_string()),
+            )
+        }));
+        attrs
     }
 }
 

@@ -53,6 +53,8 @@ pub struct SolverStats {
     /// CG iterations of each active-set step on each coarser level of nested iteration,
     /// coarsest first (multigrid only).
     pub coarse_cg_iterations: Vec<Vec<usize>>,
+    /// Where multigrid CG failed and the run solved again by Cholesky: how CG failed.
+    pub multigrid_failed: Option<crate::cg::NotConverged>,
 }
 
 impl SolverStats {
