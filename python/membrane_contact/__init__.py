@@ -133,8 +133,9 @@ class Result:
     Arrays: `points` (N, 2), `triangles` (M, 3), and per vertex `u1`, `u2`, `gap` (u1 − u2),
     `lambda_` (λ_h; the file's `lambda`), `lambda2` (λ_h from membrane 2), `contact` (bool); above
     an obstacle `u`, `psi`, `gap`, `lambda_`, `contact`; with an exact solution `u1_exact`, …;
-    with `estimate=True` per triangle `estimator` and its terms. `fields` maps the file's names to
-    the arrays, `places` to "vertices" or "cells".
+    with `estimate=True` per triangle `estimator` and its terms; on a mesh with physical groups (a
+    Gmsh file) per triangle `group`, the index of its surface in the JSON list `surface_groups`.
+    `fields` maps the file's names to the arrays, `places` to "vertices" or "cells".
 
     Figures: every attribute of `solution.h5` (`iterations`, `check_*`, `error_*`, `estimator`,
     `effectivity`, …) is an attribute of the result and in `attributes`; `eta` is η.
