@@ -43,8 +43,9 @@ pub struct Action {
 /// The checks of a discrete solution, each relative to the size of the terms that cancel.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Checks {
-    /// Prop. 12: max_a |λ1_a − λ2_a| m_a / s_a, with s_a = Σ_b |μ1 K_ab u1_b| + |(f1, φ_a)| +
-    /// Σ_b |μ2 K_ab u2_b| + |(f2, φ_a)| the size of the terms of (4.5) at a.
+    /// Prop. 12: max_a |λ1_a − λ2_a| m_a / s_a, with s_a = Σ_b |μ1 K_ab| c_b + |(f1, φ_a)| +
+    /// Σ_b |μ2 K_ab| c_b + |(f2, φ_a)| the size of the terms of (4.5) at a, c_b = max(|u1_b|,
+    /// |u2_b|) + 2 |w_b| the size of the terms u_ib is computed from.
     pub prop12: f64,
     /// max_a max(0, −λ_a m_a) / s_a: how negative λ_h is.
     pub negative_lambda: f64,
@@ -161,17 +162,21 @@ impl Action {
             noise: 0.0,
             loads: 0.0,
         };
+        // The size of u_ib as computed, v + μ2/(μ1+μ2) w and v − μ1/(μ1+μ2) w (ψ_h + w above a rigid
+        // obstacle), which bounds its round-off: |v| + |w| ≤ |u_ib| + 2|w| for both. It is not |u_ib|,
+        // which cancellation makes small where u_ih is far above the other (ψ = −1 below u = 0).
+        let computed = |b: usize| u1[b].abs().max(u2[b].abs()) + 2.0 * gap[b].abs();
         let (mut total, mut contact_area) = (0.0, 0.0);
         for a in (0..n).filter(|&a| !mesh.on_boundary[a]) {
             let m = problem.mass[a];
             let l1 = (mu1 * k.row_dot(a, u1) - problem.load1[a]) / m;
-            let terms = |mu: f64, u: &[f64]| k.row(a).map(|(b, v)| (mu * v * u[b]).abs()).sum::<f64>();
-            let mut size = terms(mu1, u1) + problem.load_size(a);
+            let terms = |mu: f64| k.row(a).map(|(b, v)| (mu * v).abs() * computed(b)).sum::<f64>();
+            let mut size = terms(mu1) + problem.load_size(a);
             lambda[a] = l1;
             let mut l2 = l1;
             if let Some(mu2) = mu2 {
                 l2 = (-mu2 * k.row_dot(a, u2) + problem.load2[a]) / m;
-                size += terms(mu2, u2);
+                size += terms(mu2);
                 lambda2[a] = l2;
             }
             let s = size.max(f64::MIN_POSITIVE);
@@ -322,7 +327,9 @@ mod tests {
             for (b, v) in k.row(a) {
                 k1 += 2.0 * v * u1[b];
                 k2 += 3.0 * v * u2[b];
-                size += (2.0 * v * u1[b]).abs() + (3.0 * v * u2[b]).abs();
+                // The size u_ib is computed from: max(|u1|, |u2|) + 2 |u1 − u2|.
+                let computed = u1[b].abs().max(u2[b].abs()) + 2.0 * gap[b].abs();
+                size += (2.0 * v).abs() * computed + (3.0 * v).abs() * computed;
             }
             let (l1, l2) = ((k1 - p.load1[a]) / m, (p.load2[a] - k2) / m);
             assert!((action.lambda[a] - l1).abs() < 1e-13 && (action.lambda2[a] - l2).abs() < 1e-13);

@@ -117,6 +117,33 @@ fn no_contact_equals_two_poisson_solves() {
     assert!(r.solution.obstacle.gap.iter().all(|&w| w > 0.0));
 }
 
+/// An obstacle far below a membrane that touches nothing: u is the Poisson solution, λ_h = 0, and
+/// the checks pass although u_h = ψ_h + w is computed from terms far larger than itself.
+#[test]
+fn an_obstacle_far_below_is_not_touched() {
+    for (f, psi) in [(0.0, -1.0_f64), (1e-3, -1.0), (1.0, -1000.0)] {
+        let body = format!("problem = \"obstacle\"\nmu = 2.0\nf = {f:e}\npsi = {psi:e}\ng = 0");
+        let c = case(&body, 12);
+        let r = solve(&c, Start::Nested);
+        let p = &r.problem;
+        let (k, _) = dense(&p.mesh);
+        let u = dense_poisson(&p.mesh, &k, &p.load1, 2.0, &p.g_h);
+        assert!(
+            r.solution.obstacle.contact.iter().all(|&c| !c),
+            "f = {f}, ψ = {psi}"
+        );
+        assert!(
+            max_abs_diff(&u, &r.solution.u1) <= 1e-14 * psi.abs(),
+            "f = {f}, ψ = {psi}"
+        );
+        assert!(r
+            .action
+            .lambda
+            .iter()
+            .all(|l| l.abs() <= 1e-12 * psi.abs() * 144.0));
+    }
+}
+
 #[test]
 fn no_contact_with_g2_equals_two_poisson_solves() {
     // u2 = g2 on ∂ω (here not affine, so that g2_h is what enters).
