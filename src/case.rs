@@ -5,7 +5,7 @@ use crate::assembly::Quadrature;
 use crate::contact::{LinearSolver, SolverOptions};
 use crate::datum::Datum;
 use crate::expr::{Expr, ExprError, Names};
-use crate::mesh::{self, Curves, Diagonal, Domain, Mesh, MeshError, Postprocess};
+use crate::mesh::{self, Curves, Diagonal, Domain, Mesh, MeshError, Point, Postprocess};
 use crate::norms::Exact;
 use crate::problem::{self, Data, Lower};
 use crate::result::{Attr, Attribute, Describe};
@@ -441,9 +441,9 @@ impl Case {
             }
             _ => Err(CaseError(format!(
                 "{}: the cells per side apply to built-in meshes (kind = \"rectangle\" or \"lshape\"), \
-                 not to kind = \"{}\": use --refine",
+                 not to {}: refine it instead (--refine K; in Python refine=K)",
                 self.origin,
-                self.kind()
+                self.kind_named()
             ))),
         }
     }
@@ -482,6 +482,14 @@ impl Case {
             MeshSpec::Domain { .. } => "disk",
             MeshSpec::File { .. } => "file",
             MeshSpec::Given { .. } => "given",
+        }
+    }
+
+    /// The case's mesh as a message names it: `kind = "disk"`, or a mesh given as arrays.
+    pub(crate) fn kind_named(&self) -> String {
+        match self.mesh {
+            MeshSpec::Given { .. } => "a mesh given as arrays".into(),
+            _ => format!("kind = \"{}\"", self.kind()),
         }
     }
 
@@ -737,10 +745,9 @@ impl Case {
         ] {
             if let Some(p) = first_vertex(mesh, &[e], |v| !v[0].is_finite()).map(|a| mesh.points[a]) {
                 return Err(err(format!(
-                    "key '{key}' is {} at the vertex ({}, {}): an exact solution must be finite",
+                    "key '{key}' is {} at the vertex {}: an exact solution must be finite",
                     e.eval(p[0], p[1]),
-                    p[0],
-                    p[1]
+                    Point(p)
                 )));
             }
         }
@@ -748,10 +755,9 @@ impl Case {
         let below = |a: f64, b: f64| a - b < -EXACT_ROUND_OFF * a.abs().max(b.abs()).max(1.0);
         if let Some(p) = first_vertex(mesh, &[&exact.lambda], |v| below(v[0], 0.0)).map(|a| mesh.points[a]) {
             return Err(err(format!(
-                "key 'exact.lambda' is {} at the vertex ({}, {}): the contact pressure λ must be ≥ 0",
+                "key 'exact.lambda' is {} at the vertex {}: the contact pressure λ must be ≥ 0",
                 exact.lambda.eval(p[0], p[1]),
-                p[0],
-                p[1]
+                Point(p)
             )));
         }
         let pair = [&exact.u1, &exact.u2];
@@ -762,8 +768,8 @@ impl Case {
                 false => ("u1 − u2", "the membranes must not cross, u1 ≥ u2"),
             };
             return Err(err(format!(
-                "the exact {what} is {gap:e} at the vertex ({}, {}): {must}",
-                p[0], p[1]
+                "the exact {what} is {gap:e} at the vertex {}: {must}",
+                Point(p)
             )));
         }
         Ok(())
@@ -1374,7 +1380,11 @@ mod tests {
         assert!(err(&format!("{disk}n = 4\n")).contains("'mesh.n' does not apply to kind = \"disk\""));
         assert!(err(&format!("{disk}[validation]\nsizes = [8]\n")).contains("validation.refine"));
         let mut c = Case::parse(&disk, "t", PathBuf::new()).unwrap();
-        assert!(c.set_cells(8).unwrap_err().0.contains("use --refine"));
+        assert!(c
+            .set_cells(8)
+            .unwrap_err()
+            .0
+            .contains("refine it instead (--refine K"));
         // [solver] linear: the two names, anything else named with the key.
         let solver = |v: &str| format!("{base}[solver]\nlinear = {v}\n");
         let mg = Case::parse(&solver("\"multigrid\""), "t", PathBuf::new()).unwrap();

@@ -12,7 +12,7 @@
 use crate::assembly::{Quadrature, QuadraturePoint};
 use crate::expr::Expr;
 use crate::mesh::groups::NONE;
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, Point};
 use crate::problem::DataError;
 
 /// One expression, or one per group name (in the order the case gives them).
@@ -144,7 +144,7 @@ impl Datum {
                     Some(&e) if e != NONE => Ok(e),
                     _ => {
                         let c = centroid(mesh.corners(t));
-                        Err(missing(g, format!("the triangle at ({}, {})", c[0], c[1])))
+                        Err(missing(g, format!("the triangle at {}", Point(c))))
                     }
                 })
                 .collect::<Result<Vec<u32>, _>>()?,
@@ -153,10 +153,7 @@ impl Datum {
                     Some(&e) if e != NONE => Ok(e),
                     _ => {
                         let (p, q) = (mesh.points[a], mesh.points[b]);
-                        Err(missing(
-                            g,
-                            format!("the boundary edge ({}, {})–({}, {})", p[0], p[1], q[0], q[1]),
-                        ))
+                        Err(missing(g, format!("the boundary edge {}–{}", Point(p), Point(q))))
                     }
                 })
                 .collect::<Result<Vec<u32>, _>>()?,

@@ -15,7 +15,7 @@
 use crate::assembly::{self, Quadrature, Stiffness};
 use crate::datum::{self, Datum, On};
 use crate::expr::Expr;
-use crate::mesh::Mesh;
+use crate::mesh::{Mesh, Point};
 use std::fmt;
 
 /// The data of problem (1.1), or of the obstacle problem: membrane 1's tension, load and boundary
@@ -226,8 +226,8 @@ impl fmt::Display for DataError {
             }
             DataError::NotFinite { name, point, value } => write!(
                 f,
-                "{name} is {value} at ({}, {}): every datum must be finite in ω",
-                point[0], point[1]
+                "{name} is {value} at {}: every datum must be finite in ω",
+                Point(*point)
             ),
             DataError::BoundaryBelowLower {
                 lower,
@@ -236,10 +236,10 @@ impl fmt::Display for DataError {
                 value,
             } => write!(
                 f,
-                "g = {g} < {lower} = {value} at the boundary vertex ({}, {}): (3.4) takes g_h, the \
+                "g = {g} < {lower} = {value} at the boundary vertex {}: (3.4) takes g_h, the \
                  interpolant of g, which must be ≥ {lower} at every boundary vertex of the mesh \
                  (membrane 1 may not lie below what it rests on)",
-                point[0], point[1]
+                Point(*point)
             ),
             DataError::Group { name, why } => write!(f, "key '{name}': {why}"),
             DataError::Jump {
@@ -249,9 +249,13 @@ impl fmt::Display for DataError {
                 values,
             } => write!(
                 f,
-                "key '{name}': the groups '{}' and '{}' meet at the vertex ({}, {}) with {name} = {} and \
+                "key '{name}': the groups '{}' and '{}' meet at the vertex {} with {name} = {} and \
                  {}: a vertex value must agree (to 1e-12 relative) where groups meet",
-                groups[0], groups[1], point[0], point[1], values[0], values[1]
+                groups[0],
+                groups[1],
+                Point(*point),
+                values[0],
+                values[1]
             ),
         }
     }

@@ -770,7 +770,7 @@ fn cells_per_side_do_not_apply_to_a_mesh_file() {
         None,
     );
     contains(&e, "--n 8:");
-    contains(&e, "not to kind = \"file\": use --refine");
+    contains(&e, "not to kind = \"file\": refine it instead (--refine K");
 }
 
 #[test]
@@ -892,7 +892,7 @@ fn options_that_do_not_apply_to_the_mesh() {
     let disk = format!("{GOOD}[mesh]\nkind = \"disk\"\nradius = 1\nh = 0.2\n");
     let e = fails(&disk, |_| {}, &["--n", "8"], None);
     contains(&e, "--n 8:");
-    contains(&e, "not to kind = \"disk\": use --refine");
+    contains(&e, "not to kind = \"disk\": refine it instead (--refine K");
 }
 
 /// A case reading `mesh.msh` with the given text.
@@ -959,6 +959,18 @@ fn gmsh_mesh_errors_name_node_and_element_tags() {
         "$Elements\n1 4 21 24\n2 1 2 4\n21 11 12 15\n22 12 13 12\n23 13 14 15\n24 14 11 15\n$EndElements\n"
     );
     contains(&msh_fails(REPEATED), "mesh.msh: triangle element 22 (near");
+    // Coordinates about 1e300: the area overflows, and the point is shown in scientific notation.
+    const HUGE: &str = concat!(
+        "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 5 11 15\n2 1 0 5\n11\n12\n13\n14\n15\n",
+        "0 0 0\n1e300 0 0\n1e300 1e300 0\n0 1e300 0\n5e299 5e299 0\n$EndNodes\n",
+        "$Elements\n1 4 21 24\n2 1 2 4\n21 11 12 15\n22 12 13 15\n23 13 14 15\n24 14 11 15\n$EndElements\n"
+    );
+    let e = msh_fails(HUGE);
+    contains(
+        &e,
+        "mesh.msh: triangle element 21 (near (5e299, 1.6666666666666668e299)) has an area that overflows",
+    );
+    assert!(e.len() < 250, "{e}");
 }
 
 #[test]

@@ -236,5 +236,6 @@ fn disk_study_by_refinement_converges_at_rate_one() {
         .output()
         .unwrap();
     assert_eq!(bad.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("not of kind = \"disk\": use --refine"));
+    assert!(String::from_utf8_lossy(&bad.stderr)
+        .contains("not to kind = \"disk\": give refinements instead (--refine"));
 }

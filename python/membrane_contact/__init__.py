@@ -73,7 +73,7 @@ def _mesh(mesh):
         if "triangle" not in mesh.cells_dict:
             kinds = ", ".join(sorted(mesh.cells_dict)) or "none"
             raise InputError(f"mesh: a meshio mesh needs 'triangle' cells (it has {kinds})")
-        points, triangles = mesh.points, mesh.cells_dict["triangle"]
+        points, triangles = _used_points(np.asarray(mesh.points), np.asarray(mesh.cells_dict["triangle"]))
     elif hasattr(mesh, "geometry") and hasattr(mesh, "topology"):  # a dolfinx mesh
         points = mesh.geometry.x
         dofmap = mesh.geometry.dofmap
@@ -91,6 +91,8 @@ def _mesh(mesh):
     triangles = np.asarray(triangles)
     if points.ndim != 2 or points.shape[1] not in (2, 3):
         raise InputError(f"mesh: points need shape (N, 2) or (N, 3), got {points.shape}")
+    if np.iscomplexobj(points):
+        raise InputError(f"mesh: points need real coordinates, got dtype {points.dtype}")
     if not np.issubdtype(points.dtype, np.number):
         raise InputError(f"mesh: points need numbers, got dtype {points.dtype}")
     if points.shape[1] == 3:
@@ -109,6 +111,18 @@ def _mesh(mesh):
     points = np.ascontiguousarray(points, dtype=np.float64)
     triangles = np.ascontiguousarray(triangles, dtype=np.int64)
     return points, triangles
+
+
+def _used_points(points, triangles):
+    """The points the triangles use, in their order, and the triangles renumbered: a file read by
+    meshio keeps every node (a Gmsh geometry point that no triangle uses, say)."""
+    in_range = triangles.size and triangles.min() >= 0 and triangles.max() < len(points)
+    if not in_range or np.issubdtype(triangles.dtype, np.floating):
+        return points, triangles  # checked and refused below
+    used = np.unique(triangles)
+    if len(used) == len(points):
+        return points, triangles
+    return points[used], np.searchsorted(used, triangles)
 
 
 def _count(name, value):
@@ -221,8 +235,8 @@ def solve(
     case: a path (str or os.PathLike), a TOML string or a dict of the case file's keys.
     mesh: a meshio.Mesh (its "triangle" cells), a (points, triangles) pair (points (N, 2), or
     (N, 3) with z = 0; triangles (M, 3) of any integer type) or a dolfinx mesh; it replaces the
-    case's [mesh] (which may then be left out), keeps its vertex numbering and is checked as a
-    mesh file is. estimate, flux, dual, hminus1: as the command line's --estimate, --flux, --dual,
+    case's [mesh] (which may then be left out), keeps its vertex numbering (but for the points of
+    a meshio.Mesh that no triangle uses, dropped) and is checked as a mesh file is. estimate, flux, dual, hminus1: as the command line's --estimate, --flux, --dual,
     --hminus1. linear: "multigrid" or "direct". refine: uniform refinements (K). n: cells per side
     of a built-in mesh. start: "nested" (the default) or "cold". verbose: the solver's details in
     `summary()`.

@@ -103,6 +103,20 @@ def test_bad_mesh_raises_input_error(small):
         mc.solve(small, (points, huge))
 
 
+def test_meshio_points_no_triangle_uses_are_dropped_and_complex_points_refused(small):
+    points, triangles = unit_square(6)
+    # A node no triangle uses (a geometry point of a Gmsh file) at the front, shifting the numbers.
+    extra = np.vstack([[[5.0, 5.0]], points])
+    m = meshio.Mesh(extra, [("triangle", triangles + 1)])
+    r = mc.solve(small, m)
+    assert same_bits(r.points, points) and np.array_equal(r.triangles, triangles)
+    assert same_bits(r.u1, mc.solve(small, (points, triangles)).u1)
+    with pytest.raises(mc.InputError, match="vertex 0 belongs to no triangle"):
+        mc.solve(small, (extra, triangles + 1))  # arrays keep their numbering: refused
+    with pytest.raises(mc.InputError, match="points need real coordinates, got dtype complex128"):
+        mc.solve(small, (points + 0j, triangles))
+
+
 @pytest.mark.parametrize(
     "call, message",
     [
@@ -116,6 +130,13 @@ def test_bad_mesh_raises_input_error(small):
 def test_bad_counts_raise_input_error(call, message):
     with pytest.raises(mc.InputError, match=message):
         call()
+
+
+def test_cells_per_side_of_a_given_mesh_are_refused_with_what_to_do(small):
+    with pytest.raises(mc.InputError, match=r"not to a mesh given as arrays: refine it instead .*refine=K"):
+        mc.solve(small, unit_square(4), n=8)
+    with pytest.raises(mc.InputError, match=r"not to a mesh given as arrays: give refinements instead"):
+        mc.study(small, unit_square(4), levels=[8, 16])
 
 
 def test_groups_of_a_gmsh_mesh_are_in_the_result(tmp_path):

@@ -332,9 +332,9 @@ impl Domain {
         // What the checks of a mesh find here is a feature of the domain or a size h it cannot have.
         Mesh::new(points, triangles).map_err(|e| match e {
             MeshError::Degenerate { at, .. } => MeshError::Generation(format!(
-                "the domain has a feature near ({}, {}) too small to mesh at its size (a triangle \
+                "the domain has a feature near {} too small to mesh at its size (a triangle \
                  there has no area in double precision): remove the vertex or widen the feature",
-                at[0], at[1]
+                super::Point(at)
             )),
             MeshError::NoInteriorVertex => MeshError::Generation(
                 "h is too coarse for the domain: its mesh has no interior vertex; use a smaller h".into(),

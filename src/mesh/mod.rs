@@ -108,6 +108,21 @@ impl fmt::Display for MeshError {
     }
 }
 
+/// A point as a message shows it: (x, y), each coordinate in its shortest form that reads back
+/// exactly, in scientific notation when it is far from 1 (1e300, not 301 digits).
+#[derive(Debug, Clone, Copy)]
+pub struct Point(pub [f64; 2]);
+
+impl fmt::Display for Point {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let show = |x: f64| match x.abs() {
+            a if a == 0.0 || (1e-4..1e16).contains(&a) || !a.is_finite() => format!("{x}"),
+            _ => format!("{x:e}"),
+        };
+        write!(f, "({}, {})", show(self.0[0]), show(self.0[1]))
+    }
+}
+
 /// How a message names a vertex and a triangle of the mesh.
 struct Names<'a> {
     vertex: &'a dyn Fn(usize) -> String,
@@ -145,11 +160,15 @@ impl MeshError {
             MeshError::VertexIndex { triangle, index } => {
                 format!("{} refers to vertex {index}, which does not exist", t(*triangle))
             }
-            MeshError::Degenerate { triangle, area, at } => format!(
-                "{} (near ({}, {})) has zero area ({area:e}) or repeats a vertex",
+            MeshError::Degenerate { triangle, area, at } if area.is_finite() => format!(
+                "{} (near {}) has zero area ({area:e}) or repeats a vertex",
                 t(*triangle),
-                at[0],
-                at[1]
+                Point(*at)
+            ),
+            MeshError::Degenerate { triangle, at, .. } => format!(
+                "{} (near {}) has an area that overflows double precision: scale the mesh down",
+                t(*triangle),
+                Point(*at)
             ),
             MeshError::DuplicateVertex { first, second } => {
                 format!("{} and {} have the same coordinates", v(*first), v(*second))
@@ -790,6 +809,13 @@ pub(crate) fn max2(p: [f64; 2], q: [f64; 2]) -> [f64; 2] {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn points_far_from_one_are_shown_in_scientific_notation() {
+        assert_eq!(Point([0.5, 1e300]).to_string(), "(0.5, 1e300)");
+        assert_eq!(Point([0.0, -2.5e-7]).to_string(), "(0, -2.5e-7)");
+        assert_eq!(Point([123456.75, f64::NAN]).to_string(), "(123456.75, NaN)");
+    }
+
     use super::*;
 
     #[test]

@@ -190,10 +190,11 @@ pub fn variants(case: &Case, options: &StudyOptions) -> Result<Vec<(String, Vec<
     }
     if cells && case.cells().is_none() {
         return Err(CaseError(format!(
-            "{}: --levels sets the cells per side of built-in meshes (kind = \"rectangle\" or \"lshape\"), \
-             not of kind = \"{}\": use --refine 0,1,2,3",
+            "{}: levels of cells per side (--levels; levels= in Python) apply to built-in meshes \
+             (kind = \"rectangle\" or \"lshape\"), not to {}: give refinements instead (--refine \
+             0,1,2,3; refine=[0, 1, 2, 3] in Python)",
             case.origin,
-            case.kind()
+            case.kind_named()
         )));
     }
     let gradings: Vec<Option<f64>> = match &options.grading {
@@ -236,7 +237,8 @@ pub fn run_levels(
     for (i, c) in levels.iter().enumerate() {
         // About √N: cells per side, or the root of the estimated vertices (0 for a file).
         let side = (c.cells()).unwrap_or_else(|| (c.estimated_vertices() as f64).sqrt() as usize);
-        let start = previous.as_ref().map_or(Start::Cold, |r| Start::From {
+        // The first level by nested iteration on its coarser meshes, as `solve` starts it.
+        let start = previous.as_ref().map_or(Start::Nested, |r| Start::From {
             mesh: &r.problem.mesh,
             obstacle: &r.solution.obstacle,
         });
@@ -252,10 +254,9 @@ pub fn run_levels(
                 dual: false,
             },
         )?;
-        let cold_iterations = match (options.cold, &previous) {
-            (false, _) => None,
-            (true, None) => Some(r.solution.obstacle.stats.iterations),
-            (true, Some(_)) => {
+        let cold_iterations = match options.cold {
+            false => None,
+            true => {
                 // A cold start needs about one iteration per ring of vertices the contact set spans.
                 let mut cold_case = c.clone();
                 cold_case.solver.max_iterations = cold_case.solver.max_iterations.max(4 * side);
