@@ -21,6 +21,10 @@ pub use crate::contact::CHECK_TOLERANCE as TOLERANCE;
 /// The largest round-off of λ_h a run accepts, relative to the size of the loads.
 pub const RESOLUTION: f64 = 1e-3;
 
+/// Where the values u_ih are computed from exceed them by more than this factor, an unresolved λ_h
+/// is blamed on the distance between the membranes (or to the obstacle).
+const CANCELLATION: f64 = 1e3;
+
 /// Round-off of a sum of the terms of (4.5), relative to the sum of their sizes: a few units of
 /// f64's precision for the rows of K, and as much again for the Cholesky solve behind u_ih.
 const ROUNDOFF: f64 = 8.0 * f64::EPSILON;
@@ -61,6 +65,10 @@ pub struct Checks {
     pub noise: f64,
     /// max_a (|(f1, φ_a)| + |(f2, φ_a)|)/m_a.
     pub loads: f64,
+    /// The size of the smaller membrane, min_i max_b |u_ib| (above an obstacle max_b |u_b|), and
+    /// the largest size c_b of the terms the u_ib are computed from: far apart when the other
+    /// membrane or the obstacle is far from it.
+    pub values: [f64; 2],
 }
 
 /// A discrete solution that fails its own checks.
@@ -74,6 +82,8 @@ pub enum CheckError {
         noise: f64,
         /// The size of the loads.
         loads: f64,
+        /// [`Checks::values`].
+        values: [f64; 2],
     },
     /// A check exceeds [`TOLERANCE`].
     Failed {
@@ -92,12 +102,24 @@ impl fmt::Display for CheckError {
                 "the discrete solution has non-finite values (overflow): the data are too large for \
                  double precision; nothing is written"
             ),
-            CheckError::Unresolved { noise, loads } => write!(
-                f,
-                "λ_h is not resolved in double precision: the round-off of (4.5) reaches {noise:.1e}, \
-                 against loads of size {loads:.1e} (the data span too many orders of magnitude: rescale \
-                 them); nothing is written"
-            ),
+            CheckError::Unresolved { noise, loads, values } => {
+                write!(
+                    f,
+                    "λ_h is not resolved in double precision: the round-off of (4.5) reaches {noise:.1e}, \
+                     against loads of size {loads:.1e} "
+                )?;
+                if values[1] > CANCELLATION * values[0] {
+                    write!(
+                        f,
+                        "(u_h, at most {:.1e}, is computed from terms up to {:.1e}, its gap to the \
+                         other membrane or the obstacle: bring g2 or ψ closer)",
+                        values[0], values[1]
+                    )?;
+                } else {
+                    write!(f, "(the data span too many orders of magnitude: rescale them)")?;
+                }
+                write!(f, "; nothing is written")
+            }
             CheckError::Failed { what, value } => write!(
                 f,
                 "the discrete solution fails {what}: relative defect {value:.2e} > {TOLERANCE:.0e} \
@@ -125,6 +147,7 @@ impl Checks {
             return Err(CheckError::Unresolved {
                 noise: self.noise,
                 loads: self.loads,
+                values: self.values,
             });
         }
         match all.iter().find(|(_, v)| *v > TOLERANCE) {
@@ -161,12 +184,21 @@ impl Action {
             resolution: 0.0,
             noise: 0.0,
             loads: 0.0,
+            values: [0.0; 2],
         };
         // The size of u_ib as computed, v + μ2/(μ1+μ2) w and v − μ1/(μ1+μ2) w (ψ_h + w above a rigid
         // obstacle), which bounds its round-off: |v| + |w| ≤ |u_ib| + 2|w| for both. It is not |u_ib|,
         // which cancellation makes small where u_ih is far above the other (ψ = −1 below u = 0).
         let computed = |b: usize| u1[b].abs().max(u2[b].abs()) + 2.0 * gap[b].abs();
         let (mut total, mut contact_area) = (0.0, 0.0);
+        // The smaller membrane's size (above an obstacle, u's) against what it is computed from.
+        let largest = |u: &[f64]| u.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+        let smaller = if solution.rigid {
+            largest(u1)
+        } else {
+            largest(u1).min(largest(u2))
+        };
+        checks.values = [smaller, (0..n).map(computed).fold(0.0, f64::max)];
         for a in (0..n).filter(|&a| !mesh.on_boundary[a]) {
             let m = problem.mass[a];
             let l1 = (mu1 * k.row_dot(a, u1) - problem.load1[a]) / m;
@@ -248,6 +280,7 @@ mod tests {
             resolution: RESOLUTION,
             noise: 1.0,
             loads: 1e3,
+            values: [1.0, 3.0],
         };
         assert_eq!(ok.verify(), Ok(()));
         let failed = Checks {
@@ -270,7 +303,8 @@ mod tests {
             unresolved.verify(),
             Err(CheckError::Unresolved {
                 noise: 1.0,
-                loads: 1e3
+                loads: 1e3,
+                values: [1.0, 3.0]
             })
         );
         for nan in [

@@ -1270,6 +1270,15 @@ fn numerical_failures_name_the_case_file() {
     // A check of the solution: λ_h below the round-off of (4.5).
     let e = case_fails(&format!("{}{SQUARE}", GOOD.replace("mu1 = 1.0", "mu1 = 1e300")));
     named(&e, "λ_h is not resolved in double precision");
+    contains(&e, "(the data span too many orders of magnitude: rescale them)");
+    // An obstacle a million times farther below than the membrane's deflection.
+    let far = "problem = \"obstacle\"\nmu = 1.0\nf = 1e-3\npsi = -1e6\ng = 0\n";
+    let e = case_fails(&format!("{far}{SQUARE}"));
+    named(&e, "λ_h is not resolved in double precision");
+    contains(
+        &e,
+        "is computed from terms up to 3.0e6, its gap to the other membrane or the obstacle",
+    );
     // The solver: the active-set method's cap.
     let text =
         format!("mu1 = 1.0\nmu2 = 1.0\nf1 = -20\nf2 = 20\ng = 0.01\n{SQUARE}[solver]\nmax_iterations = 1\n");
