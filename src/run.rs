@@ -185,7 +185,7 @@ pub fn on_mesh<'c>(
 
 /// The contact solve of `problem`. Where multigrid CG does not converge (on cells stretched
 /// about 100:1 its point smoother no longer smooths), the problem is solved again by Cholesky from
-/// a cold start, if that fits in memory, and the solver's statistics say why.
+/// the same start, if that fits in memory, and the solver's statistics say why.
 fn contact_solve(
     case: &Case,
     problem: &DiscreteProblem,
@@ -207,7 +207,15 @@ fn contact_solve(
         linear: LinearSolver::Direct,
         ..solver
     };
-    let mut solution = contact::solve(problem, Start::Cold, Vec::new(), direct).map_err(failed)?;
+    // The same start: the coarser meshes, consumed by the first solve, made again from the case
+    // (none if its mesh is not this one, as after adaptive refinement: a cold start then).
+    let coarser = match options.start {
+        Start::Nested => (case.hierarchy(true, options.postprocess()).ok())
+            .filter(|(fine, _)| fine.n_vertices() == problem.mesh.n_vertices())
+            .map_or_else(Vec::new, |(_, coarser)| coarser),
+        _ => Vec::new(),
+    };
+    let mut solution = contact::solve(problem, options.start, coarser, direct).map_err(failed)?;
     solution.obstacle.stats.multigrid_failed = Some(cg);
     Ok(solution)
 }

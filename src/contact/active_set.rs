@@ -17,9 +17,11 @@ use crate::problem::DiscreteProblem;
 pub(super) enum Role {
     /// The solution of the mesh.
     Solution,
-    /// A coarser level of nested iteration: from a guess, one global step proposes the next
-    /// level's guess, as one Newton step per level of grid sequencing does (no local correction:
-    /// the final mesh settles the free boundary); a level without a guess (the coarsest) is solved.
+    /// A coarser level of nested iteration: from a guess, its active set settled locally, one
+    /// global step proposes the next level's guess, as one Newton step per level of grid
+    /// sequencing does; a level without a guess (the coarsest) is solved. Unsettled, the guess's
+    /// free boundary may lag a vertex per level, and the lag doubles from level to level: on
+    /// cells stretched 100:1, 109 steps on the final mesh instead of 5.
     Proposal,
 }
 
@@ -73,7 +75,7 @@ pub(super) fn obstacle(
     };
     let mut w_problem = WProblem::new(problem);
     let mut active = match &warm {
-        Some(guess) => first_set(&mut w_problem, system, guess, !proposal, &mut stats),
+        Some(guess) => first_set(&mut w_problem, system, guess, &mut stats),
         None => vec![false; system.n()],
     };
     // CG starts from the guess's gap, then from the previous step's w.
@@ -148,22 +150,18 @@ fn may_step(options: &SolverOptions, stats: &SolverStats) -> Result<(), SolveErr
     Ok(())
 }
 
-/// The active set the guess predicts; settled locally first (`settle`) with the guess (and the
+/// The active set the guess predicts, settled locally with the guess (and the
 /// gap's boundary values on ∂ω) as Dirichlet data, as the guess's free boundary is off by a few mesh sizes.
 fn first_set(
     w_problem: &mut WProblem,
     system: &InteriorSystem,
     guess: &Guess,
-    settle: bool,
     stats: &mut SolverStats,
 ) -> Vec<bool> {
     let problem = w_problem.problem;
     let active: Vec<bool> = (system.vertices.iter())
         .map(|&a| w_problem.predicts_contact(a, guess.lambda[a] * problem.mass[a], guess.gap[a]))
         .collect();
-    if !settle {
-        return active;
-    }
     let data: Vec<f64> = (guess.gap.iter().zip(&problem.gap_h).enumerate())
         .map(|(a, (&w, &g))| if problem.mesh.on_boundary[a] { g } else { w })
         .collect();

@@ -617,8 +617,8 @@ mod tests {
                 .fold(0.0_f64, |m, (a, b)| m.max((a - b).abs()));
             assert!(d < 1e-12, "{linear:?}: {d:e}");
         }
-        // A proposal from a guess is one global step, without local correction; the solution
-        // from the same guess corrects it locally first.
+        // A proposal from a guess is one global step after the guess's set is settled locally, as
+        // the solution from the same guess starts; the solution goes on to confirm its set.
         let coarse = problem(32, "-1", "0.072");
         let from = solve(&coarse, Start::Cold, Vec::new(), SolverOptions::default()).unwrap();
         let prolongation = Prolongation::new(&p.mesh, &coarse.mesh);
@@ -628,8 +628,11 @@ mod tests {
         let proposal = obstacle(&p, &system, None, guess(), options, Role::Proposal).unwrap();
         let solution = obstacle(&p, &system, None, guess(), options, Role::Solution).unwrap();
         let (s, t) = (&proposal.stats, &solution.stats);
-        assert_eq!((s.iterations, s.local_iterations), (1, 0), "{s:?}");
-        assert!(t.local_iterations > 0, "{t:?}");
+        assert_eq!(s.iterations, 1, "{s:?}");
+        assert!(
+            s.local_iterations > 0 && s.local_iterations <= t.local_iterations,
+            "{s:?}"
+        );
         assert_eq!(solution.contact, cold.obstacle.contact);
     }
 }
