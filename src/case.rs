@@ -835,10 +835,14 @@ fn geometric(mesh: Mesh, diagonal: Diagonal) -> Mesh {
     }
 }
 
-/// A TOML error on one line, with the line and column of the key or value it is about.
+/// A TOML error on one line, with the line and column of the key or value it is about (none for
+/// the whole file: a top-level key missing).
 fn toml_error(text: &str, e: &toml::de::Error) -> String {
     let message = e.message().trim_end().replace('\n', " ");
     match e.span() {
+        Some(span) if span.start == 0 && text[..span.end.min(text.len())].trim_end().contains('\n') => {
+            message
+        }
         Some(span) => {
             let before = &text[..span.start.min(text.len())];
             let line = before.matches('\n').count() + 1;
@@ -1361,6 +1365,10 @@ mod tests {
         assert!(err(&base.replace("mu2 = 1.0", "mu2 = \"two\"")).contains("mu2"));
         assert!(err(&base.replace("f1 = \"1\"", "f1 = \"1 +\"")).contains("key 'f1'"));
         assert!(err(&base.replace("g = 0\n", "")).contains("missing field `g`"));
+        // A table missing: no line (the error's span is the whole file, not its first line).
+        let no_mesh = "mu1 = 1.0\nmu2 = 1.0\nf1 = 1\nf2 = 0\ng = 0\n";
+        let missing = Case::parse(no_mesh, "t", PathBuf::new()).unwrap_err().0;
+        assert_eq!(missing, "t: missing field `mesh`");
         assert!(err(&base.replace("rectangle", "circle")).contains("circle"));
         // Inside [mesh], errors point at the key's line, and keys of other kinds are refused.
         let typo = err(&format!("{base}gradin = 2\n"));
