@@ -21,10 +21,6 @@ pub use crate::contact::CHECK_TOLERANCE as TOLERANCE;
 /// The largest round-off of λ_h a run accepts, relative to the size of the loads.
 pub const RESOLUTION: f64 = 1e-3;
 
-/// Where the values u_ih are computed from exceed them by more than this factor, an unresolved λ_h
-/// is blamed on the distance between the membranes (or to the obstacle).
-const CANCELLATION: f64 = 1e3;
-
 /// Round-off of a sum of the terms of (4.5), relative to the sum of their sizes: a few units of
 /// f64's precision for the rows of K, and as much again for the Cholesky solve behind u_ih.
 const ROUNDOFF: f64 = 8.0 * f64::EPSILON;
@@ -69,6 +65,9 @@ pub struct Checks {
     /// the largest size c_b of the terms the u_ib are computed from: far apart when the other
     /// membrane or the obstacle is far from it.
     pub values: [f64; 2],
+    /// The round-off λ_h would carry if each u_ib were exact to its own size: `noise` with s_a
+    /// made of the |μ_i K_ab u_ib|.
+    pub own_noise: f64,
 }
 
 /// A discrete solution that fails its own checks.
@@ -82,8 +81,9 @@ pub enum CheckError {
         noise: f64,
         /// The size of the loads.
         loads: f64,
-        /// [`Checks::values`].
-        values: [f64; 2],
+        /// [`Checks::values`], where the round-off comes from computing the u_ib from larger terms
+        /// (the values exact to their own size would resolve λ_h).
+        cancelled: Option<[f64; 2]>,
     },
     /// A check exceeds [`TOLERANCE`].
     Failed {
@@ -102,13 +102,17 @@ impl fmt::Display for CheckError {
                 "the discrete solution has non-finite values (overflow): the data are too large for \
                  double precision; nothing is written"
             ),
-            CheckError::Unresolved { noise, loads, values } => {
+            CheckError::Unresolved {
+                noise,
+                loads,
+                cancelled,
+            } => {
                 write!(
                     f,
                     "λ_h is not resolved in double precision: the round-off of (4.5) reaches {noise:.1e}, \
                      against loads of size {loads:.1e} "
                 )?;
-                if values[1] > CANCELLATION * values[0] {
+                if let Some(values) = cancelled {
                     write!(
                         f,
                         "(u_h, at most {:.1e}, is computed from terms up to {:.1e}, its gap to the \
@@ -147,7 +151,7 @@ impl Checks {
             return Err(CheckError::Unresolved {
                 noise: self.noise,
                 loads: self.loads,
-                values: self.values,
+                cancelled: (self.own_noise <= RESOLUTION * self.loads).then_some(self.values),
             });
         }
         match all.iter().find(|(_, v)| *v > TOLERANCE) {
@@ -185,6 +189,7 @@ impl Action {
             noise: 0.0,
             loads: 0.0,
             values: [0.0; 2],
+            own_noise: 0.0,
         };
         // The size of u_ib as computed, v + μ2/(μ1+μ2) w and v − μ1/(μ1+μ2) w (ψ_h + w above a rigid
         // obstacle), which bounds its round-off: |v| + |w| ≤ |u_ib| + 2|w| for both. It is not |u_ib|,
@@ -202,17 +207,21 @@ impl Action {
         for a in (0..n).filter(|&a| !mesh.on_boundary[a]) {
             let m = problem.mass[a];
             let l1 = (mu1 * k.row_dot(a, u1) - problem.load1[a]) / m;
-            let terms = |mu: f64| k.row(a).map(|(b, v)| (mu * v).abs() * computed(b)).sum::<f64>();
-            let mut size = terms(mu1) + problem.load_size(a);
+            let terms =
+                |mu: f64, c: &dyn Fn(usize) -> f64| k.row(a).map(|(b, v)| (mu * v).abs() * c(b)).sum::<f64>();
+            let mut size = terms(mu1, &computed) + problem.load_size(a);
+            let mut own = terms(mu1, &|b| u1[b].abs()) + problem.load_size(a);
             lambda[a] = l1;
             let mut l2 = l1;
             if let Some(mu2) = mu2 {
                 l2 = (-mu2 * k.row_dot(a, u2) + problem.load2[a]) / m;
-                size += terms(mu2);
+                size += terms(mu2, &computed);
+                own += terms(mu2, &|b| u2[b].abs());
                 lambda2[a] = l2;
             }
             let s = size.max(f64::MIN_POSITIVE);
             checks.noise = checks.noise.max(ROUNDOFF * size / m);
+            checks.own_noise = checks.own_noise.max(ROUNDOFF * own / m);
             checks.loads = checks.loads.max(problem.load_size(a) / m);
             checks.prop12 = checks.prop12.max((l1 - l2).abs() * m / s);
             checks.negative_lambda = checks.negative_lambda.max(-l1 * m / s);
@@ -281,6 +290,7 @@ mod tests {
             noise: 1.0,
             loads: 1e3,
             values: [1.0, 3.0],
+            own_noise: 1.0,
         };
         assert_eq!(ok.verify(), Ok(()));
         let failed = Checks {
@@ -295,18 +305,23 @@ mod tests {
                 value: 2.0 * TOLERANCE
             })
         );
-        let unresolved = Checks {
-            resolution: 2.0 * RESOLUTION,
-            ..ok
-        };
-        assert_eq!(
-            unresolved.verify(),
-            Err(CheckError::Unresolved {
-                noise: 1.0,
-                loads: 1e3,
-                values: [1.0, 3.0]
-            })
-        );
+        // Unresolved even were each u_ib exact to its own size: the data's scale is blamed; resolved
+        // then (own_noise at most RESOLUTION of the loads): the cancellation in computing the u_ib.
+        for (own_noise, cancelled) in [(2.0, None), (1.0, Some([1.0, 3.0]))] {
+            let unresolved = Checks {
+                resolution: 2.0 * RESOLUTION,
+                own_noise,
+                ..ok
+            };
+            assert_eq!(
+                unresolved.verify(),
+                Err(CheckError::Unresolved {
+                    noise: 1.0,
+                    loads: 1e3,
+                    cancelled
+                })
+            );
+        }
         for nan in [
             Checks {
                 negative_lambda: f64::NAN,
@@ -354,16 +369,18 @@ mod tests {
         let wmax = gap.iter().fold(0.0_f64, |m, w| m.max(w.abs()));
         let (mut prop12, mut negative, mut compl, mut total, mut area) =
             (0.0_f64, 0.0_f64, 0.0_f64, 0.0, 0.0);
-        let (mut noise, mut loads) = (0.0_f64, 0.0_f64);
+        let (mut noise, mut own_noise, mut loads) = (0.0_f64, 0.0_f64, 0.0_f64);
         for a in (0..n).filter(|&a| !p.mesh.on_boundary[a]) {
             let m = p.mass[a];
             let (mut k1, mut k2, mut size) = (0.0, 0.0, p.load1[a].abs() + p.load2[a].abs());
+            let mut own = size;
             for (b, v) in k.row(a) {
                 k1 += 2.0 * v * u1[b];
                 k2 += 3.0 * v * u2[b];
                 // The size u_ib is computed from: max(|u1|, |u2|) + 2 |u1 − u2|.
                 let computed = u1[b].abs().max(u2[b].abs()) + 2.0 * gap[b].abs();
                 size += (2.0 * v).abs() * computed + (3.0 * v).abs() * computed;
+                own += (2.0 * v * u1[b]).abs() + (3.0 * v * u2[b]).abs();
             }
             let (l1, l2) = ((k1 - p.load1[a]) / m, (p.load2[a] - k2) / m);
             assert!((action.lambda[a] - l1).abs() < 1e-13 && (action.lambda2[a] - l2).abs() < 1e-13);
@@ -373,6 +390,7 @@ mod tests {
             total += l1 * m;
             area += if contact[a] { m } else { 0.0 };
             noise = noise.max(ROUNDOFF * size / m);
+            own_noise = own_noise.max(ROUNDOFF * own / m);
             loads = loads.max((p.load1[a].abs() + p.load2[a].abs()) / m);
         }
         let c = &action.checks;
@@ -384,6 +402,7 @@ mod tests {
         close(action.total, total);
         close(action.contact_area, area);
         close(c.resolution, noise / loads);
+        close(c.own_noise, own_noise);
         assert!(prop12 > 0.1 && negative > 0.0 && c.negative_gap > 0.0 && area > 0.0);
     }
 }
