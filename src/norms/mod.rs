@@ -59,7 +59,7 @@ impl Exact {
 }
 
 /// Errors of one discrete solution.
-#[derive(Debug, Clone, Default, serde::Serialize)]
+#[derive(Debug, Clone, Default)]
 pub struct Errors {
     /// ‖u1 − u1h‖_L².
     pub l2_u1: f64,
@@ -80,13 +80,38 @@ pub struct Errors {
     pub quadrature: f64,
     /// Whether u2 is a rigid obstacle ([`Exact::rigid`]): u1's errors are then u's, and u2's
     /// (ψ's interpolation error) are not reported.
-    #[serde(skip)]
     pub rigid: bool,
     /// Where the exact solution does not take the boundary data on ∂ω_h, the polygon of the mesh
     /// (a curved ω, or a mesh of another domain): the errors are then against the solution of
     /// another problem than the one on ω_h, which the estimator's η bounds the error against.
-    #[serde(skip)]
     pub boundary: Option<Mismatch>,
+}
+
+/// The norms by name (a study's JSON): u1's and u2's, or above a rigid obstacle u's alone
+/// (`l2_u`, `h1_u`, as the study's table names them).
+impl serde::Serialize for Errors {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let membranes = [
+            ("l2_u1", Some(self.l2_u1)),
+            ("l2_u2", Some(self.l2_u2)),
+            ("h1_u1", self.h1_u1),
+            ("h1_u2", self.h1_u2),
+        ];
+        let obstacle = [("l2_u", Some(self.l2_u1)), ("h1_u", self.h1_u1)];
+        let u: &[(&str, Option<f64>)] = if self.rigid { &obstacle } else { &membranes };
+        let rest = [
+            ("energy", self.energy),
+            ("l2_lambda", Some(self.l2_lambda)),
+            ("hminus1_lambda", self.hminus1_lambda),
+            ("quadrature", Some(self.quadrature)),
+        ];
+        let mut map = serializer.serialize_map(Some(u.len() + rest.len()))?;
+        for (name, value) in u.iter().chain(&rest) {
+            map.serialize_entry(name, value)?;
+        }
+        map.end()
+    }
 }
 
 /// The largest difference between the exact solution and the boundary data on ∂ω_h.
@@ -405,6 +430,29 @@ pub(crate) fn dual_norm(mesh: &Mesh, f: &Expr, c: impl Fn(usize) -> f64) -> f64 
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_study_names_the_norms_of_the_obstacle_problem_as_u() {
+        let keys = |rigid: bool| {
+            let e = super::Errors {
+                rigid,
+                l2_u2: 0.0,
+                ..Default::default()
+            };
+            let json = serde_json::to_value(&e).unwrap();
+            json.as_object().unwrap().keys().cloned().collect::<Vec<String>>()
+        };
+        let rest = ["energy", "hminus1_lambda", "l2_lambda", "quadrature"];
+        fn sorted(mut v: Vec<&'static str>) -> Vec<&'static str> {
+            v.sort_unstable();
+            v
+        }
+        assert_eq!(keys(true), sorted([&["h1_u", "l2_u"][..], &rest].concat()));
+        assert_eq!(
+            keys(false),
+            sorted([&["h1_u1", "h1_u2", "l2_u1", "l2_u2"][..], &rest].concat())
+        );
+    }
+
     use super::*;
     use crate::mesh::{Diagonal, Edges};
 
