@@ -330,9 +330,22 @@ impl Run<'_> {
     fn solver_line(&self, verbose: bool) -> String {
         let s = &self.solution.obstacle.stats;
         let contact = s.active_sizes.last().copied().unwrap_or(0);
+        let failed = (s.multigrid_failed.as_ref())
+            .map(|cg| format!("multigrid CG did not converge in {} iterations", cg.iterations));
+        if !verbose {
+            let solver = match s.linear {
+                LinearSolver::Direct => "Cholesky",
+                LinearSolver::Multigrid => "multigrid",
+            };
+            let failed = failed.map_or(String::new(), |f| format!("; {f}"));
+            return format!(
+                "solver      {} active-set iterations ({solver}{failed}); contact at {contact} vertices\n",
+                s.iterations
+            );
+        }
         // Why Cholesky ran where multigrid was asked for.
-        let fallback = match (&s.multigrid_failed, s.linear, self.case.linear_solver()) {
-            (Some(cg), ..) => format!(" (multigrid CG did not converge in {} iterations)", cg.iterations),
+        let fallback = match (failed, s.linear, self.case.linear_solver()) {
+            (Some(f), ..) => format!(" ({f})"),
             (None, LinearSolver::Direct, LinearSolver::Multigrid) => {
                 " (not multigrid: this mesh has no coarser levels)".into()
             }
@@ -343,19 +356,6 @@ impl Run<'_> {
             }
             _ => String::new(),
         };
-        if !verbose {
-            let solver = match s.linear {
-                LinearSolver::Direct => "Cholesky",
-                LinearSolver::Multigrid => "multigrid",
-            };
-            let failed = (s.multigrid_failed.as_ref()).map_or(String::new(), |cg| {
-                format!("; multigrid CG did not converge in {} iterations", cg.iterations)
-            });
-            return format!(
-                "solver      {} active-set iterations ({solver}{failed}); contact at {contact} vertices\n",
-                s.iterations
-            );
-        }
         format!(
             "solver      {} unknowns per membrane; {} active-set iterations + {} local ones (coarser levels: {:?}); {}{fallback}; contact at {contact} vertices\n",
             s.unknowns,

@@ -432,15 +432,29 @@ pub(crate) fn dual_norm(mesh: &Mesh, f: &Expr, c: impl Fn(usize) -> f64) -> f64 
 mod tests {
     #[test]
     fn a_study_names_the_norms_of_the_obstacle_problem_as_u() {
-        let keys = |rigid: bool| {
+        let json = |rigid: bool| {
             let e = super::Errors {
                 rigid,
-                l2_u2: 0.0,
+                l2_u1: 0.25,
+                h1_u1: Some(0.5),
                 ..Default::default()
             };
-            let json = serde_json::to_value(&e).unwrap();
-            json.as_object().unwrap().keys().cloned().collect::<Vec<String>>()
+            serde_json::to_value(&e).unwrap()
         };
+        let keys = |rigid: bool| {
+            json(rigid)
+                .as_object()
+                .unwrap()
+                .keys()
+                .cloned()
+                .collect::<Vec<String>>()
+        };
+        // Above an obstacle u1's values are u's.
+        assert_eq!(
+            (json(true)["l2_u"].as_f64(), json(true)["h1_u"].as_f64()),
+            (Some(0.25), Some(0.5))
+        );
+        assert_eq!(json(false)["h1_u2"], serde_json::Value::Null);
         let rest = ["energy", "hminus1_lambda", "l2_lambda", "quadrature"];
         fn sorted(mut v: Vec<&'static str>) -> Vec<&'static str> {
             v.sort_unstable();
