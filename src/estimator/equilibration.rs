@@ -19,25 +19,27 @@
 //! correction solves the P1 stiffness system of S_h|ω_a: 2k + 1 unknowns at an interior vertex
 //! with k triangles (a, the k midpoints of its edges, the k barycentres), 2k + 2 at a boundary one.
 //! The system depends on the geometry only: one factorization serves both membranes.
+//!
+//! The fluxes are never held on the whole of S_h: the patches are solved block by block along a
+//! Z-order curve of the vertices ([`Sweep`]), each patch's share of a triangle's cells is kept
+//! until the patches of the triangle's three vertices are solved, and the triangle's τ_i (the
+//! three shares added in the order of the triangle's corners, so that it does not depend on the
+//! threads) is then handed to the caller and dropped.
 
 use crate::assembly::gradients;
-use crate::flux::Flux;
 use crate::mesh::{orient, DualMesh, Mesh, Stars};
-use crate::parallel::{self, PIECE};
-use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
+use crate::parallel;
 
 /// No neighbour (a boundary edge) or no stream-function unknown (a vertex of S_h where ψ = 0).
 const NONE: usize = usize::MAX;
 
 /// The triangles around each vertex and the neighbour across each edge, for the patch problems,
-/// and the vertices in classes whose patches share no cell of S_h.
+/// and the order in which the patches are solved.
 pub struct Patches {
     stars: Stars,
     /// Across edge j = `(t[j], t[j + 1])` of each triangle: the neighbour, or NONE on ∂ω.
     pub neighbour: Vec<[usize; 3]>,
-    /// Classes of vertices no two of which share a triangle (a greedy colouring in vertex
-    /// order), each in increasing order.
-    classes: Vec<Vec<u32>>,
+    sweep: Sweep,
 }
 
 impl Patches {
@@ -56,7 +58,7 @@ impl Patches {
             })
         });
         Patches {
-            classes: classes(mesh, &stars),
+            sweep: Sweep::new(mesh),
             stars,
             neighbour,
         }
@@ -68,33 +70,68 @@ impl Patches {
     }
 }
 
-/// The vertices of `mesh` coloured greedily in order, each the first colour none of the
-/// vertices of its triangles has: the classes of each colour.
-fn classes(mesh: &Mesh, stars: &Stars) -> Vec<Vec<u32>> {
-    let mut colour = vec![u32::MAX; mesh.n_vertices()];
-    let mut classes: Vec<Vec<u32>> = Vec::new();
-    let mut taken = Vec::new();
-    for a in 0..mesh.n_vertices() {
-        taken.clear();
-        taken.resize(classes.len() + 1, false);
-        for (t, _) in stars.around(a) {
-            for b in mesh.triangle(t) {
-                if let Some(c) = taken.get_mut(colour[b] as usize) {
-                    *c = true;
-                }
-            }
+/// Vertices per block of the sweep: the patches of a block are solved in parallel.
+const BLOCK: usize = 1 << 13;
+
+/// Vertices per piece of a block handed to one thread.
+const PATCHES: usize = 1 << 7;
+
+/// The vertices along a Z-order curve of their coordinates, cut into blocks of [`BLOCK`]: a
+/// triangle's three vertices lie in the same or nearby blocks whatever the mesh's numbering, so
+/// that few triangles wait for the patches of a later block.
+struct Sweep {
+    /// The vertices in the order of the curve.
+    order: Vec<u32>,
+    /// The position of each vertex in `order`.
+    rank: Vec<u32>,
+    /// For each block, the triangles whose first vertex (in `order`) lies in it.
+    entering: Vec<Vec<u32>>,
+}
+
+impl Sweep {
+    fn new(mesh: &Mesh) -> Self {
+        let n = mesh.n_vertices();
+        let bounds = mesh.bounding_box();
+        let mut keyed: Vec<(u64, u32)> = (mesh.points.iter().enumerate())
+            .map(|(a, p)| (z_order(bounds, *p), a as u32))
+            .collect();
+        parallel::sort(&mut keyed);
+        let order: Vec<u32> = keyed.into_iter().map(|(_, a)| a).collect();
+        let mut rank = vec![0u32; n];
+        for (r, &a) in order.iter().enumerate() {
+            rank[a as usize] = r as u32;
         }
-        let c = taken
-            .iter()
-            .position(|&t| !t)
-            .expect("one colour more than the classes");
-        colour[a] = c as u32;
-        if c == classes.len() {
-            classes.push(Vec::new());
+        let mut entering = vec![Vec::new(); n.div_ceil(BLOCK)];
+        for (t, tri) in mesh.triangles().enumerate() {
+            let first = tri.iter().map(|&a| rank[a]).min().expect("three corners");
+            entering[first as usize / BLOCK].push(t as u32);
         }
-        classes[c].push(a as u32);
+        Sweep {
+            order,
+            rank,
+            entering,
+        }
     }
-    classes
+
+    /// The block of vertex `a`.
+    fn block(&self, a: usize) -> usize {
+        self.rank[a] as usize / BLOCK
+    }
+}
+
+/// The key of `p` on a Z-order curve over the box [lo, hi]: the bits of its two coordinates,
+/// scaled to 32 bits, interleaved.
+fn z_order((lo, hi): ([f64; 2], [f64; 2]), p: [f64; 2]) -> u64 {
+    let spread = |x: f64, k: usize| -> u64 {
+        let unit = ((x - lo[k]) / (hi[k] - lo[k])).clamp(0.0, 1.0);
+        let mut v = (unit * f64::from(u32::MAX)) as u64;
+        v = (v | (v << 16)) & 0x0000_ffff_0000_ffff;
+        v = (v | (v << 8)) & 0x00ff_00ff_00ff_00ff;
+        v = (v | (v << 4)) & 0x0f0f_0f0f_0f0f_0f0f;
+        v = (v | (v << 2)) & 0x3333_3333_3333_3333;
+        (v | (v << 1)) & 0x5555_5555_5555_5555
+    };
+    spread(p[0], 0) | (spread(p[1], 1) << 1)
 }
 
 /// The data of the local problems of one membrane.
@@ -109,41 +146,82 @@ pub struct Membrane<'a> {
     pub on_dual_cell: &'a [f64],
 }
 
-/// τ_i = Σ_a τ_{i,a} for each membrane, by their normal fluxes on the cells of S_h (the
-/// convention of [`Flux`]).
-pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: &[Membrane]) -> Vec<Flux> {
-    let grad_u: Vec<[[f64; 2]; 2]> = parallel::collect(mesh.n_triangles(), |t| {
-        let g = gradients(mesh.corners(t));
-        let tri = mesh.triangle(t);
-        let mut grad = [[0.0; 2]; 2];
-        for (grad, m) in grad.iter_mut().zip(membranes) {
-            *grad = [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>());
-        }
-        grad
-    });
-    // Each patch adds into the fluxes of its cells (a cell belongs to the patches of its
-    // triangle's three vertices); the patches of one class share no cell and run in parallel,
-    // the classes one after the other, so that each cell sums its terms in the same order on
-    // any number of threads.
-    let tau: Vec<Vec<[AtomicU64; 3]>> = (membranes.iter())
-        .map(|_| parallel::collect(dual.n_cells(), |_| Default::default()))
+/// The normal fluxes of τ on the six cells 6t … 6t + 5 of one triangle t, edge k of a cell from
+/// its corner k to k + 1 (the convention of [`crate::flux::Flux`]), for each membrane.
+pub type TriangleFlux = [[[f64; 3]; 6]; 2];
+
+/// A triangle whose patches are not all solved: its triangle and the share of each corner's patch.
+#[derive(Clone)]
+struct Waiting {
+    triangle: usize,
+    shares: [TriangleFlux; 3],
+}
+
+/// τ_i = Σ_a τ_{i,a} for each membrane, triangle by triangle: `on_triangle(t, τ on t's cells)`
+/// for every triangle t, in parallel, its values in the order of the triangles.
+pub fn equilibrate<R: Default + Send>(
+    mesh: &Mesh,
+    dual: &DualMesh,
+    patches: &Patches,
+    membranes: &[Membrane],
+    on_triangle: impl Fn(usize, &TriangleFlux) -> R + Sync + Send,
+) -> Vec<R> {
+    let sweep = &patches.sweep;
+    let mut values: Vec<R> = std::iter::repeat_with(R::default)
+        .take(mesh.n_triangles())
         .collect();
-    for class in &patches.classes {
-        parallel::map_with(class.len(), PIECE, Patch::default, |work, range| {
-            for &a in &class[range] {
-                work.build(mesh, dual, patches, a as usize);
-                work.solve(a as usize, membranes, |t, i| grad_u[t][i], &tau);
+    let mut waiting: Vec<Waiting> = Vec::new();
+    for (j, entering) in sweep.entering.iter().enumerate() {
+        waiting.extend(entering.iter().map(|&t| Waiting {
+            triangle: t as usize,
+            shares: [[[[0.0; 3]; 6]; 2]; 3],
+        }));
+        let block = &sweep.order[j * BLOCK..((j + 1) * BLOCK).min(sweep.order.len())];
+        // Each piece's patches' shares, star after star, and where each vertex's star begins.
+        let shares: Vec<(Vec<TriangleFlux>, Vec<usize>)> =
+            parallel::map_with(block.len(), PATCHES, Patch::default, |work, range| {
+                let (mut out, mut starts) = (Vec::new(), Vec::with_capacity(range.len()));
+                for &a in &block[range] {
+                    starts.push(out.len());
+                    work.build(mesh, dual, patches, a as usize);
+                    out.resize(out.len() + work.star.len(), [[[0.0; 3]; 6]; 2]);
+                    let at = out.len() - work.star.len();
+                    work.solve(mesh, a as usize, membranes, &mut out[at..]);
+                }
+                (out, starts)
+            });
+        let share_of = |a: usize, t: usize| -> &TriangleFlux {
+            let i = sweep.rank[a] as usize - j * BLOCK;
+            let (out, starts) = &shares[i / PATCHES];
+            let position =
+                (patches.around(a).position(|(s, _)| s == t)).expect("a triangle around each of its corners");
+            &out[starts[i % PATCHES] + position]
+        };
+        let done: Vec<Vec<(usize, R)>> = parallel::map_mut(&mut waiting, PATCHES, |_, pending| {
+            let mut done = Vec::new();
+            for w in pending {
+                let tri = mesh.triangle(w.triangle);
+                for (share, a) in w.shares.iter_mut().zip(tri) {
+                    if sweep.block(a) == j {
+                        *share = *share_of(a, w.triangle);
+                    }
+                }
+                if tri.iter().all(|&a| sweep.block(a) <= j) {
+                    let [p, q, r] = &w.shares;
+                    let tau = std::array::from_fn(|i| {
+                        std::array::from_fn(|c| std::array::from_fn(|e| p[i][c][e] + q[i][c][e] + r[i][c][e]))
+                    });
+                    done.push((w.triangle, on_triangle(w.triangle, &tau)));
+                }
             }
+            done
         });
+        for (t, value) in done.into_iter().flatten() {
+            values[t] = value;
+        }
+        waiting.retain(|w| mesh.triangle(w.triangle).iter().any(|&a| sweep.block(a) > j));
     }
-    // In place: [AtomicU64; 3] and [f64; 3] have the same size, so the collect reuses the room.
-    (tau.into_iter())
-        .map(|tau| Flux {
-            edge_flux: (tau.into_iter())
-                .map(|f| f.map(|f| f64::from_bits(f.into_inner())))
-                .collect(),
-        })
-        .collect()
+    values
 }
 
 /// One cell of S_h in a patch, with what its local problems need of its geometry.
@@ -151,8 +229,7 @@ pub fn equilibrate(mesh: &Mesh, dual: &DualMesh, patches: &Patches, membranes: &
 struct Cell {
     /// Its index in S_h.
     index: usize,
-    /// Its triangle of T_h, and the position of a in it.
-    triangle: usize,
+    /// The position of a in its triangle.
     position: usize,
     area: f64,
     /// The stream-function unknown at each corner, or NONE.
@@ -196,6 +273,8 @@ struct Patch {
     accumulated: Vec<f64>,
     /// The stream system's right-hand sides, one column of `unknowns` per membrane.
     rhs: Vec<f64>,
+    /// μ_i ∇u_ih on each triangle of the star, for each membrane.
+    grad_u: Vec<[[f64; 2]; 2]>,
 }
 
 impl Patch {
@@ -214,7 +293,7 @@ impl Patch {
             let tri = mesh.triangle(t);
             let grad_phi = gradients(mesh.corners(t))[k];
             let centre = 1 + others.len() + i;
-            for c in 0..6 {
+            for (c, p) in dual.cells_of(t).into_iter().enumerate() {
                 let j = c / 2;
                 let (v, w) = if c % 2 == 0 {
                     (tri[j], tri[(j + 1) % 3])
@@ -237,13 +316,11 @@ impl Patch {
                     [vertex, centroid, mid]
                 };
                 let index = 6 * t + c;
-                let p = dual.corners(index);
                 let area = 0.5 * orient(p[0], p[1], p[2]);
                 let phi = corners3.map(|x| x.1);
                 let centroid = [0, 1].map(|k| (p[0][k] + p[1][k] + p[2][k]) / 3.0);
                 self.cells.push(Cell {
                     index,
-                    triangle: t,
                     position: k,
                     area,
                     stream: corners3.map(|x| x.0),
@@ -353,39 +430,34 @@ impl Patch {
         cholesky(&mut self.factor, n);
     }
 
-    /// τ_{i,a} for each membrane i, added to `tau[i]`'s normal fluxes (f64 bits; no other patch
-    /// adds to these cells meanwhile); `grad(t, i)` gives μ_i ∇u_ih on a triangle t. One solve of
-    /// the stream-function system takes all membranes' right-hand sides.
-    fn solve(
-        &mut self,
-        a: usize,
-        membranes: &[Membrane],
-        grad: impl Fn(usize, usize) -> [f64; 2],
-        tau: &[Vec<[AtomicU64; 3]>],
-    ) {
+    /// τ_{i,a} for each membrane i on the cells of each triangle of the star, in the star's order,
+    /// in `out`. One solve of the stream-function system takes all membranes' right-hand sides.
+    fn solve(&mut self, mesh: &Mesh, a: usize, membranes: &[Membrane], out: &mut [TriangleFlux]) {
         let (cells, n, m) = (self.cells.len(), self.unknowns, membranes.len());
         self.flux.clear();
         self.flux.resize(m * cells, [0.0; 3]);
         self.rhs.clear();
         self.rhs.resize(n * m, 0.0);
+        self.grad_u.clear();
+        self.grad_u.extend(self.star.iter().map(|&(t, _)| {
+            let (g, tri) = (gradients(mesh.corners(t)), mesh.triangle(t));
+            std::array::from_fn(|i| match membranes.get(i) {
+                Some(m) => [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()),
+                None => [0.0; 2],
+            })
+        }));
         for (i, membrane) in membranes.iter().enumerate() {
-            self.particular(a, membrane, |t| grad(t, i), i);
+            self.particular(a, membrane, i);
         }
         for column in self.rhs.chunks_exact_mut(n) {
             cholesky_solve(&self.factor, n, column);
         }
-        for (i, tau) in tau.iter().enumerate() {
-            let flux = &self.flux[i * cells..(i + 1) * cells];
-            for (cell, flux) in self.cells.iter().zip(flux) {
-                let psi = cell
-                    .stream
-                    .map(|k| if k == NONE { 0.0 } else { self.rhs[i * n + k] });
-                for e in 0..3 {
-                    // The flux of curl ψ through the edge from corner e to e + 1.
-                    let f = flux[e] + psi[(e + 1) % 3] - psi[e];
-                    let sum = &tau[cell.index][e];
-                    sum.store((f64::from_bits(sum.load(Relaxed)) + f).to_bits(), Relaxed);
-                }
+        let (fluxes, psis) = (self.flux.chunks_exact(cells), self.rhs.chunks_exact(n));
+        for (i, (flux, psi)) in fluxes.zip(psis).enumerate() {
+            for (node, (cell, flux)) in self.cells.iter().zip(flux).enumerate() {
+                let psi = (cell.stream).map(|k| if k == NONE { 0.0 } else { psi[k] });
+                // The flux of curl ψ through the edge from corner e to e + 1.
+                out[node / 6][i][node % 6] = std::array::from_fn(|e| flux[e] + psi[(e + 1) % 3] - psi[e]);
             }
         }
     }
@@ -393,7 +465,7 @@ impl Patch {
     /// A particular solution τ_p of membrane `m`'s divergence constraint on the patch of `a`
     /// (column `i` of the workspace's fluxes), and the right-hand side of its correction
     /// min ‖q + τ_p + curl ψ‖, q = Π_RT(φ_a μ ∇u_h), in column `i` of the stream system's.
-    fn particular(&mut self, a: usize, m: &Membrane, grad: impl Fn(usize) -> [f64; 2], i: usize) {
+    fn particular(&mut self, a: usize, m: &Membrane, i: usize) {
         let (cells, n) = (self.cells.len(), self.unknowns);
         let nodes = cells + usize::from(self.ground);
         let flux = &mut self.flux[i * cells..(i + 1) * cells];
@@ -401,7 +473,7 @@ impl Patch {
         self.accumulated.resize(nodes, 0.0);
         // The divergence, integrated over each cell.
         for (node, cell) in self.cells.iter().enumerate() {
-            let (du, g) = (grad(cell.triangle), cell.grad_phi);
+            let (du, g) = (self.grad_u[node / 6][i], cell.grad_phi);
             let mut d = (m.f_phi)(cell.index)[cell.position] - cell.area * (du[0] * g[0] + du[1] * g[1]);
             if cell.own {
                 d += cell.area * m.on_dual_cell[a];
@@ -419,8 +491,8 @@ impl Patch {
                 self.accumulated[theirs.0] += out;
             }
         }
-        for (cell, flux) in self.cells.iter().zip(flux.iter()) {
-            let du = grad(cell.triangle);
+        for (node, (cell, flux)) in self.cells.iter().zip(flux.iter()).enumerate() {
+            let du = self.grad_u[node / 6][i];
             let q = cell.phi_edge.map(|e| du[0] * e[1] - du[1] * e[0]);
             let total: [f64; 3] = std::array::from_fn(|e| q[e] + flux[e]);
             let v = [0, 1].map(|k| (0..3).map(|e| total[e] * cell.at_centroid[e][k]).sum::<f64>());

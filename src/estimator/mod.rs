@@ -28,12 +28,11 @@ use crate::action::Action;
 use crate::assembly::gradients;
 use crate::contact::Solution;
 use crate::datum::{self, On, Pieces};
-use crate::flux::Flux;
 use crate::mesh::{DualMesh, Mesh};
 use crate::parallel::{self, PIECE};
 use crate::problem::{DiscreteProblem, Lower, Membrane, Which};
 use crate::result::{Attribute, Describe, Field, Place};
-use equilibration::{equilibrate, Patches};
+use equilibration::{equilibrate, Patches, TriangleFlux};
 use resolution::Resolution;
 use std::f64::consts::PI;
 
@@ -64,8 +63,6 @@ pub struct Estimate {
     pub contact_total: f64,
     /// The bound of ‖λ − λ_h‖_H⁻¹ (§8).
     pub lambda: f64,
-    /// τ_i for each membrane.
-    pub tau: Vec<Flux>,
     /// What the case's rule misses of the loads: whether η is a bound for the loads as given.
     pub resolution: Resolution,
     /// Which membrane each of the per-membrane terms is of.
@@ -151,11 +148,17 @@ impl Estimate {
                 on_dual_cell: &on_dual_cell[i],
             })
             .collect();
-        let tau = equilibrate(mesh, dual, &patches, &local);
-        let lifting = Lifting::compute(problem, dual, solution, action, &patches);
-        let with_gap = (action, &solution.obstacle.gap[..]);
-        let terms = triangle_terms(problem, dual, &membranes, with_gap, &tau, &loads);
+        let terms = Terms {
+            problem,
+            dual,
+            membranes: &membranes,
+            action,
+            gap: &solution.obstacle.gap,
+            loads: &loads,
+        };
+        let terms = equilibrate(mesh, dual, &patches, &local, |t, tau| terms.of(t, tau));
         drop(loads);
+        let lifting = Lifting::compute(problem, dual, solution, action, &patches);
         let m = membranes.len();
         let mu1 = membranes[0].mu;
         let per = |f: &dyn Fn(&TriangleTerms, usize) -> f64| -> Vec<Vec<f64>> {
@@ -181,7 +184,6 @@ impl Estimate {
             obstacle_total: lifting.obstacle.map(|o| (mu1 * o).sqrt()),
             contact_total: 0.0,
             lambda: 0.0,
-            tau,
             resolution,
             which: membranes.iter().map(|m| m.which).collect(),
         };
@@ -429,27 +431,32 @@ struct TriangleTerms {
     contact: f64,
 }
 
-/// The terms of every triangle, in parallel.
-fn triangle_terms(
-    problem: &DiscreteProblem,
-    dual: &DualMesh,
-    membranes: &[Membrane],
-    (action, gap): (&Action, &[f64]),
-    tau: &[Flux],
-    loads: &[CellLoads],
-) -> Vec<TriangleTerms> {
-    let mesh = &problem.mesh;
-    let (alpha, _) = weights(membranes);
-    parallel::collect(mesh.n_triangles(), |t| {
+/// What the terms of a triangle are computed from, besides its fluxes.
+struct Terms<'a> {
+    problem: &'a DiscreteProblem,
+    dual: &'a DualMesh<'a>,
+    membranes: &'a [Membrane<'a>],
+    action: &'a Action,
+    /// w_h (u1h − u2h), or u_h − ψ_h above an obstacle.
+    gap: &'a [f64],
+    loads: &'a [CellLoads],
+}
+
+impl Terms<'_> {
+    /// The terms of the triangle t, whose cells carry the fluxes `tau`.
+    fn of(&self, t: usize, tau: &TriangleFlux) -> TriangleTerms {
+        let (mesh, dual, membranes) = (&self.problem.mesh, self.dual, self.membranes);
+        let (alpha, _) = weights(membranes);
         let g = gradients(mesh.corners(t));
         let tri = mesh.triangle(t);
         let grad: [[f64; 2]; 2] = std::array::from_fn(|i| match membranes.get(i) {
             Some(m) => [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()),
             None => [0.0; 2],
         });
+        let cells = dual.cells_of(t);
         let mut terms = TriangleTerms::default();
-        for (s, cell_loads) in (6 * t..).zip(&loads[6 * t..6 * t + 6]) {
-            let p = dual.corners(s);
+        for (c, (s, cell_loads)) in (6 * t..).zip(&self.loads[6 * t..6 * t + 6]).enumerate() {
+            let p = cells[c];
             let area = 0.5 * crate::mesh::orient(p[0], p[1], p[2]);
             let diameter = (0..3)
                 .map(|e| crate::mesh::dist(p[e], p[(e + 1) % 3]))
@@ -457,7 +464,7 @@ fn triangle_terms(
             // μ_i ∇u_ih + τ_i at the edge midpoints: ‖·‖²_κ = |κ|/3 Σ_m |·(m)|², exact for
             // affine fields.
             let at = |i: usize, m: [f64; 2]| {
-                let f = &tau[i].edge_flux[s];
+                let f = &tau[i][c];
                 [0, 1].map(|k| {
                     grad[i][k] + (0..3).map(|e| f[e] * (m[k] - p[(e + 2) % 3][k])).sum::<f64>() / (2.0 * area)
                 })
@@ -485,22 +492,17 @@ fn triangle_terms(
                 [0, 1].map(|k| alpha * a[m][k] - (1.0 - alpha) * b[m][k])
             }));
             terms.lambda2 += (zeta + diameter / PI * cell_loads.oscillation[2].sqrt()).powi(2);
-            let lambda_h = action.lambda[dual.owner(s)];
-            terms.contact += lambda_h * area * cell_mean(mesh, s, gap);
+            let lambda_h = self.action.lambda[dual.owner(s)];
+            terms.contact += lambda_h * area * cell_mean(mesh, s, self.gap);
         }
         terms
-    })
+    }
 }
 
 /// C_F = 1 / (π (L_x⁻² + L_y⁻²)^½), L_x × L_y the bounding box of ω: ‖v‖ ≤ C_F ‖∇v‖ on H¹_0(ω)
 /// (the first Dirichlet eigenvalue of the box, and domain monotonicity).
 fn friedrichs_constant(mesh: &Mesh) -> f64 {
-    let (lo, hi) = (mesh.points.iter()).fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), p| {
-        (
-            [lo[0].min(p[0]), lo[1].min(p[1])],
-            [hi[0].max(p[0]), hi[1].max(p[1])],
-        )
-    });
+    let (lo, hi) = mesh.bounding_box();
     1.0 / (PI * ((hi[0] - lo[0]).powi(-2) + (hi[1] - lo[1]).powi(-2)).sqrt())
 }
 

@@ -126,14 +126,14 @@ impl<'a> DualMesh<'a> {
 
     /// The corners of cell s (the points of [`DualMesh::cell`], from its triangle alone).
     pub fn corners(&self, s: usize) -> [[f64; 2]; 3] {
-        let k = (s % 6) / 2;
-        let v = self.mesh.corners(s / 6);
-        let centre = barycentre(v);
-        if s.is_multiple_of(2) {
-            [v[k], midpoint(v[k], v[(k + 1) % 3]), centre]
-        } else {
-            [v[k], centre, midpoint(v[(k + 2) % 3], v[k])]
-        }
+        cell_corners(self.mesh.corners(s / 6), s % 6)
+    }
+
+    /// The corners of the six cells 6t … 6t + 5 of the triangle t, from one reading of its
+    /// corners (the same points as [`DualMesh::corners`]).
+    pub fn cells_of(&self, t: usize) -> [[[f64; 2]; 3]; 6] {
+        let v = self.mesh.corners(t);
+        std::array::from_fn(|c| cell_corners(v, c))
     }
 
     /// The vertex a of T_h whose cell D_a contains cell s.
@@ -155,6 +155,18 @@ impl<'a> DualMesh<'a> {
         } else {
             [vertex(k), centre, mid(k, (k + 2) % 3)]
         }
+    }
+}
+
+/// The corners of cell c (0 … 5) of the triangle with corners `v`: cell 2k is [v_k, m_{k,k+1}, g],
+/// cell 2k + 1 is [v_k, g, m_{k+2,k}].
+fn cell_corners(v: [[f64; 2]; 3], c: usize) -> [[f64; 2]; 3] {
+    let k = c / 2;
+    let centre = barycentre(v);
+    if c.is_multiple_of(2) {
+        [v[k], midpoint(v[k], v[(k + 1) % 3]), centre]
+    } else {
+        [v[k], centre, midpoint(v[(k + 2) % 3], v[k])]
     }
 }
 

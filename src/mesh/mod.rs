@@ -252,16 +252,16 @@ pub struct Postprocess {
 
 impl Postprocess {
     /// Peak bytes per vertex after the solve, with a margin over the peaks measured at 512² and
-    /// 1024² (default case, multigrid: 1.9 and 1.8 kB with the flux, 2.3 and 2.2 kB with the
-    /// estimate, 2.9 and 2.8 kB with both).
+    /// 1024² (default case, multigrid: 1.9 and 1.8 kB with the flux, 1.7 and 1.6 kB with the
+    /// estimate, 2.2 and 2.1 kB with both).
     /// With ‖λ − λ_h‖_H⁻¹ (measured 5.3 and 5.6 kB at 256² and 512²), 6.5 kB whatever else.
     pub fn bytes_per_vertex(self) -> f64 {
         match (self.hminus1, self.flux, self.estimate) {
             (true, _, _) => 6500.0,
             (false, false, false) => 0.0,
             (false, true, false) => 2000.0,
-            (false, false, true) => 2500.0,
-            (false, true, true) => 3100.0,
+            (false, false, true) => 2000.0,
+            (false, true, true) => 2600.0,
         }
     }
 }
@@ -432,6 +432,16 @@ impl Mesh {
     /// The vertex numbers of every triangle, in order.
     pub fn triangles(&self) -> impl ExactSizeIterator<Item = [usize; 3]> + Clone + '_ {
         self.triangles.iter().map(|t| t.map(|a| a as usize))
+    }
+
+    /// The corners (lowest, highest) of the smallest box holding the vertices.
+    pub fn bounding_box(&self) -> ([f64; 2], [f64; 2]) {
+        (self.points.iter()).fold(([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]), |(lo, hi), p| {
+            (
+                [lo[0].min(p[0]), lo[1].min(p[1])],
+                [hi[0].max(p[0]), hi[1].max(p[1])],
+            )
+        })
     }
 
     /// The vertices of triangle t.
