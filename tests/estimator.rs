@@ -115,6 +115,15 @@ fn a_linear_solution_is_reproduced_exactly() {
     }
 }
 
+/// ∫_κ f_i φ_j on the six cells κ of a triangle, for each membrane i and vertex j.
+struct Pairings([[[f64; 3]; 2]; 6]);
+
+impl equilibration::CellPairings for Pairings {
+    fn f_phi(&self, c: usize, i: usize) -> [f64; 3] {
+        self.0[c][i]
+    }
+}
+
 /// div τ_i = Π f_i ± λ_h on every cell of S_h, triangle by triangle as the patches hand them over:
 /// f1 = x − 10 (Π f1 is f1 at the cell's centroid), f2 = 10, λ_h > 0 somewhere, with the
 /// pairings ∫_κ f_i φ_j integrated here (the edge-midpoint rule, exact for the quadratics
@@ -141,25 +150,24 @@ fn the_equilibrated_fluxes_have_the_loads_as_divergence() {
         let mids = (0..3).map(|e| [0, 1].map(|k| 0.5 * (p[e][k] + p[(e + 1) % 3][k])));
         std::array::from_fn(|j| mids.clone().map(|m| area / 3.0 * f[i](m) * phi(m, j)).sum())
     };
-    let f1 = |s: usize| f_phi(0, s);
-    let f2 = |s: usize| f_phi(1, s);
     let minus: Vec<f64> = lambda.iter().map(|l| -l).collect();
     let membranes = [
         equilibration::Membrane {
             mu: 1.0,
             u: &r.solution.u1,
-            f_phi: &f1,
             on_dual_cell: lambda,
         },
         equilibration::Membrane {
             mu: 2.0,
             u: &r.solution.u2,
-            f_phi: &f2,
             on_dual_cell: &minus,
         },
     ];
+    let loads = |triangles: std::ops::Range<usize>, out: &mut Vec<Pairings>| {
+        out.extend(triangles.map(|t| Pairings(std::array::from_fn(|c| [0, 1].map(|i| f_phi(i, 6 * t + c))))));
+    };
     let patches = equilibration::Patches::new(mesh);
-    let worst = equilibration::equilibrate(mesh, &dual, &patches, &membranes, |t, tau| {
+    let worst = equilibration::equilibrate((mesh, &dual, &patches), &membranes, loads, |t, _, tau| {
         let mut worst = 0.0_f64;
         for (c, s) in (6 * t..6 * t + 6).enumerate() {
             let p = dual.corners(s);

@@ -29,6 +29,7 @@
 use crate::assembly::gradients;
 use crate::mesh::{orient, DualMesh, Mesh, Stars};
 use crate::parallel;
+use std::ops::Range;
 
 /// No neighbour (a boundary edge) or no stream-function unknown (a vertex of S_h where ψ = 0).
 const NONE: usize = usize::MAX;
@@ -140,42 +141,61 @@ pub struct Membrane<'a> {
     pub mu: f64,
     /// u_ih at the vertices.
     pub u: &'a [f64],
-    /// ∫_κ f_i φ_j on every cell κ of S_h, for the three vertices j of its triangle (in order).
-    pub f_phi: &'a (dyn Fn(usize) -> [f64; 3] + Sync),
     /// ±λ_a − c_{i,a} at every vertex: the constant part of the divergence on D_a.
     pub on_dual_cell: &'a [f64],
+}
+
+/// What the local problems take of the loads on the six cells of one triangle.
+pub trait CellPairings {
+    /// ∫_κ f_i φ_j for the cell κ = 6t + `c` of the triangle t and the three vertices j of t
+    /// (in order), for membrane `i`.
+    fn f_phi(&self, c: usize, i: usize) -> [f64; 3];
 }
 
 /// The normal fluxes of τ on the six cells 6t … 6t + 5 of one triangle t, edge k of a cell from
 /// its corner k to k + 1 (the convention of [`crate::flux::Flux`]), for each membrane.
 pub type TriangleFlux = [[[f64; 3]; 6]; 2];
 
-/// A triangle whose patches are not all solved: its triangle and the share of each corner's patch.
-#[derive(Clone)]
-struct Waiting {
+/// A triangle whose patches are not all solved: its triangle, its loads and the share of each
+/// corner's patch.
+struct Waiting<L> {
     triangle: usize,
+    loads: L,
     shares: [TriangleFlux; 3],
 }
 
-/// τ_i = Σ_a τ_{i,a} for each membrane, triangle by triangle: `on_triangle(t, τ on t's cells)`
-/// for every triangle t, in parallel, its values in the order of the triangles.
-pub fn equilibrate<R: Default + Send>(
-    mesh: &Mesh,
-    dual: &DualMesh,
-    patches: &Patches,
+/// τ_i = Σ_a τ_{i,a} for each membrane, triangle by triangle: `on_triangle(t, loads of t, τ on t's
+/// cells)` for every triangle t, in parallel, its values in the order of the triangles. The loads
+/// of each triangle are computed when its first patch comes and dropped with it: `loads(range,
+/// out)` pushes those of a range of triangles to `out`.
+pub fn equilibrate<L: CellPairings + Send + Sync, R: Default + Send>(
+    (mesh, dual, patches): (&Mesh, &DualMesh, &Patches),
     membranes: &[Membrane],
-    on_triangle: impl Fn(usize, &TriangleFlux) -> R + Sync + Send,
+    loads: impl Fn(Range<usize>, &mut Vec<L>) + Sync + Send,
+    on_triangle: impl Fn(usize, &L, &TriangleFlux) -> R + Sync + Send,
 ) -> Vec<R> {
     let sweep = &patches.sweep;
     let mut values: Vec<R> = std::iter::repeat_with(R::default)
         .take(mesh.n_triangles())
         .collect();
-    let mut waiting: Vec<Waiting> = Vec::new();
+    let mut waiting: Vec<Waiting<L>> = Vec::new();
+    let mut slot = vec![u32::MAX; mesh.n_triangles()];
     for (j, entering) in sweep.entering.iter().enumerate() {
-        waiting.extend(entering.iter().map(|&t| Waiting {
-            triangle: t as usize,
-            shares: [[[[0.0; 3]; 6]; 2]; 3],
-        }));
+        let runs = runs(entering);
+        let entered = parallel::map(runs.len(), 1, |k| {
+            let run = runs[k.start].clone();
+            let mut out = Vec::with_capacity(run.len());
+            loads(run.clone(), &mut out);
+            (run.zip(out)).map(|(t, loads)| Waiting {
+                triangle: t,
+                loads,
+                shares: [[[[0.0; 3]; 6]; 2]; 3],
+            })
+        });
+        waiting.extend(entered.into_iter().flatten());
+        for (k, w) in waiting.iter().enumerate() {
+            slot[w.triangle] = k as u32;
+        }
         let block = &sweep.order[j * BLOCK..((j + 1) * BLOCK).min(sweep.order.len())];
         // Each piece's patches' shares, star after star, and where each vertex's star begins.
         let shares: Vec<(Vec<TriangleFlux>, Vec<usize>)> =
@@ -186,7 +206,8 @@ pub fn equilibrate<R: Default + Send>(
                     work.build(mesh, dual, patches, a as usize);
                     out.resize(out.len() + work.star.len(), [[[0.0; 3]; 6]; 2]);
                     let at = out.len() - work.star.len();
-                    work.solve(mesh, a as usize, membranes, &mut out[at..]);
+                    let of = |t: usize| &waiting[slot[t] as usize].loads;
+                    work.solve(mesh, (a as usize, membranes), of, &mut out[at..]);
                 }
                 (out, starts)
             });
@@ -211,7 +232,7 @@ pub fn equilibrate<R: Default + Send>(
                     let tau = std::array::from_fn(|i| {
                         std::array::from_fn(|c| std::array::from_fn(|e| p[i][c][e] + q[i][c][e] + r[i][c][e]))
                     });
-                    done.push((w.triangle, on_triangle(w.triangle, &tau)));
+                    done.push((w.triangle, on_triangle(w.triangle, &w.loads, &tau)));
                 }
             }
             done
@@ -224,11 +245,21 @@ pub fn equilibrate<R: Default + Send>(
     values
 }
 
+/// The increasing triangles `t` as runs of consecutive ones, each of at most [`PATCHES`].
+fn runs(t: &[u32]) -> Vec<Range<usize>> {
+    let mut runs: Vec<Range<usize>> = Vec::new();
+    for &t in t {
+        match runs.last_mut() {
+            Some(run) if run.end == t as usize && run.len() < PATCHES => run.end += 1,
+            _ => runs.push(t as usize..t as usize + 1),
+        }
+    }
+    runs
+}
+
 /// One cell of S_h in a patch, with what its local problems need of its geometry.
 #[derive(Clone, Copy, Default)]
 struct Cell {
-    /// Its index in S_h.
-    index: usize,
     /// The position of a in its triangle.
     position: usize,
     area: f64,
@@ -315,12 +346,10 @@ impl Patch {
                 } else {
                     [vertex, centroid, mid]
                 };
-                let index = 6 * t + c;
                 let area = 0.5 * orient(p[0], p[1], p[2]);
                 let phi = corners3.map(|x| x.1);
                 let centroid = [0, 1].map(|k| (p[0][k] + p[1][k] + p[2][k]) / 3.0);
                 self.cells.push(Cell {
-                    index,
                     position: k,
                     area,
                     stream: corners3.map(|x| x.0),
@@ -432,7 +461,13 @@ impl Patch {
 
     /// τ_{i,a} for each membrane i on the cells of each triangle of the star, in the star's order,
     /// in `out`. One solve of the stream-function system takes all membranes' right-hand sides.
-    fn solve(&mut self, mesh: &Mesh, a: usize, membranes: &[Membrane], out: &mut [TriangleFlux]) {
+    fn solve<'l, L: CellPairings + 'l>(
+        &mut self,
+        mesh: &Mesh,
+        (a, membranes): (usize, &[Membrane]),
+        loads: impl Fn(usize) -> &'l L,
+        out: &mut [TriangleFlux],
+    ) {
         let (cells, n, m) = (self.cells.len(), self.unknowns, membranes.len());
         self.flux.clear();
         self.flux.resize(m * cells, [0.0; 3]);
@@ -447,7 +482,7 @@ impl Patch {
             })
         }));
         for (i, membrane) in membranes.iter().enumerate() {
-            self.particular(a, membrane, i);
+            self.particular(a, membrane, i, &loads);
         }
         for column in self.rhs.chunks_exact_mut(n) {
             cholesky_solve(&self.factor, n, column);
@@ -465,7 +500,13 @@ impl Patch {
     /// A particular solution τ_p of membrane `m`'s divergence constraint on the patch of `a`
     /// (column `i` of the workspace's fluxes), and the right-hand side of its correction
     /// min ‖q + τ_p + curl ψ‖, q = Π_RT(φ_a μ ∇u_h), in column `i` of the stream system's.
-    fn particular(&mut self, a: usize, m: &Membrane, i: usize) {
+    fn particular<'l, L: CellPairings + 'l>(
+        &mut self,
+        a: usize,
+        m: &Membrane,
+        i: usize,
+        loads: impl Fn(usize) -> &'l L,
+    ) {
         let (cells, n) = (self.cells.len(), self.unknowns);
         let nodes = cells + usize::from(self.ground);
         let flux = &mut self.flux[i * cells..(i + 1) * cells];
@@ -474,7 +515,8 @@ impl Patch {
         // The divergence, integrated over each cell.
         for (node, cell) in self.cells.iter().enumerate() {
             let (du, g) = (self.grad_u[node / 6][i], cell.grad_phi);
-            let mut d = (m.f_phi)(cell.index)[cell.position] - cell.area * (du[0] * g[0] + du[1] * g[1]);
+            let f_phi = loads(self.star[node / 6].0).f_phi(node % 6, i)[cell.position];
+            let mut d = f_phi - cell.area * (du[0] * g[0] + du[1] * g[1]);
             if cell.own {
                 d += cell.area * m.on_dual_cell[a];
             }

@@ -72,24 +72,6 @@ pub fn lift(
     Lifted { z, rest }
 }
 
-/// Adds ∫_κ c_i φ_j ([`on_cell`]) to `f_phi(cell)[i]` of every cell of S_h, for each defect c_i.
-pub fn add_to_cells<T: Send>(
-    mesh: &Mesh,
-    dual: &DualMesh,
-    defects: &[Vec<f64>],
-    cells: &mut [T],
-    f_phi: impl Fn(&mut T) -> &mut [[f64; 3]; 2] + Sync,
-) {
-    parallel::map_mut(cells, parallel::PIECE, |base, out| {
-        for (k, cell) in out.iter_mut().enumerate() {
-            for (f, c) in f_phi(cell).iter_mut().zip(defects) {
-                let add = on_cell(mesh, dual, c, base + k);
-                *f = std::array::from_fn(|j| f[j] + add[j]);
-            }
-        }
-    });
-}
-
 /// ∫_κ c φ_j for the three vertices j of the triangle of the cell s of S_h, c constant on each
 /// dual cell: c_a |κ| φ_j(centroid of κ), a the owner of κ (φ_j is affine on κ).
 pub fn on_cell(mesh: &Mesh, dual: &DualMesh, c: &[f64], s: usize) -> [f64; 3] {

@@ -35,6 +35,7 @@ use crate::result::{Attribute, Describe, Field, Place};
 use equilibration::{equilibrate, Patches, TriangleFlux};
 use resolution::Resolution;
 use std::f64::consts::PI;
+use std::ops::Range;
 
 /// The estimator of one discrete solution: per-triangle indicators and totals.
 #[derive(Debug, Clone)]
@@ -67,6 +68,15 @@ pub struct Estimate {
     pub resolution: Resolution,
     /// Which membrane each of the per-membrane terms is of.
     which: Vec<Which>,
+}
+
+/// The loads on the six cells of one triangle K, summed over the cells.
+#[derive(Debug, Clone, Copy, Default)]
+struct TriangleLoads {
+    /// ∫_K f_i φ_j by the case's rule on the cells of K, j the vertices of K in order.
+    f_phi: [[f64; 3]; 2],
+    /// Σ_κ |∫_κ f_i|: the size two values of ∫_K f_i are compared against.
+    size: [f64; 2],
 }
 
 /// What the quadrature of the loads gives on one cell κ of S_h.
@@ -116,16 +126,15 @@ impl Estimate {
         let pieces = load_pieces(problem, &membranes);
         // Above an obstacle the one load twice, the second unused (α = 1).
         let f = [&pieces[0], pieces.last().expect("one membrane at least")];
-        let mut loads = cell_loads(problem, dual, f, alpha);
+        let sums = triangle_loads(problem, dual, f, alpha);
         let friedrichs = friedrichs_constant(mesh);
         let mu: Vec<f64> = membranes.iter().map(|m| m.mu).collect();
-        let on_cell = |s: usize, i: usize| loads[s].f_phi[i];
-        let resolution = Resolution::check((problem, dual, &solution.transfers), f, &mu, on_cell);
-        let defects = quadrature_defects(problem, &membranes, &loads);
+        let resolution = Resolution::check((problem, dual, &solution.transfers), f, &mu, &sums);
+        let defects = quadrature_defects(problem, &membranes, &sums);
+        drop(sums);
         let lifted = means::lift(problem, dual, &solution.transfers, &defects);
         let means = &lifted.rest;
         // The local problems of u_ih + z_i/μ_i with f_i + c_i (§4(c')).
-        means::add_to_cells(mesh, dual, &defects, &mut loads, |l| &mut l.f_phi);
         let on_dual_cell: Vec<Vec<f64>> = (membranes.iter().zip(&defects).zip(means))
             .map(|((m, c), rho)| {
                 (0..mesh.n_vertices())
@@ -136,28 +145,37 @@ impl Estimate {
         let u: Vec<Vec<f64>> = (membranes.iter().zip(&lifted.z))
             .map(|(m, z)| m.u.iter().zip(z).map(|(u, z)| u + z / m.mu).collect())
             .collect();
-        let cell_loads = &loads;
-        let f_phi: Vec<_> = (0..membranes.len())
-            .map(|i| move |s: usize| cell_loads[s].f_phi[i])
-            .collect();
         let local: Vec<equilibration::Membrane> = (membranes.iter().enumerate())
             .map(|(i, m)| equilibration::Membrane {
                 mu: m.mu,
                 u: &u[i],
-                f_phi: &f_phi[i],
                 on_dual_cell: &on_dual_cell[i],
             })
             .collect();
+        let cells = |triangles: Range<usize>, out: &mut Vec<[CellLoads; 6]>| {
+            let mut cells = [CellLoads::default(); 6];
+            let range = 6 * triangles.start..6 * triangles.end;
+            visit_cell_loads((problem, dual), f, alpha, range, |s, mut l| {
+                for (f, c) in l.f_phi.iter_mut().zip(&defects) {
+                    let add = means::on_cell(mesh, dual, c, s);
+                    *f = std::array::from_fn(|j| f[j] + add[j]);
+                }
+                cells[s % 6] = l;
+                if s % 6 == 5 {
+                    out.push(cells);
+                }
+            });
+        };
         let terms = Terms {
             problem,
             dual,
             membranes: &membranes,
             action,
             gap: &solution.obstacle.gap,
-            loads: &loads,
         };
-        let terms = equilibrate(mesh, dual, &patches, &local, |t, tau| terms.of(t, tau));
-        drop(loads);
+        let terms = equilibrate((mesh, dual, &patches), &local, cells, |t, loads, tau| {
+            terms.of(t, loads, tau)
+        });
         let lifting = Lifting::compute(problem, dual, solution, action, &patches);
         let m = membranes.len();
         let mu1 = membranes[0].mu;
@@ -321,20 +339,14 @@ impl Lifting {
 fn quadrature_defects(
     problem: &DiscreteProblem,
     membranes: &[Membrane],
-    loads: &[CellLoads],
+    sums: &[TriangleLoads],
 ) -> Vec<Vec<f64>> {
     let mesh = &problem.mesh;
-    // Each triangle's six cells summed in parallel, then added to its vertices in order.
-    let per_triangle: Vec<[[f64; 3]; 2]> = parallel::collect(mesh.n_triangles(), |t| {
-        (loads[6 * t..6 * t + 6].iter()).fold([[0.0; 3]; 2], |sum, l| {
-            std::array::from_fn(|i| std::array::from_fn(|j| sum[i][j] + l.f_phi[i][j]))
-        })
-    });
     (membranes.iter().enumerate())
         .map(|(i, m)| {
             let mut on_s_h = vec![0.0; mesh.n_vertices()];
-            for (tri, sums) in mesh.triangles().zip(&per_triangle) {
-                for (a, v) in tri.into_iter().zip(sums[i]) {
+            for (tri, sums) in mesh.triangles().zip(sums) {
+                for (a, v) in tri.into_iter().zip(sums.f_phi[i]) {
                     on_s_h[a] += v;
                 }
             }
@@ -359,53 +371,79 @@ fn load_pieces<'a>(problem: &'a DiscreteProblem, membranes: &[Membrane<'a>]) -> 
         .collect()
 }
 
-/// The loads on every cell of S_h by the case's rule (on the cell, not on its triangle), in
-/// parallel.
-fn cell_loads(
+/// The loads on the cells `cells` of S_h by the case's rule (on the cell, not on its triangle),
+/// each handed to `each` with its cell.
+fn visit_cell_loads(
+    (problem, dual): (&DiscreteProblem, &DualMesh),
+    f: [&Pieces; 2],
+    alpha: f64,
+    cells: Range<usize>,
+    mut each: impl FnMut(usize, CellLoads),
+) {
+    // The cell s of S_h lies in the triangle s / 6 of T_h: its loads are that triangle's.
+    datum::visit(
+        &problem.data.quadrature,
+        |s| dual.corners(s),
+        |s| s / 6,
+        cells,
+        f,
+        |s, points, [f1, f2]| {
+            let frame = DualMesh::frame(s);
+            let mut l = CellLoads::default();
+            let f = |k: usize| [f1[k], f2[k], alpha * f1[k] - (1.0 - alpha) * f2[k]];
+            let (mut mean, mut area) = ([0.0; 3], 0.0);
+            for (k, p) in points.iter().enumerate() {
+                let phi: [f64; 3] =
+                    std::array::from_fn(|j| (0..3).map(|v| p.barycentric[v] * frame[v][j]).sum());
+                for (f_phi, f) in l.f_phi.iter_mut().zip(f(k)) {
+                    for (v, phi) in f_phi.iter_mut().zip(phi) {
+                        *v += p.weight * f * phi;
+                    }
+                }
+                for (m, f) in mean.iter_mut().zip(f(k)) {
+                    *m += p.weight * f;
+                }
+                area += p.weight;
+            }
+            // ‖v − Π v‖²_κ in a second pass: ∫v² − (∫v)²/|κ| would cancel to noise where v is
+            // nearly constant.
+            for (k, p) in points.iter().enumerate() {
+                for ((o, f), m) in l.oscillation.iter_mut().zip(f(k)).zip(mean) {
+                    *o += p.weight * (f - m / area).powi(2);
+                }
+            }
+            each(s, l);
+        },
+    );
+}
+
+/// The loads on the six cells of the triangle t, each summed over the cells: ∫_K f_i φ_j by the
+/// case's rule on the cells of K, and Σ_κ |∫_κ f_i|, for every triangle, in parallel.
+fn triangle_loads(
     problem: &DiscreteProblem,
     dual: &DualMesh,
-    [f1, f2]: [&Pieces; 2],
+    f: [&Pieces; 2],
     alpha: f64,
-) -> Vec<CellLoads> {
-    let data = &problem.data;
-    let corners = |s: usize| dual.corners(s);
-    parallel::collect_by_blocks(dual.n_cells(), PIECE, |range, out| {
-        // The cell s of S_h lies in the triangle s / 6 of T_h: its loads are that triangle's.
-        datum::visit(
-            &data.quadrature,
-            corners,
-            |s| s / 6,
-            range,
-            [f1, f2],
-            |s, points, [f1, f2]| {
-                let frame = DualMesh::frame(s);
-                let mut l = CellLoads::default();
-                let f = |k: usize| [f1[k], f2[k], alpha * f1[k] - (1.0 - alpha) * f2[k]];
-                let (mut mean, mut area) = ([0.0; 3], 0.0);
-                for (k, p) in points.iter().enumerate() {
-                    let phi: [f64; 3] =
-                        std::array::from_fn(|j| (0..3).map(|v| p.barycentric[v] * frame[v][j]).sum());
-                    for (f_phi, f) in l.f_phi.iter_mut().zip(f(k)) {
-                        for (v, phi) in f_phi.iter_mut().zip(phi) {
-                            *v += p.weight * f * phi;
-                        }
-                    }
-                    for (m, f) in mean.iter_mut().zip(f(k)) {
-                        *m += p.weight * f;
-                    }
-                    area += p.weight;
-                }
-                // ‖v − Π v‖²_κ in a second pass: ∫v² − (∫v)²/|κ| would cancel to noise where v is
-                // nearly constant.
-                for (k, p) in points.iter().enumerate() {
-                    for ((o, f), m) in l.oscillation.iter_mut().zip(f(k)).zip(mean) {
-                        *o += p.weight * (f - m / area).powi(2);
-                    }
-                }
-                out.push(l);
-            },
-        );
+) -> Vec<TriangleLoads> {
+    parallel::collect_by_blocks(problem.mesh.n_triangles(), PIECE, |range, out| {
+        let mut sum = TriangleLoads::default();
+        let cells = 6 * range.start..6 * range.end;
+        visit_cell_loads((problem, dual), f, alpha, cells, |s, l| {
+            for i in 0..2 {
+                sum.f_phi[i] = std::array::from_fn(|j| sum.f_phi[i][j] + l.f_phi[i][j]);
+                sum.size[i] += l.f_phi[i].iter().sum::<f64>().abs();
+            }
+            if s % 6 == 5 {
+                out.push(std::mem::take(&mut sum));
+            }
+        });
     })
+}
+
+impl equilibration::CellPairings for [CellLoads; 6] {
+    fn f_phi(&self, c: usize, i: usize) -> [f64; 3] {
+        self[c].f_phi[i]
+    }
 }
 
 /// The mean over cell s of a P1 field `v` of T_h (its value at the cell's centroid).
@@ -439,12 +477,11 @@ struct Terms<'a> {
     action: &'a Action,
     /// w_h (u1h − u2h), or u_h − ψ_h above an obstacle.
     gap: &'a [f64],
-    loads: &'a [CellLoads],
 }
 
 impl Terms<'_> {
-    /// The terms of the triangle t, whose cells carry the fluxes `tau`.
-    fn of(&self, t: usize, tau: &TriangleFlux) -> TriangleTerms {
+    /// The terms of the triangle t, whose cells carry the loads `loads` and the fluxes `tau`.
+    fn of(&self, t: usize, loads: &[CellLoads; 6], tau: &TriangleFlux) -> TriangleTerms {
         let (mesh, dual, membranes) = (&self.problem.mesh, self.dual, self.membranes);
         let (alpha, _) = weights(membranes);
         let g = gradients(mesh.corners(t));
@@ -455,7 +492,7 @@ impl Terms<'_> {
         });
         let cells = dual.cells_of(t);
         let mut terms = TriangleTerms::default();
-        for (c, (s, cell_loads)) in (6 * t..).zip(&self.loads[6 * t..6 * t + 6]).enumerate() {
+        for (c, (s, cell_loads)) in (6 * t..).zip(loads).enumerate() {
             let p = cells[c];
             let area = 0.5 * crate::mesh::orient(p[0], p[1], p[2]);
             let diameter = (0..3)

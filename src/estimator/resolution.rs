@@ -15,6 +15,7 @@
 //! highest rule on its four halves. An estimate, not a bound: a load whose features fall between
 //! the points of every rule is not seen.
 
+use super::TriangleLoads;
 use crate::assembly::{gradients, Quadrature};
 use crate::contact;
 use crate::datum::{self, Pieces};
@@ -55,13 +56,13 @@ type Change = [[f64; 3]; 2];
 
 impl Resolution {
     /// The check of the loads `f` (one per membrane, of tensions `mu`) of `problem`, whose
-    /// pairings on the cells of S_h by the case's rule are `on_cell(s, i)` (∫_κ f_i φ_j for the
+    /// pairings on the cells of S_h by the case's rule, summed over each triangle, are `sums` (for the
     /// vertices j of s's triangle); the lifts on the solve's `transfers`.
     pub(super) fn check(
         (problem, dual, transfers): (&DiscreteProblem, &DualMesh, &[Prolongation]),
         f: [&Pieces; 2],
         mu: &[f64],
-        on_cell: impl Fn(usize, usize) -> [f64; 3] + Sync,
+        sums: &[TriangleLoads],
     ) -> Resolution {
         let mesh = &problem.mesh;
         let changes: Vec<Option<Change>> =
@@ -76,11 +77,10 @@ impl Resolution {
                         let tolerance = agreement(mesh.corners(t));
                         let agree = (0..mu.len()).all(|i| {
                             let on_k: f64 = points.iter().zip(values[i]).map(|(p, f)| p.weight * f).sum();
-                            let cells = (6 * t..6 * t + 6).map(|s| on_cell(s, i).iter().sum::<f64>());
-                            let size: f64 = cells.clone().map(f64::abs).sum();
-                            (cells.sum::<f64>() - on_k).abs() <= tolerance * size
+                            let on_cells: f64 = sums[t].f_phi[i].iter().sum();
+                            (on_cells - on_k).abs() <= tolerance * sums[t].size[i]
                         });
-                        out.push((!agree).then(|| finer(mesh, dual, t, f, &on_cell)));
+                        out.push((!agree).then(|| finer(mesh, dual, t, f, &sums[t].f_phi)));
                     },
                 )
             });
@@ -148,14 +148,8 @@ fn lifts(
 }
 
 /// δ on the triangle t: (f_i, φ_j) on its six cells by the highest rule on each cell's four
-/// halves, less `on_cell`.
-fn finer(
-    mesh: &Mesh,
-    dual: &DualMesh,
-    t: usize,
-    f: [&Pieces; 2],
-    on_cell: impl Fn(usize, usize) -> [f64; 3],
-) -> Change {
+/// halves, less `on_cells` (the case's rule on the cells).
+fn finer(mesh: &Mesh, dual: &DualMesh, t: usize, f: [&Pieces; 2], on_cells: &Change) -> Change {
     let halves: Vec<[[f64; 2]; 3]> = (6 * t..6 * t + 6).flat_map(|s| halved(dual.corners(s))).collect();
     let (g, p0) = (gradients(mesh.corners(t)), mesh.corners(t)[0]);
     // φ_j(x) = φ_j(p0) + ∇φ_j · (x − p0).
@@ -184,11 +178,9 @@ fn finer(
             }
         },
     );
-    for s in 6 * t..6 * t + 6 {
-        for (i, change) in change.iter_mut().enumerate() {
-            for (c, v) in change.iter_mut().zip(on_cell(s, i)) {
-                *c -= v;
-            }
+    for (change, on_cells) in change.iter_mut().zip(on_cells) {
+        for (c, v) in change.iter_mut().zip(on_cells) {
+            *c -= v;
         }
     }
     change

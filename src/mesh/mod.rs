@@ -252,16 +252,16 @@ pub struct Postprocess {
 
 impl Postprocess {
     /// Peak bytes per vertex after the solve, with a margin over the peaks measured at 512² and
-    /// 1024² (default case, multigrid: 1.9 and 1.8 kB with the flux, 1.7 and 1.6 kB with the
-    /// estimate, 2.2 and 2.1 kB with both).
+    /// 1024² (default case, multigrid: 1.9 and 1.8 kB with the flux, 0.9 and 0.8 kB with the
+    /// estimate, 2.0 and 2.0 kB with both).
     /// With ‖λ − λ_h‖_H⁻¹ (measured 5.3 and 5.6 kB at 256² and 512²), 6.5 kB whatever else.
     pub fn bytes_per_vertex(self) -> f64 {
         match (self.hminus1, self.flux, self.estimate) {
             (true, _, _) => 6500.0,
             (false, false, false) => 0.0,
             (false, true, false) => 2000.0,
-            (false, false, true) => 2000.0,
-            (false, true, true) => 2600.0,
+            (false, false, true) => 1100.0,
+            (false, true, true) => 2400.0,
         }
     }
 }
