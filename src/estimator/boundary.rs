@@ -18,6 +18,7 @@
 //! corner triangle (two boundary edges) the two liftings' cross term (∇ψ_e1, ∇ψ_e2)_K is added by
 //! a two-dimensional rule (`cross_term`).
 
+use super::equilibration::ON_BOUNDARY;
 use crate::assembly::gradients;
 use crate::datum::Pieces;
 use crate::expr::Expr;
@@ -42,12 +43,12 @@ pub struct OnTriangle {
 }
 
 /// ψ on every triangle of `mesh` (zero on those without a boundary edge). `neighbour[t][j]` is
-/// `usize::MAX` when the edge `(t[j], t[j + 1])` lies on ∂ω; `lambda` is λ_a; `gap` is w_h when
+/// [`ON_BOUNDARY`] when the edge `(t[j], t[j + 1])` lies on ∂ω; `lambda` is λ_a; `gap` is w_h when
 /// ψ is to keep w_h + ψ ≥ 0 at the corners of ω (between two membranes; `None` above an
 /// obstacle, whose lifting takes care of the constraint itself, §14).
 pub fn lifting(
     mesh: &Mesh,
-    neighbour: &[[usize; 3]],
+    neighbour: &[[u32; 3]],
     g: &Pieces,
     lambda: &[f64],
     gap: Option<&[f64]>,
@@ -55,7 +56,7 @@ pub fn lifting(
     let rule = gauss_legendre_halves();
     (0..mesh.n_triangles())
         .map(|t| {
-            let on_boundary: Vec<usize> = (0..3).filter(|&j| neighbour[t][j] == usize::MAX).collect();
+            let on_boundary: Vec<usize> = (0..3).filter(|&j| neighbour[t][j] == ON_BOUNDARY).collect();
             let tri = mesh.triangle(t);
             // g of the edge's physical curve (one expression without groups).
             let edge = |j: usize| on_edge(mesh, t, j, g.on_edge(tri[j], tri[(j + 1) % 3]), lambda, &rule);
@@ -293,7 +294,7 @@ mod tests {
     #[test]
     fn a_corner_triangle_gets_the_norm_of_the_sum() {
         let mesh = reference_triangle();
-        let neighbour = [[usize::MAX, 0, usize::MAX]];
+        let neighbour = [[ON_BOUNDARY, 0, ON_BOUNDARY]];
         let datum = crate::datum::Datum::from(Expr::parse("x^2 + y^2").unwrap());
         let pieces = datum.pieces("g", &mesh, crate::datum::On::Curves).unwrap();
         let on = lifting(&mesh, &neighbour, &pieces, &[0.0; 3], None);
@@ -337,7 +338,7 @@ mod tests {
     #[test]
     fn the_lifting_of_a_parabola_has_its_closed_form_norm() {
         let mesh = reference_triangle();
-        let neighbour = [[usize::MAX, 0, 0]];
+        let neighbour = [[ON_BOUNDARY, 0, 0]];
         let g = Expr::parse("x^2").unwrap();
         let datum = crate::datum::Datum::from(g.clone());
         let pieces = datum.pieces("g", &mesh, crate::datum::On::Curves).unwrap();

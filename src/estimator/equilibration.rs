@@ -31,15 +31,18 @@ use crate::mesh::{orient, DualMesh, Mesh, Stars};
 use crate::parallel;
 use std::ops::Range;
 
-/// No neighbour (a boundary edge) or no stream-function unknown (a vertex of S_h where ψ = 0).
+/// No stream-function unknown (a vertex of S_h where ψ = 0), or no parent in the spanning tree.
 const NONE: usize = usize::MAX;
+
+/// No neighbour across an edge: the edge lies on ∂ω.
+pub const ON_BOUNDARY: u32 = u32::MAX;
 
 /// The triangles around each vertex and the neighbour across each edge, for the patch problems,
 /// and the order in which the patches are solved.
 pub struct Patches {
     stars: Stars,
-    /// Across edge j = `(t[j], t[j + 1])` of each triangle: the neighbour, or NONE on ∂ω.
-    pub neighbour: Vec<[usize; 3]>,
+    /// Across edge j = `(t[j], t[j + 1])` of each triangle: the neighbour, or [`ON_BOUNDARY`] on ∂ω.
+    pub neighbour: Vec<[u32; 3]>,
     sweep: Sweep,
 }
 
@@ -55,7 +58,7 @@ impl Patches {
                 let (a, b) = (tri[j], tri[(j + 1) % 3]);
                 (stars.around(a))
                     .find(|&(s, _)| s != t && mesh.triangle(s).contains(&b))
-                    .map_or(NONE, |(s, _)| s)
+                    .map_or(ON_BOUNDARY, |(s, _)| s as u32)
             })
         });
         Patches {
@@ -381,18 +384,19 @@ impl Patch {
             let (at_a_ab, at_b_ab) = ((n(2 * k), 0), (n(2 * ((k + 1) % 3) + 1), 2));
             let (at_a_ca, at_c_ca) = ((n(2 * k + 1), 2), (n(2 * ((k + 2) % 3)), 0));
             match patches.neighbour[t][k] {
-                NONE => {
+                ON_BOUNDARY => {
                     self.links.push(Link([at_a_ab, (ground, 0)]));
                     self.links.push(Link([at_b_ab, (ground, 0)]));
                     self.ground = true;
                 }
                 s => {
+                    let s = s as usize;
                     let (ii, kk) = (local(s), star[local(s)].1);
                     self.links.push(Link([at_a_ab, (6 * ii + 2 * kk + 1, 2)]));
                     self.links.push(Link([at_b_ab, (6 * ii + 2 * ((kk + 2) % 3), 0)]));
                 }
             }
-            if patches.neighbour[t][(k + 2) % 3] == NONE {
+            if patches.neighbour[t][(k + 2) % 3] == ON_BOUNDARY {
                 self.links.push(Link([at_a_ca, (ground, 0)]));
                 self.links.push(Link([at_c_ca, (ground, 0)]));
                 self.ground = true;
