@@ -159,14 +159,6 @@ pub trait CellPairings {
 /// its corner k to k + 1 (the convention of [`crate::flux::Flux`]), for each membrane.
 pub type TriangleFlux = [[[f64; 3]; 6]; 2];
 
-/// A triangle whose patches are not all solved: its triangle, its loads and the share of each
-/// corner's patch.
-struct Waiting<L> {
-    triangle: usize,
-    loads: L,
-    shares: [TriangleFlux; 3],
-}
-
 /// τ_i = Σ_a τ_{i,a} for each membrane, triangle by triangle: `on_triangle(t, loads of t, τ on t's
 /// cells)` for every triangle t, in parallel, its values in the order of the triangles. The loads
 /// of each triangle are computed when its first patch comes and dropped with it: `loads(range,
@@ -181,24 +173,9 @@ pub fn equilibrate<L: CellPairings + Send + Sync, R: Default + Send>(
     let mut values: Vec<R> = std::iter::repeat_with(R::default)
         .take(mesh.n_triangles())
         .collect();
-    let mut waiting: Vec<Waiting<L>> = Vec::new();
-    let mut slot = vec![u32::MAX; mesh.n_triangles()];
+    let mut window = Window::new(mesh.n_triangles());
     for (j, entering) in sweep.entering.iter().enumerate() {
-        let runs = runs(entering);
-        let entered = parallel::map(runs.len(), 1, |k| {
-            let run = runs[k.start].clone();
-            let mut out = Vec::with_capacity(run.len());
-            loads(run.clone(), &mut out);
-            (run.zip(out)).map(|(t, loads)| Waiting {
-                triangle: t,
-                loads,
-                shares: [[[[0.0; 3]; 6]; 2]; 3],
-            })
-        });
-        waiting.extend(entered.into_iter().flatten());
-        for (k, w) in waiting.iter().enumerate() {
-            slot[w.triangle] = k as u32;
-        }
+        window.enter(entering, &loads);
         let block = &sweep.order[j * BLOCK..((j + 1) * BLOCK).min(sweep.order.len())];
         // Each piece's patches' shares, star after star, and where each vertex's star begins.
         let shares: Vec<(Vec<TriangleFlux>, Vec<usize>)> =
@@ -209,7 +186,7 @@ pub fn equilibrate<L: CellPairings + Send + Sync, R: Default + Send>(
                     work.build(mesh, dual, patches, a as usize);
                     out.resize(out.len() + work.star.len(), [[[0.0; 3]; 6]; 2]);
                     let at = out.len() - work.star.len();
-                    let of = |t: usize| &waiting[slot[t] as usize].loads;
+                    let of = |t: usize| window.loads_of(t);
                     work.solve(mesh, (a as usize, membranes), of, &mut out[at..]);
                 }
                 (out, starts)
@@ -221,31 +198,97 @@ pub fn equilibrate<L: CellPairings + Send + Sync, R: Default + Send>(
                 (patches.around(a).position(|(s, _)| s == t)).expect("a triangle around each of its corners");
             &out[starts[i % PATCHES] + position]
         };
-        let done: Vec<Vec<(usize, R)>> = parallel::map_mut(&mut waiting, PATCHES, |_, pending| {
+        for (t, value) in window.complete((mesh, sweep, j), share_of, &on_triangle) {
+            values[t] = value;
+        }
+    }
+    values
+}
+
+/// The triangles whose patches are not all solved: each one's loads and the shares of the
+/// patches of its corners solved so far.
+struct Window<L> {
+    triangles: Vec<usize>,
+    loads: Vec<L>,
+    shares: Vec<[TriangleFlux; 3]>,
+    /// The position in the window of each triangle in it.
+    slot: Vec<u32>,
+}
+
+impl<L: Send + Sync> Window<L> {
+    fn new(triangles: usize) -> Self {
+        Window {
+            triangles: Vec::new(),
+            loads: Vec::new(),
+            shares: Vec::new(),
+            slot: vec![u32::MAX; triangles],
+        }
+    }
+
+    /// Takes in the triangles `entering` with their loads, computed in parallel by runs.
+    fn enter(&mut self, entering: &[u32], loads: &(impl Fn(Range<usize>, &mut Vec<L>) + Sync)) {
+        let runs = runs(entering);
+        let computed = parallel::map(runs.len(), 1, |k| {
+            let mut out = Vec::with_capacity(runs[k.start].len());
+            loads(runs[k.start].clone(), &mut out);
+            out
+        });
+        self.loads.extend(computed.into_iter().flatten());
+        self.triangles.extend(entering.iter().map(|&t| t as usize));
+        self.shares.resize(self.triangles.len(), [[[[0.0; 3]; 6]; 2]; 3]);
+        for (k, &t) in self.triangles.iter().enumerate() {
+            self.slot[t] = k as u32;
+        }
+    }
+
+    /// The loads of the triangle t, in the window.
+    fn loads_of(&self, t: usize) -> &L {
+        &self.loads[self.slot[t] as usize]
+    }
+
+    /// Takes the shares of the patches of block `j` (`share_of(a, t)`: vertex a's on triangle t),
+    /// and hands the triangles whose last patch that was to `on_triangle`, in parallel; they
+    /// leave the window.
+    fn complete<'s, R: Send>(
+        &mut self,
+        (mesh, sweep, j): (&Mesh, &Sweep, usize),
+        share_of: impl Fn(usize, usize) -> &'s TriangleFlux + Sync,
+        on_triangle: &(impl Fn(usize, &L, &TriangleFlux) -> R + Sync),
+    ) -> Vec<(usize, R)> {
+        let (triangles, loads) = (&self.triangles, &self.loads);
+        let done = parallel::map_mut(&mut self.shares, PATCHES, |base, shares| {
             let mut done = Vec::new();
-            for w in pending {
-                let tri = mesh.triangle(w.triangle);
-                for (share, a) in w.shares.iter_mut().zip(tri) {
+            for (k, shares) in (base..).zip(shares) {
+                let (t, tri) = (triangles[k], mesh.triangle(triangles[k]));
+                for (share, a) in shares.iter_mut().zip(tri) {
                     if sweep.block(a) == j {
-                        *share = *share_of(a, w.triangle);
+                        *share = *share_of(a, t);
                     }
                 }
                 if tri.iter().all(|&a| sweep.block(a) <= j) {
-                    let [p, q, r] = &w.shares;
+                    let [p, q, r] = shares;
                     let tau = std::array::from_fn(|i| {
                         std::array::from_fn(|c| std::array::from_fn(|e| p[i][c][e] + q[i][c][e] + r[i][c][e]))
                     });
-                    done.push((w.triangle, on_triangle(w.triangle, &w.loads, &tau)));
+                    done.push((t, on_triangle(t, &loads[k], &tau)));
                 }
             }
             done
         });
-        for (t, value) in done.into_iter().flatten() {
-            values[t] = value;
-        }
-        waiting.retain(|w| mesh.triangle(w.triangle).iter().any(|&a| sweep.block(a) > j));
+        let stays: Vec<bool> = (self.triangles.iter())
+            .map(|&t| mesh.triangle(t).iter().any(|&a| sweep.block(a) > j))
+            .collect();
+        retain(&mut self.loads, &stays);
+        retain(&mut self.shares, &stays);
+        retain(&mut self.triangles, &stays);
+        done.into_iter().flatten().collect()
     }
-    values
+}
+
+/// Keeps the items of `v` whose flag in `keep` is set, in order.
+fn retain<T>(v: &mut Vec<T>, keep: &[bool]) {
+    let mut keep = keep.iter();
+    v.retain(|_| *keep.next().expect("one flag per item"));
 }
 
 /// The increasing triangles `t` as runs of consecutive ones, each of at most [`PATCHES`].
