@@ -350,6 +350,8 @@ struct Patch {
     accumulated: Vec<f64>,
     /// The stream system's right-hand sides, one column of `unknowns` per membrane.
     rhs: Vec<f64>,
+    /// The gradients of the hat functions of each triangle of the star.
+    hats: Vec<[[f64; 2]; 3]>,
     /// μ_i ∇u_ih on each triangle of the star, for each membrane.
     grad_u: Vec<[[f64; 2]; 2]>,
 }
@@ -366,9 +368,11 @@ impl Patch {
         others.dedup();
         let midpoint_unknown = |v: usize| 1 + others.binary_search(&v).expect("a neighbour of a");
         self.cells.clear();
+        self.hats.clear();
         for (i, &(t, k)) in star.iter().enumerate() {
             let tri = mesh.triangle(t);
-            let grad_phi = gradients(mesh.corners(t))[k];
+            self.hats.push(gradients(mesh.corners(t)));
+            let grad_phi = self.hats[i][k];
             let centre = 1 + others.len() + i;
             for (c, p) in dual.cells_of(t).into_iter().enumerate() {
                 let j = c / 2;
@@ -521,13 +525,14 @@ impl Patch {
         self.rhs.clear();
         self.rhs.resize(n * m, 0.0);
         self.grad_u.clear();
-        self.grad_u.extend(self.star.iter().map(|&(t, _)| {
-            let (g, tri) = (gradients(mesh.corners(t)), mesh.triangle(t));
-            std::array::from_fn(|i| match membranes.get(i) {
-                Some(m) => [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()),
-                None => [0.0; 2],
-            })
-        }));
+        self.grad_u
+            .extend(self.star.iter().zip(&self.hats).map(|(&(t, _), g)| {
+                let tri = mesh.triangle(t);
+                std::array::from_fn(|i| match membranes.get(i) {
+                    Some(m) => [0, 1].map(|k| m.mu * (0..3).map(|j| g[j][k] * m.u[tri[j]]).sum::<f64>()),
+                    None => [0.0; 2],
+                })
+            }));
         for (i, membrane) in membranes.iter().enumerate() {
             self.particular(a, membrane, i, &loads);
         }
