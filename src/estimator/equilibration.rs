@@ -21,10 +21,10 @@
 //! The system depends on the geometry only: one factorization serves both membranes.
 //!
 //! The fluxes are never held on the whole of S_h: the patches are solved block by block along a
-//! Z-order curve of the vertices ([`Sweep`]), each patch's share of a triangle's cells is kept
-//! until the patches of the triangle's three vertices are solved, and the triangle's τ_i (the
-//! three shares added in the order of the triangle's corners, so that it does not depend on the
-//! threads) is then handed to the caller and dropped.
+//! Z-order curve of the vertices ([`Sweep`]), each patch's share of a triangle's cells is added
+//! to the triangle's τ_i (block after block, in a block in the order of the triangle's corners,
+//! so that it does not depend on the threads), and once the patches of its three vertices are
+//! solved, τ_i is handed to the caller and dropped.
 
 use crate::assembly::gradients;
 use crate::mesh::{orient, DualMesh, Mesh, Stars};
@@ -205,23 +205,31 @@ pub fn equilibrate<L: CellPairings + Send + Sync, R: Default + Send>(
     values
 }
 
-/// The triangles whose patches are not all solved: each one's loads and the shares of the
-/// patches of its corners solved so far.
+/// The triangles whose patches are not all solved, each in a slot: its loads and τ_i on its
+/// cells so far, the shares of its corners' patches added block after block (in a block, in the
+/// order of its corners), so that τ_i does not depend on the threads. A slot freed by a triangle
+/// that leaves is taken by one that enters: nothing is moved.
 struct Window<L> {
-    triangles: Vec<usize>,
+    /// The triangle in each slot, or [`FREE`].
+    triangles: Vec<u32>,
     loads: Vec<L>,
-    shares: Vec<[TriangleFlux; 3]>,
-    /// The position in the window of each triangle in it.
+    tau: Vec<TriangleFlux>,
+    /// The slot of each triangle in the window.
     slot: Vec<u32>,
+    free: Vec<u32>,
 }
+
+/// A slot of the [`Window`] without a triangle.
+const FREE: u32 = u32::MAX;
 
 impl<L: Send + Sync> Window<L> {
     fn new(triangles: usize) -> Self {
         Window {
             triangles: Vec::new(),
             loads: Vec::new(),
-            shares: Vec::new(),
-            slot: vec![u32::MAX; triangles],
+            tau: Vec::new(),
+            slot: vec![FREE; triangles],
+            free: Vec::new(),
         }
     }
 
@@ -233,11 +241,21 @@ impl<L: Send + Sync> Window<L> {
             loads(runs[k.start].clone(), &mut out);
             out
         });
-        self.loads.extend(computed.into_iter().flatten());
-        self.triangles.extend(entering.iter().map(|&t| t as usize));
-        self.shares.resize(self.triangles.len(), [[[[0.0; 3]; 6]; 2]; 3]);
-        for (k, &t) in self.triangles.iter().enumerate() {
-            self.slot[t] = k as u32;
+        for (&t, l) in entering.iter().zip(computed.into_iter().flatten()) {
+            let k = match self.free.pop() {
+                Some(k) => {
+                    (self.triangles[k as usize], self.loads[k as usize]) = (t, l);
+                    self.tau[k as usize] = [[[0.0; 3]; 6]; 2];
+                    k
+                }
+                None => {
+                    self.triangles.push(t);
+                    self.loads.push(l);
+                    self.tau.push([[[0.0; 3]; 6]; 2]);
+                    (self.triangles.len() - 1) as u32
+                }
+            };
+            self.slot[t as usize] = k;
         }
     }
 
@@ -246,7 +264,7 @@ impl<L: Send + Sync> Window<L> {
         &self.loads[self.slot[t] as usize]
     }
 
-    /// Takes the shares of the patches of block `j` (`share_of(a, t)`: vertex a's on triangle t),
+    /// Adds the shares of the patches of block `j` (`share_of(a, t)`: vertex a's on triangle t),
     /// and hands the triangles whose last patch that was to `on_triangle`, in parallel; they
     /// leave the window.
     fn complete<'s, R: Send>(
@@ -256,39 +274,35 @@ impl<L: Send + Sync> Window<L> {
         on_triangle: &(impl Fn(usize, &L, &TriangleFlux) -> R + Sync),
     ) -> Vec<(usize, R)> {
         let (triangles, loads) = (&self.triangles, &self.loads);
-        let done = parallel::map_mut(&mut self.shares, PATCHES, |base, shares| {
+        let done = parallel::map_mut(&mut self.tau, PATCHES, |base, tau| {
             let mut done = Vec::new();
-            for (k, shares) in (base..).zip(shares) {
-                let (t, tri) = (triangles[k], mesh.triangle(triangles[k]));
-                for (share, a) in shares.iter_mut().zip(tri) {
-                    if sweep.block(a) == j {
-                        *share = *share_of(a, t);
+            for (k, tau) in (base..).zip(tau) {
+                let t = triangles[k];
+                if t == FREE {
+                    continue;
+                }
+                let (t, tri) = (t as usize, mesh.triangle(t as usize));
+                for a in tri.into_iter().filter(|&a| sweep.block(a) == j) {
+                    let share = share_of(a, t);
+                    for (tau, share) in tau.as_flattened_mut().iter_mut().zip(share.as_flattened()) {
+                        for (x, y) in tau.iter_mut().zip(share) {
+                            *x += y;
+                        }
                     }
                 }
                 if tri.iter().all(|&a| sweep.block(a) <= j) {
-                    let [p, q, r] = shares;
-                    let tau = std::array::from_fn(|i| {
-                        std::array::from_fn(|c| std::array::from_fn(|e| p[i][c][e] + q[i][c][e] + r[i][c][e]))
-                    });
-                    done.push((t, on_triangle(t, &loads[k], &tau)));
+                    done.push((k, t, on_triangle(t, &loads[k], tau)));
                 }
             }
             done
         });
-        let stays: Vec<bool> = (self.triangles.iter())
-            .map(|&t| mesh.triangle(t).iter().any(|&a| sweep.block(a) > j))
-            .collect();
-        retain(&mut self.loads, &stays);
-        retain(&mut self.shares, &stays);
-        retain(&mut self.triangles, &stays);
-        done.into_iter().flatten().collect()
+        let done: Vec<(usize, usize, R)> = done.into_iter().flatten().collect();
+        for &(k, _, _) in &done {
+            self.triangles[k] = FREE;
+            self.free.push(k as u32);
+        }
+        done.into_iter().map(|(_, t, r)| (t, r)).collect()
     }
-}
-
-/// Keeps the items of `v` whose flag in `keep` is set, in order.
-fn retain<T>(v: &mut Vec<T>, keep: &[bool]) {
-    let mut keep = keep.iter();
-    v.retain(|_| *keep.next().expect("one flag per item"));
 }
 
 /// The increasing triangles `t` as runs of consecutive ones, each of at most [`PATCHES`].
