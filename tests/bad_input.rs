@@ -83,6 +83,8 @@ fn limited_command_fails(
         "{stderr}"
     );
     assert!(!stderr.contains("panicked"), "{stderr}");
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(stdout.is_empty(), "a failed run prints no summary: {stdout}");
     assert_eq!(listing(dir.path()), before, "files were left behind or removed");
     assert_eq!(listing(&earlier), [".membrane-contact", "solution.h5"]);
     assert_eq!(
