@@ -211,6 +211,15 @@ fn above_an_obstacle_the_bound_holds_and_tightens() {
             "{conservation:?}"
         );
         effectivities.push(e.total / error);
+        // The summary names the lifting for what it holds, not as boundary data alone.
+        let summary = e.summary(None);
+        assert!(
+            summary.contains(&format!(
+                "lifting of g − g_h and ψ − u_h {:.2e} (ψ − u_h alone",
+                e.boundary_total
+            )) && !summary.contains("boundary data"),
+            "{summary}"
+        );
     }
     assert!(effectivities.windows(2).all(|w| w[1] < w[0]), "{effectivities:?}");
     assert!(effectivities[3] < 1.35, "{effectivities:?}");

@@ -241,13 +241,20 @@ impl Estimate {
         } else {
             "membranes"
         };
-        let obstacle = (self.obstacle_total).map_or(String::new(), |o| format!(" (obstacle {o:.2e})"));
+        // Above an obstacle one lifting carries g − g_h and ψ − u_h (§14): named as such, with the
+        // part ψ − u_h adds.
+        let data = match self.obstacle_total {
+            None => format!("boundary data {:.2e}", self.boundary_total),
+            Some(o) => format!(
+                "lifting of g − g_h and ψ − u_h {:.2e} (ψ − u_h alone {o:.2e})",
+                self.boundary_total
+            ),
+        };
         format!(
-            "estimator   |||u − u_h||| ≤ η = {:.4e} ({label} {}, boundary data {:.2e}{obstacle}, contact {:.2e}){}; \
+            "estimator   |||u − u_h||| ≤ η = {:.4e} ({label} {}, {data}, contact {:.2e}){}; \
              ‖λ − λ_h‖_H⁻¹ ≤ {:.4e}\n",
             self.total,
             membranes.join(", "),
-            self.boundary_total,
             self.contact_total,
             effectivity.map_or(String::new(), |x| format!(", effectivity η/error {x:.3}")),
             self.lambda
