@@ -112,7 +112,7 @@ pub fn adapt(case: &Case, settings: &Adaptivity, dual: bool, target: &Path) -> R
     })?;
     let last = adaptive.last().map_or(0, |s| s.vertices);
     crate::progress::phase(|| "uniform refinement, for comparison".into());
-    let uniform = uniform(case, last)?;
+    let uniform = uniform(case, (2 * last).min(settings.max_vertices))?;
     let dir = staging.path();
     crate::progress::phase(|| "writing adapt.xdmf, the tables and the plot".into());
     result::time_series(&dir.join("adapt.xdmf"), &grids).map_err(OutputError)?;
@@ -265,8 +265,9 @@ fn write_step(staging: &Staging, dir: &str, r: &Run, dual: bool) -> Result<(), R
     Ok(())
 }
 
-/// Uniform refinement of the case's mesh, each level warm-started from the one before, up to about
-/// twice `vertices` vertices.
+/// Uniform refinement of the case's mesh, each level warm-started from the one before, up to
+/// `vertices` vertices (twice the adaptive series' last mesh, within the budget the memory guard
+/// priced).
 fn uniform(case: &Case, vertices: usize) -> Result<Vec<Step>, RunError> {
     let curves = case.curves();
     let clock = Instant::now();
@@ -279,7 +280,7 @@ fn uniform(case: &Case, vertices: usize) -> Result<Vec<Step>, RunError> {
             .mesh
             .refined(&curves)
             .map_err(|e| mesh_error(case, &e))?;
-        if fine.n_vertices() > 2 * vertices.max(out[0].vertices) {
+        if fine.n_vertices() > vertices {
             return Ok(out);
         }
         let start = Start::From {
@@ -380,8 +381,9 @@ fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted) -> String {
         let (first, last) = (fitted[0].vertices, fitted[fitted.len() - 1].vertices);
         let _ = writeln!(
             s,
-            "Rate s of ∝ N^(−s), fitted over N = {first} … {last} ({:.2} decades; the last two at \
-             most): η {}, error {} (optimal for P1: 0.5).\n",
+            "Rate s of ∝ N^(−s), least squares over the steps with N in the last two decades and \
+             the step before them (N = {first} … {last}, {:.2} decades): η {}, error {} (optimal \
+             for P1: 0.5).\n",
             (last as f64 / first as f64).log10(),
             slope(rate(steps, |st| Some(st.estimator))),
             slope(rate(steps, |st| st.error))

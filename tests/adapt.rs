@@ -22,6 +22,10 @@ fn adapted(mut case: Case, max_vertices: usize) -> (Adapted, tempfile::TempDir, 
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("adapt");
     let a = adapt(&case, &settings, false, &out).unwrap();
+    // Neither series goes past the vertex budget, which the memory guard priced.
+    for s in a.adaptive.iter().chain(&a.uniform) {
+        assert!(s.vertices <= max_vertices, "N = {} > {max_vertices}", s.vertices);
+    }
     (a, dir, out)
 }
 
@@ -209,10 +213,19 @@ fn adapt_says_why_it_stopped() {
         let a = adapt(&c, &settings, false, &dir.path().join("adapt")).unwrap();
         let md = std::fs::read_to_string(dir.path().join("adapt/adapt.md")).unwrap();
         assert!(md.contains(&format!("Stopped by {}.", a.stopped)), "{md}");
+        // The uniform series for comparison stays within the budget too (beyond its first mesh,
+        // the initial one).
+        let budget = max_vertices.max(a.uniform[0].vertices);
+        let n: Vec<usize> = a.uniform.iter().map(|s| s.vertices).collect();
+        assert!(
+            n.iter().all(|&n| n <= budget),
+            "uniform N = {n:?}, budget {max_vertices}"
+        );
         a.stopped
     };
     assert!(why(Some(10.0), 10_000, 40).contains("≤ the target 1e1"));
     assert_eq!(why(None, 10_000, 1), "the step count, 1");
     assert!(why(None, 50, 40).contains("the initial mesh has 81 vertices already"));
     assert!(why(None, 200, 40).contains("the next mesh would have had more vertices"));
+    assert!(why(None, 1000, 40).contains("the next mesh would have had more vertices"));
 }
