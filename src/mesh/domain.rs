@@ -258,9 +258,10 @@ impl Domain {
         }
     }
 
-    /// The mesh of size h: boundary vertices at most h apart (kept as they are), triangles of area
-    /// at most that of the equilateral triangle of side h and angles of at least 25° where the
-    /// boundary allows (spade's Delaunay refinement). The domain must have passed [`Domain::check`].
+    /// The mesh of size h: boundary vertices at most h apart (a polygon's closer where a feature
+    /// nearby needs it), triangles of area at most that of the equilateral triangle of side h and
+    /// angles of at least 25° where the boundary allows (spade's Delaunay refinement). The domain
+    /// must have passed [`Domain::check`].
     pub fn mesh(&self, h: f64) -> Result<Mesh, MeshError> {
         // The mesh is made relative to a point of the domain (a disk's centre, a polygon's first
         // vertex where that moves every vertex exactly, Sterbenz) in units of a power of two
@@ -298,24 +299,21 @@ impl Domain {
             points.extend(ring.iter().map(|p| Point2::new(p[0], p[1])));
             edges.extend((0..ring.len()).map(|k| [start + k, start + (k + 1) % ring.len()]));
         }
-        let mut cdt = ConstrainedDelaunayTriangulation::<Point2<f64>>::bulk_load_cdt(points, edges)
-            .map_err(|e| MeshError::Generation(format!("spade: {e}")))?;
-        let parameters = RefinementParameters::new()
-            .with_max_allowed_area(EQUILATERAL * h * h)
-            .with_angle_limit(AngleLimit::from_deg(ANGLE_LIMIT_DEG))
-            .exclude_outer_faces(true)
-            .keep_constraint_edges()
-            .with_max_additional_vertices(4 * relative.estimated_vertices(h) + 1000);
-        let result = cdt.refine(parameters);
-        if !result.refinement_complete {
-            return Err(MeshError::Generation(
-                "the Delaunay refinement did not finish within its vertex budget".into(),
-            ));
-        }
-        let mut outer = vec![false; cdt.num_all_faces()];
-        for f in &result.excluded_faces {
-            outer[f.index()] = true;
-        }
+        let cdt =
+            Cdt::bulk_load_cdt(points, edges).map_err(|e| MeshError::Generation(format!("spade: {e}")))?;
+        // A polygon's edges are split where a feature closer than h needs smaller triangles (kept
+        // whole, a hole 3e-4 from the outer boundary at h = 0.05 left slivers of 0.3°), unless
+        // that takes more vertices than the budget (a feature far narrower than h): then they are
+        // kept whole. A circle's chords stay whole, so that every boundary vertex lies on it.
+        let budget = 4 * relative.estimated_vertices(h) + 1000;
+        let split = matches!(self, Domain::Polygon { .. });
+        let (cdt, outer) = (split.then(|| refined(&cdt, h, budget, true)).flatten())
+            .or_else(|| refined(&cdt, h, budget, false))
+            .ok_or_else(|| {
+                MeshError::Generation(
+                    "the Delaunay refinement did not finish within its vertex budget".into(),
+                )
+            })?;
         let triangles = (cdt.inner_faces())
             .filter(|f| !outer[f.fix().index()])
             .map(|f| f.vertices().map(|v| v.fix().index()))
@@ -342,6 +340,34 @@ impl Domain {
             e => e,
         })
     }
+}
+
+/// The constrained triangulation of the boundary rings.
+type Cdt = ConstrainedDelaunayTriangulation<Point2<f64>>;
+
+/// `cdt` refined to size h by spade's Delaunay refinement, its constraint (boundary) edges split
+/// where needed if `split`, with the faces outside ω marked; none if it needs more than `budget`
+/// added vertices.
+fn refined(cdt: &Cdt, h: f64, budget: usize, split: bool) -> Option<(Cdt, Vec<bool>)> {
+    let parameters = RefinementParameters::new()
+        .with_max_allowed_area(EQUILATERAL * h * h)
+        .with_angle_limit(AngleLimit::from_deg(ANGLE_LIMIT_DEG))
+        .exclude_outer_faces(true)
+        .with_max_additional_vertices(budget);
+    let parameters = match split {
+        true => parameters,
+        false => parameters.keep_constraint_edges(),
+    };
+    let mut cdt = cdt.clone();
+    let result = cdt.refine(parameters);
+    if !result.refinement_complete {
+        return None;
+    }
+    let mut outer = vec![false; cdt.num_all_faces()];
+    for f in &result.excluded_faces {
+        outer[f.index()] = true;
+    }
+    Some((cdt, outer))
 }
 
 /// The circles on which parts of ∂ω lie, as (centre, radius).
@@ -568,6 +594,46 @@ mod tests {
                 !inside([(p[0] + q[0] + r[0]) / 3.0, (p[1] + q[1] + r[1]) / 3.0], &hole)
             }));
         }
+    }
+
+    /// The smallest angle of the mesh's triangles, in degrees.
+    fn smallest_angle(m: &Mesh) -> f64 {
+        let angle = |p: [f64; 2], q: [f64; 2], r: [f64; 2]| {
+            let (a, b) = ([q[0] - p[0], q[1] - p[1]], [r[0] - p[0], r[1] - p[1]]);
+            (a[0] * b[1] - a[1] * b[0])
+                .atan2(a[0] * b[0] + a[1] * b[1])
+                .abs()
+                .to_degrees()
+        };
+        (0..m.n_triangles())
+            .flat_map(|t| {
+                let [p, q, r] = m.corners(t);
+                [angle(p, q, r), angle(q, r, p), angle(r, p, q)]
+            })
+            .fold(180.0, f64::min)
+    }
+
+    #[test]
+    fn a_hole_close_to_the_boundary_leaves_no_slivers() {
+        let square = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+        let hole = |gap: f64| vec![[0.3, gap], [0.7, gap], [0.7, 0.4], [0.3, 0.4]];
+        let near = Domain::Polygon {
+            boundary: square.clone(),
+            holes: vec![hole(3e-4)],
+        };
+        near.check().unwrap();
+        let m = near.mesh(0.05).unwrap();
+        assert!(smallest_angle(&m) >= 20.0, "{}°", smallest_angle(&m));
+        assert!((m.measure() - (1.0 - 0.4 * (0.4 - 3e-4))).abs() < 1e-13);
+        // Far narrower than h, the gap would take more vertices than the budget: the boundary
+        // edges are kept whole and the mesh still made, with slivers.
+        let narrowest = Domain::Polygon {
+            boundary: square,
+            holes: vec![hole(1e-8)],
+        };
+        let m = narrowest.mesh(0.05).unwrap();
+        assert!(m.n_vertices() <= narrowest.estimated_vertices(0.05));
+        assert!((m.measure() - (1.0 - 0.4 * (0.4 - 1e-8))).abs() < 1e-13);
     }
 
     #[test]
