@@ -669,10 +669,14 @@ impl Case {
             MeshSpec::Domain { domain, h } => domain.mesh(*h).map(|m| m.renumbered()),
             MeshSpec::File { .. } | MeshSpec::Given { .. } => unreachable!("read above"),
         };
-        built.map_err(|e| match e {
+        let mesh = built.map_err(|e| match e {
             MeshError::Generation(_) => err(format!("{keys}: {e}")),
             e => err(format!("{keys}: the mesh is not valid: {e}")),
-        })
+        })?;
+        // A polygon's mesh exceeds the estimate where a narrow feature split its edges.
+        let refined = mesh.n_vertices().saturating_mul(self.refinement_factor());
+        mesh::check_memory(refined, self.bytes_per_vertex(after)).map_err(|e| err(format!("{keys}: {e}")))?;
+        Ok(mesh)
     }
 
     /// Below a disk or polygon meshed with size h, or a file mesh: the domain (a file mesh's,
