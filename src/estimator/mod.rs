@@ -33,6 +33,7 @@ use crate::parallel::{self, PIECE};
 use crate::problem::{DiscreteProblem, Lower, Membrane, Which};
 use crate::result::{Attribute, Describe, Field, Place};
 use equilibration::{equilibrate, Patches, TriangleFlux};
+use means::Lifted;
 use resolution::Resolution;
 use std::f64::consts::PI;
 use std::ops::Range;
@@ -111,74 +112,132 @@ fn indicators(terms: &[TriangleTerms], boundary: &[f64], contact: &[f64], m: usi
         .collect()
 }
 
+/// ‖c‖ of a field given at the vertices, by the lumped mass.
+fn mass_norm(problem: &DiscreteProblem, c: &[f64]) -> f64 {
+    (c.iter().zip(&problem.mass).map(|(c, m)| c * c * m).sum::<f64>()).sqrt()
+}
+
+/// What the case's rule of the loads gives and misses: whether it resolves them (§11), and its
+/// defect per vertex lifted into the fluxes (§4(c')).
+struct LoadData {
+    resolution: Resolution,
+    defects: Vec<Vec<f64>>,
+    lifted: Lifted,
+}
+
+impl LoadData {
+    /// The loads `f` of `membranes` on the cells of S_h by the case's rule, checked and lifted.
+    fn of(
+        problem: &DiscreteProblem,
+        dual: &DualMesh,
+        solution: &Solution,
+        membranes: &[Membrane],
+        f: [&Pieces; 2],
+    ) -> LoadData {
+        let (alpha, _) = weights(membranes);
+        let sums = triangle_loads(problem, dual, f, alpha);
+        let mu: Vec<f64> = membranes.iter().map(|m| m.mu).collect();
+        let resolution = Resolution::check((problem, dual, &solution.transfers), f, &mu, &sums);
+        let defects = quadrature_defects(problem, membranes, &sums);
+        drop(sums);
+        let lifted = means::lift(problem, dual, &solution.transfers, &defects);
+        LoadData {
+            resolution,
+            defects,
+            lifted,
+        }
+    }
+}
+
+/// The terms of every triangle: the fluxes equilibrated on the patches for the local problems of
+/// u_ih + z_i/μ_i with the loads f_i + c_i (§4(c')), and the terms (7) and (§8) of their cells.
+fn local_terms(
+    (problem, dual, patches): (&DiscreteProblem, &DualMesh, &Patches),
+    solution: &Solution,
+    action: &Action,
+    membranes: &[Membrane],
+    f: [&Pieces; 2],
+    loads: &LoadData,
+) -> Vec<TriangleTerms> {
+    let mesh = &problem.mesh;
+    let (alpha, _) = weights(membranes);
+    let (defects, lifted) = (&loads.defects, &loads.lifted);
+    let on_dual_cell: Vec<Vec<f64>> = (membranes.iter().zip(defects).zip(&lifted.rest))
+        .map(|((m, c), rho)| {
+            (0..mesh.n_vertices())
+                .map(|a| m.sign * action.lambda[a] - c[a] - rho[a])
+                .collect()
+        })
+        .collect();
+    let u: Vec<Vec<f64>> = (membranes.iter().zip(&lifted.z))
+        .map(|(m, z)| m.u.iter().zip(z).map(|(u, z)| u + z / m.mu).collect())
+        .collect();
+    let local: Vec<equilibration::Membrane> = (membranes.iter().enumerate())
+        .map(|(i, m)| equilibration::Membrane {
+            mu: m.mu,
+            u: &u[i],
+            on_dual_cell: &on_dual_cell[i],
+        })
+        .collect();
+    let cells = |triangles: Range<usize>, out: &mut Vec<[CellLoads; 6]>| {
+        let mut cells = [CellLoads::default(); 6];
+        let range = 6 * triangles.start..6 * triangles.end;
+        visit_cell_loads((problem, dual), f, alpha, range, |s, mut l| {
+            for (f, c) in l.f_phi.iter_mut().zip(defects) {
+                let add = means::on_cell(mesh, dual, c, s);
+                *f = std::array::from_fn(|j| f[j] + add[j]);
+            }
+            cells[s % 6] = l;
+            if s % 6 == 5 {
+                out.push(cells);
+            }
+        });
+    };
+    let terms = Terms {
+        problem,
+        dual,
+        membranes,
+        action,
+        gap: &solution.obstacle.gap,
+    };
+    equilibrate((mesh, dual, patches), &local, cells, |t, loads, tau| {
+        terms.of(t, loads, tau)
+    })
+}
+
 impl Estimate {
-    /// The estimator of `solution` (λ_h = `action`, S_h = `dual`).
+    /// The estimator of `solution` (λ_h = `action`, S_h = `dual`): the loads' quadrature checked
+    /// and its defect lifted (§4(c'), §11), the fluxes equilibrated on the patches and the local
+    /// terms of every triangle (7), the lifting of the boundary data (and of the obstacle), then
+    /// the totals and the bound of the action (§8).
     pub fn compute(
         problem: &DiscreteProblem,
         dual: &DualMesh,
         solution: &Solution,
         action: &Action,
     ) -> Estimate {
-        let mesh = &problem.mesh;
         let membranes = problem.membranes([&solution.u1, &solution.u2]);
-        let (alpha, mu_bar) = weights(&membranes);
-        let patches = Patches::new(mesh);
         let pieces = load_pieces(problem, &membranes);
         // Above an obstacle the one load twice, the second unused (α = 1).
         let f = [&pieces[0], pieces.last().expect("one membrane at least")];
-        let sums = triangle_loads(problem, dual, f, alpha);
-        let friedrichs = friedrichs_constant(mesh);
-        let mu: Vec<f64> = membranes.iter().map(|m| m.mu).collect();
-        let resolution = Resolution::check((problem, dual, &solution.transfers), f, &mu, &sums);
-        let defects = quadrature_defects(problem, &membranes, &sums);
-        drop(sums);
-        let lifted = means::lift(problem, dual, &solution.transfers, &defects);
-        let means = &lifted.rest;
-        // The local problems of u_ih + z_i/μ_i with f_i + c_i (§4(c')).
-        let on_dual_cell: Vec<Vec<f64>> = (membranes.iter().zip(&defects).zip(means))
-            .map(|((m, c), rho)| {
-                (0..mesh.n_vertices())
-                    .map(|a| m.sign * action.lambda[a] - c[a] - rho[a])
-                    .collect()
-            })
-            .collect();
-        let u: Vec<Vec<f64>> = (membranes.iter().zip(&lifted.z))
-            .map(|(m, z)| m.u.iter().zip(z).map(|(u, z)| u + z / m.mu).collect())
-            .collect();
-        let local: Vec<equilibration::Membrane> = (membranes.iter().enumerate())
-            .map(|(i, m)| equilibration::Membrane {
-                mu: m.mu,
-                u: &u[i],
-                on_dual_cell: &on_dual_cell[i],
-            })
-            .collect();
-        let cells = |triangles: Range<usize>, out: &mut Vec<[CellLoads; 6]>| {
-            let mut cells = [CellLoads::default(); 6];
-            let range = 6 * triangles.start..6 * triangles.end;
-            visit_cell_loads((problem, dual), f, alpha, range, |s, mut l| {
-                for (f, c) in l.f_phi.iter_mut().zip(&defects) {
-                    let add = means::on_cell(mesh, dual, c, s);
-                    *f = std::array::from_fn(|j| f[j] + add[j]);
-                }
-                cells[s % 6] = l;
-                if s % 6 == 5 {
-                    out.push(cells);
-                }
-            });
-        };
-        let terms = Terms {
-            problem,
-            dual,
-            membranes: &membranes,
-            action,
-            gap: &solution.obstacle.gap,
-        };
-        let terms = equilibrate((mesh, dual, &patches), &local, cells, |t, loads, tau| {
-            terms.of(t, loads, tau)
-        });
+        let loads = LoadData::of(problem, dual, solution, &membranes, f);
+        let patches = Patches::new(&problem.mesh);
+        let setting = (problem, dual, &patches);
+        let terms = local_terms(setting, solution, action, &membranes, f, &loads);
         let lifting = Lifting::compute(problem, dual, solution, action, &patches);
-        let m = membranes.len();
-        let mu1 = membranes[0].mu;
+        Estimate::of_terms(problem, &membranes, &terms, &lifting, loads)
+    }
+
+    /// The indicators and totals from the terms of each triangle and the lifting.
+    fn of_terms(
+        problem: &DiscreteProblem,
+        membranes: &[Membrane],
+        terms: &[TriangleTerms],
+        lifting: &Lifting,
+        loads: LoadData,
+    ) -> Estimate {
+        let (m, mu1) = (membranes.len(), membranes[0].mu);
+        let friedrichs = friedrichs_constant(&problem.mesh);
         let per = |f: &dyn Fn(&TriangleTerms, usize) -> f64| -> Vec<Vec<f64>> {
             (0..m)
                 .map(|i| terms.iter().map(|t| f(t, i).sqrt()).collect())
@@ -191,7 +250,7 @@ impl Estimate {
             boundary: lifting.grad2.iter().map(|g| (mu1 * g).sqrt()).collect(),
             contact: match &lifting.contact {
                 Some(c) => c.clone(),
-                None => (lifting.with_lambda.iter().zip(&terms))
+                None => (lifting.with_lambda.iter().zip(terms))
                     .map(|(l, t)| l + t.contact)
                     .collect(),
             },
@@ -202,13 +261,13 @@ impl Estimate {
             obstacle_total: lifting.obstacle.map(|o| (mu1 * o).sqrt()),
             contact_total: 0.0,
             lambda: 0.0,
-            resolution,
+            resolution: loads.resolution,
             which: membranes.iter().map(|m| m.which).collect(),
         };
-        e.indicator = indicators(&terms, &e.boundary, &e.contact, m);
-        let norm = |c: &[f64]| (c.iter().zip(&problem.mass).map(|(c, m)| c * c * m).sum::<f64>()).sqrt();
-        e.means = (membranes.iter().zip(means))
-            .map(|(mb, c)| friedrichs * norm(c) / mb.mu.sqrt())
+        e.indicator = indicators(terms, &e.boundary, &e.contact, m);
+        let rest = &loads.lifted.rest;
+        e.means = (membranes.iter().zip(rest))
+            .map(|(mb, c)| friedrichs * mass_norm(problem, c) / mb.mu.sqrt())
             .collect();
         e.membranes = (0..m)
             .map(|i| terms.iter().map(|t| t.local2[i]).sum::<f64>().sqrt() + e.means[i])
@@ -219,18 +278,31 @@ impl Estimate {
         e.total = (eta_fr2 + e.boundary_total.powi(2) + 2.0 * e.contact_total)
             .max(0.0)
             .sqrt();
-        // §8: ‖λ − λ_h‖ ≤ μ̄^½ E_w + η_λ, E_w ≤ (η_λ²/μ̄ + μ̄‖∇z‖² + 2η_C)^½.
-        let combined: Vec<f64> = (0..mesh.n_vertices())
-            .map(|a| alpha * means[0][a] - means.get(1).map_or(0.0, |c| (1.0 - alpha) * c[a]))
+        e.lambda = e.lambda_bound(problem, membranes, terms, rest);
+        e
+    }
+
+    /// §8: ‖λ − λ_h‖ ≤ μ̄^½ E_w + η_λ, E_w ≤ (η_λ²/μ̄ + μ̄‖∇z‖² + 2η_C)^½, from the totals of
+    /// the energy bound, the triangles' terms and what the lift leaves (`rest`).
+    fn lambda_bound(
+        &self,
+        problem: &DiscreteProblem,
+        membranes: &[Membrane],
+        terms: &[TriangleTerms],
+        rest: &[Vec<f64>],
+    ) -> f64 {
+        let (alpha, mu_bar) = weights(membranes);
+        let combined: Vec<f64> = (0..problem.mesh.n_vertices())
+            .map(|a| alpha * rest[0][a] - rest.get(1).map_or(0.0, |c| (1.0 - alpha) * c[a]))
             .collect();
         let lambda_sum: f64 = terms.iter().map(|t| t.lambda2).sum();
-        let eta_lambda = lambda_sum.sqrt() + friedrichs * norm(&combined);
-        let grad_z2 = e.boundary_total.powi(2) / mu1;
-        let e_w = (eta_lambda.powi(2) / mu_bar + mu_bar * grad_z2 + 2.0 * e.contact_total)
+        let friedrichs = friedrichs_constant(&problem.mesh);
+        let eta_lambda = lambda_sum.sqrt() + friedrichs * mass_norm(problem, &combined);
+        let grad_z2 = self.boundary_total.powi(2) / membranes[0].mu;
+        let e_w = (eta_lambda.powi(2) / mu_bar + mu_bar * grad_z2 + 2.0 * self.contact_total)
             .max(0.0)
             .sqrt();
-        e.lambda = mu_bar.sqrt() * e_w + eta_lambda;
-        e
+        mu_bar.sqrt() * e_w + eta_lambda
     }
 
     /// The summary's line.
