@@ -11,7 +11,7 @@
 
 use crate::assembly::{Quadrature, QuadraturePoint};
 use crate::expr::Expr;
-use crate::mesh::groups::NONE;
+use crate::mesh::groups::{Groups, NONE};
 use crate::mesh::{Mesh, Point};
 use crate::problem::DataError;
 
@@ -86,87 +86,94 @@ impl Datum {
             Datum::Table(table) => table,
         };
         let group_error = |why: String| DataError::Group { name, why };
-        let Some(groups) = mesh.groups() else {
-            return Err(group_error(
+        let groups = mesh.groups().ok_or_else(|| {
+            group_error(
                 "a table per physical group needs a mesh with physical groups (a Gmsh .msh file, or a result of this program read back); this mesh has none"
                     .into(),
-            ));
-        };
-        let (names, ambiguous) = match on {
-            On::Surfaces => (&groups.surfaces, &groups.ambiguous[0]),
-            On::Curves => (&groups.curves, &groups.ambiguous[1]),
-        };
-        if let Some(why) = ambiguous {
-            return Err(group_error(format!("{}: {why}", groups.source)));
-        }
-        let listed = || {
-            names
-                .iter()
-                .map(|n| format!("'{n}'"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
-        for (key, _) in table {
-            if !names.contains(key) {
-                return Err(group_error(format!(
-                    "'{key}' is not a {} of {} (its {}s: {})",
-                    on.noun(),
-                    groups.source,
-                    on.noun(),
-                    listed()
-                )));
-            }
-        }
-        let exprs: Vec<&Expr> = table.iter().map(|(_, e)| e).collect();
-        // Group index → entry of the table.
-        let entry: Vec<u32> = (names.iter())
-            .map(|n| table.iter().position(|(k, _)| k == n).map_or(NONE, |i| i as u32))
-            .collect();
-        let missing = |g: u32, what: String| {
-            let why = match g {
-                NONE => format!(
-                    "{what} belongs to no {} of {}: with a table, every one must",
-                    on.noun(),
-                    groups.source
-                ),
-                g => format!(
-                    "the table has no entry for the {} '{}' of {} ({what} belongs to it)",
-                    on.noun(),
-                    names[g as usize],
-                    groups.source
-                ),
-            };
-            group_error(why)
-        };
-        let of_group = match on {
-            On::Surfaces => (groups.triangle_groups().iter().enumerate())
-                .map(|(t, &g)| match entry.get(g as usize) {
-                    Some(&e) if e != NONE => Ok(e),
-                    _ => {
-                        let c = centroid(mesh.corners(t));
-                        Err(missing(g, format!("the triangle at {}", Point(c))))
-                    }
-                })
-                .collect::<Result<Vec<u32>, _>>()?,
-            On::Curves => (groups.boundary_edges())
-                .map(|((a, b), g)| match entry.get(g as usize) {
-                    Some(&e) if e != NONE => Ok(e),
-                    _ => {
-                        let (p, q) = (mesh.points[a], mesh.points[b]);
-                        Err(missing(g, format!("the boundary edge {}–{}", Point(p), Point(q))))
-                    }
-                })
-                .collect::<Result<Vec<u32>, _>>()?,
-        };
+            )
+        })?;
+        let names = group_names(groups, table, on).map_err(group_error)?;
+        let of_group = entries(mesh, groups, names, table, on).map_err(group_error)?;
         if let Some(why) = unused_entry(table, &of_group, on, &groups.source) {
             return Err(group_error(why));
         }
         Ok(Pieces {
-            exprs,
+            exprs: table.iter().map(|(_, e)| e).collect(),
             of_group,
             mesh,
             on,
         })
+    }
+}
+
+/// The names of the mesh's groups `on` which the datum is given, once every key of `table` is
+/// found among them (and they name their elements unambiguously).
+fn group_names<'g>(groups: &'g Groups, table: &[(String, Expr)], on: On) -> Result<&'g [String], String> {
+    let (names, ambiguous) = match on {
+        On::Surfaces => (&groups.surfaces, &groups.ambiguous[0]),
+        On::Curves => (&groups.curves, &groups.ambiguous[1]),
+    };
+    if let Some(why) = ambiguous {
+        return Err(format!("{}: {why}", groups.source));
+    }
+    match table.iter().find(|(key, _)| !names.contains(key)) {
+        Some((key, _)) => {
+            let listed: Vec<String> = names.iter().map(|n| format!("'{n}'")).collect();
+            let noun = on.noun();
+            Err(format!(
+                "'{key}' is not a {noun} of {} (its {noun}s: {})",
+                groups.source,
+                listed.join(", ")
+            ))
+        }
+        None => Ok(names),
+    }
+}
+
+/// The entry of `table` of every triangle (`On::Surfaces`) or boundary edge (`On::Curves`), by
+/// its group among `names`; the first element whose group has none is named in the error.
+fn entries(
+    mesh: &Mesh,
+    groups: &Groups,
+    names: &[String],
+    table: &[(String, Expr)],
+    on: On,
+) -> Result<Vec<u32>, String> {
+    // Group index → entry of the table.
+    let entry: Vec<u32> = (names.iter())
+        .map(|n| table.iter().position(|(k, _)| k == n).map_or(NONE, |i| i as u32))
+        .collect();
+    let missing = |g: u32, what: String| match g {
+        NONE => format!(
+            "{what} belongs to no {} of {}: with a table, every one must",
+            on.noun(),
+            groups.source
+        ),
+        g => format!(
+            "the table has no entry for the {} '{}' of {} ({what} belongs to it)",
+            on.noun(),
+            names[g as usize],
+            groups.source
+        ),
+    };
+    let of = |g: u32, what: &dyn Fn() -> String| match entry.get(g as usize) {
+        Some(&e) if e != NONE => Ok(e),
+        _ => Err(missing(g, what())),
+    };
+    match on {
+        On::Surfaces => (groups.triangle_groups().iter().enumerate())
+            .map(|(t, &g)| {
+                of(g, &|| {
+                    format!("the triangle at {}", Point(centroid(mesh.corners(t))))
+                })
+            })
+            .collect(),
+        On::Curves => (groups.boundary_edges())
+            .map(|((a, b), g)| {
+                let (p, q) = (mesh.points[a], mesh.points[b]);
+                of(g, &|| format!("the boundary edge {}–{}", Point(p), Point(q)))
+            })
+            .collect(),
     }
 }
 
