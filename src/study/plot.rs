@@ -327,19 +327,7 @@ pub(crate) fn loglog(
         .iter()
         .map(|s| s.1.iter().map(|p| (p.0.log10(), p.1.log10())).collect())
         .collect();
-    // Each guide runs over its series' x range from twice the series' value at its coarsest mesh.
-    let anchors: Vec<((f64, f64), f64)> = guides
-        .iter()
-        .map(|g| {
-            let points = &decades[g.beside];
-            let coarsest = points
-                .iter()
-                .copied()
-                .fold((f64::MIN, 0.0), |a, p| if p.0 > a.0 { p } else { a });
-            let finest = points.iter().map(|p| p.0).fold(f64::MAX, f64::min);
-            ((coarsest.0, coarsest.1 + 2f64.log10()), finest)
-        })
-        .collect();
+    let anchors = guide_anchors(&decades, guides);
     let frame = Frame::around(
         decades
             .iter()
@@ -398,6 +386,20 @@ pub(crate) fn loglog(
         entries.push((g.label.clone(), color, true));
     }
     legend(&side, &entries).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// Where each guide starts, and the x at which it ends (in decades): over its series' x range,
+/// from twice the series' value at its coarsest mesh.
+fn guide_anchors(decades: &[Vec<(f64, f64)>], guides: &[Guide]) -> Vec<((f64, f64), f64)> {
+    (guides.iter())
+        .map(|g| {
+            let points = &decades[g.beside];
+            let coarsest =
+                (points.iter().copied()).fold((f64::MIN, 0.0), |a, p| if p.0 > a.0 { p } else { a });
+            let finest = points.iter().map(|p| p.0).fold(f64::MAX, f64::min);
+            ((coarsest.0, coarsest.1 + 2f64.log10()), finest)
+        })
+        .collect()
 }
 
 /// Iterations per level, nested and (when computed) cold, against √N.
