@@ -380,6 +380,18 @@ impl Patch {
         others.extend((star.iter()).flat_map(|&(t, k)| [1, 2].map(|d| mesh.triangle(t)[(k + d) % 3])));
         others.sort_unstable();
         others.dedup();
+        self.cells(mesh, dual, a, &star, &others);
+        self.links(patches, &star);
+        self.spanning_tree();
+        self.unknowns = 1 + others.len() + star.len();
+        self.factorize();
+        (self.star, self.others) = (star, others);
+    }
+
+    /// The six cells of S_h in each triangle of the `star` of `a` (`others` a's neighbours, in
+    /// order): their geometry, φ_a on them and their stream unknowns (a, the edge midpoints at a,
+    /// the centroids).
+    fn cells(&mut self, mesh: &Mesh, dual: &DualMesh, a: usize, star: &[(usize, usize)], others: &[usize]) {
         let midpoint_unknown = |v: usize| 1 + others.binary_search(&v).expect("a neighbour of a");
         self.cells.clear();
         self.hats.clear();
@@ -430,6 +442,11 @@ impl Patch {
                 });
             }
         }
+    }
+
+    /// The links of the cells across their edges, between the triangles of the `star` and to the
+    /// ground (∂ω) where the patch touches the boundary.
+    fn links(&mut self, patches: &Patches, star: &[(usize, usize)]) {
         self.links.clear();
         self.ground = false;
         let ground = self.cells.len();
@@ -463,10 +480,6 @@ impl Patch {
                 self.ground = true;
             }
         }
-        self.spanning_tree();
-        self.unknowns = 1 + others.len() + star.len();
-        self.factorize();
-        (self.star, self.others) = (star, others);
     }
 
     /// A breadth-first spanning tree of the cell graph, rooted at the ground when there is one.
