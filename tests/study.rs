@@ -101,6 +101,9 @@ fn the_ball_obstacle_converges_at_the_rates_of_p1_in_few_iterations() {
         let errors = l.errors.as_ref().unwrap();
         assert!(errors.rigid && l.estimator.unwrap() >= errors.energy.unwrap());
     }
+    // … and its table shows η beside the error, as between two membranes.
+    let table = study::markdown_table("ball", &l);
+    assert!(table.contains("η (bound of energy)"), "{table}");
 }
 
 #[test]

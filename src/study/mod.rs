@@ -300,6 +300,7 @@ pub(crate) fn quantities(level: &Level) -> Vec<(&'static str, &'static str, Opti
         return vec![
             ("|u−uh|_H1", "h1_u", e.and_then(|e| e.h1_u1)),
             ("energy", "energy", e.and_then(|e| e.energy)),
+            ("η (bound of energy)", "estimator", level.estimator),
             ("‖u−uh‖_L2", "l2_u", e.map(|e| e.l2_u1)),
             ("‖λ−λh‖_L2", "l2_lambda", e.map(|e| e.l2_lambda)),
             ("‖λ−λh‖_H⁻¹", "hminus1_lambda", e.and_then(|e| e.hminus1_lambda)),
