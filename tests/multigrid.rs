@@ -151,6 +151,18 @@ fn cg_iterations_stay_bounded_under_refinement() {
 }
 
 #[test]
+fn the_step_after_a_local_correction_starts_from_its_band_solve() {
+    // At 384² the first step from the nested guess changes the set, a local correction settles it
+    // on a band, and the next global step starts from that band's solve: the steps take
+    // [5, 6, 3, 0] CG iterations, against [5, 7, 5, 1] from the previous step's w alone.
+    let mut case = with(&Case::default_case(), LinearSolver::Multigrid);
+    case.set_cells(384).unwrap();
+    let stats = &solve(&case).solution.obstacle.stats;
+    let w: usize = stats.cg_iterations.iter().sum();
+    assert!(stats.local_iterations > 0 && w <= 15, "{:?}", stats.cg_iterations);
+}
+
+#[test]
 fn a_mesh_without_coarser_levels_is_solved_directly() {
     // A mesh without coarser levels (an adapted one; here a file mesh given none): a one-level
     // "multigrid" would factorize K_FF afresh every step, so the direct path (which reuses its

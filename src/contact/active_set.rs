@@ -78,7 +78,8 @@ pub(super) fn obstacle(
         Some(guess) => first_set(&mut w_problem, system, guess, &mut stats),
         None => vec![false; system.n()],
     };
-    // CG starts from the guess's gap, then from the previous step's w.
+    // CG starts from the guess's gap, then from the previous step's w with the last local
+    // correction's solve on its band.
     let start = (warm.as_ref()).map(|g| system.vertices.iter().map(|&a| g.gap[a]).collect());
     let warm = warm.is_some();
     let loads = Loads {
@@ -129,7 +130,11 @@ pub(super) fn obstacle(
         let k = stats.changes.len();
         correcting &= k < 2 || stats.changes[k - 1] < stats.changes[k - 2];
         active = match correcting {
-            true => w_problem.local_correction(system, &next.w, &changed, next.next, &mut stats),
+            true => {
+                let corrected = w_problem.local_correction(system, &next.w, &changed, next.next, &mut stats);
+                solver.start_at(&corrected.band);
+                corrected.active
+            }
             false => next.next,
         };
     }
@@ -150,8 +155,8 @@ fn may_step(options: &SolverOptions, stats: &SolverStats) -> Result<(), SolveErr
     Ok(())
 }
 
-/// The active set the guess predicts, settled locally with the guess (and the
-/// gap's boundary values on ∂ω) as Dirichlet data, as the guess's free boundary is off by a few mesh sizes.
+/// The active set the guess predicts, settled locally with the guess (and the gap's boundary
+/// values on ∂ω) as Dirichlet data, as the guess's free boundary is off by a few mesh sizes.
 fn first_set(
     w_problem: &mut WProblem,
     system: &InteriorSystem,
@@ -166,7 +171,9 @@ fn first_set(
         .map(|(a, (&w, &g))| if problem.mesh.on_boundary[a] { g } else { w })
         .collect();
     let seeds = interface(problem, system, &active);
-    w_problem.local_correction(system, &data, &seeds, active, stats)
+    w_problem
+        .local_correction(system, &data, &seeds, active, stats)
+        .active
 }
 
 /// The obstacle solution of the last `step` on the `active` set: w, λ_a = r_a/m_a, the contact set.

@@ -35,6 +35,10 @@ pub(super) trait LinearSolve {
         false
     }
 
+    /// Starts the next solve from `values` at these unknowns (and the last solution elsewhere),
+    /// where the solver iterates from a start.
+    fn start_at(&mut self, _values: &[(usize, f64)]) {}
+
     /// What it did so far.
     fn work(&self) -> Work;
 }
@@ -156,6 +160,12 @@ impl LinearSolve for MultigridCg<'_> {
 
     fn loosen(&mut self, stop: Stop) {
         self.loose = (stop != self.stop).then_some(stop);
+    }
+
+    fn start_at(&mut self, values: &[(usize, f64)]) {
+        for &(i, v) in values {
+            self.x[self.system.vertices[i]] = v;
+        }
     }
 
     fn tighten(&mut self) -> bool {

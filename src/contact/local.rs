@@ -9,6 +9,13 @@ use crate::linear::{InteriorSystem, Unknown};
 use crate::problem::DiscreteProblem;
 use std::borrow::Cow;
 
+/// A local correction's active set of all unknowns, and w on its band as (unknown, value): the
+/// band's last local solve, from which the next global solve starts.
+pub(super) struct Corrected {
+    pub(super) active: Vec<bool>,
+    pub(super) band: Vec<(usize, f64)>,
+}
+
 /// Rings of vertices around the changed ones on which a local correction solves: steps along
 /// K's couplings (on right-angled meshes not across the diagonals, so that 24 of them reach about
 /// as far as 16 mesh edges; with 16, one more global step at 1024² cells).
@@ -36,11 +43,14 @@ impl WProblem<'_> {
         seeds: &[usize],
         mut next: Vec<bool>,
         stats: &mut SolverStats,
-    ) -> Vec<bool> {
+    ) -> Corrected {
         let p = self.problem;
         let band = band(p, system, seeds, &next, [BAND_RINGS, HELD_RINGS]);
         if band.is_empty() || band.len() as f64 > BAND_SHARE * system.n() as f64 {
-            return next;
+            return Corrected {
+                active: next,
+                band: Vec::new(),
+            };
         }
         // The band's numbering in the scratch room of one entry per vertex: O(band) work.
         let mut scratch = std::mem::take(&mut self.scratch);
@@ -50,19 +60,25 @@ impl WProblem<'_> {
         // Both vertex lists are increasing, so the local unknown j is the unknown band[j].
         let active: Vec<bool> = band.iter().map(|&i| next[i]).collect();
         let mut solver = Timed::new(Box::new(Cholesky::new(&local)));
-        if let Some(active) = self.settle(&local, w, active, &mut solver, stats) {
+        let mut values = Vec::new();
+        if let Some((active, w_band)) = self.settle(&local, w, active, &mut solver, stats) {
             for (j, a) in active.into_iter().enumerate() {
                 next[band[j]] = a;
             }
+            values = band.iter().copied().zip(w_band).collect();
         }
         stats.local_seconds += solver.seconds[1] + solver.seconds[2];
         drop(solver);
         self.scratch = local.into_scratch();
-        next
+        Corrected {
+            active: next,
+            band: values,
+        }
     }
 
     /// The active set on the band `local` by at most [`LOCAL_ITERATIONS`] active-set steps from
-    /// `active`, w outside the band; `None` when a factorization fails.
+    /// `active`, w outside the band, with the last step's w on the band; `None` when a
+    /// factorization fails.
     fn settle(
         &self,
         local: &InteriorSystem,
@@ -70,8 +86,9 @@ impl WProblem<'_> {
         mut active: Vec<bool>,
         solver: &mut dyn LinearSolve,
         stats: &mut SolverStats,
-    ) -> Option<Vec<bool>> {
+    ) -> Option<(Vec<bool>, Vec<f64>)> {
         let rhs = self.rhs(local, w);
+        let mut w_band = Vec::new();
         for _ in 0..LOCAL_ITERATIONS {
             stats.local_iterations += 1;
             solver.prepare(&active).ok()?;
@@ -79,12 +96,13 @@ impl WProblem<'_> {
             // w is w_int on the band and the current iterate elsewhere.
             let value = |b: usize| local.unknown[b].index().map_or(w[b], |j| w_int[j]);
             let (_, step) = self.residual_and_next(local, &w_int, value);
+            w_band = w_int;
             if step == active {
                 break;
             }
             active = step;
         }
-        Some(active)
+        Some((active, w_band))
     }
 }
 

@@ -148,6 +148,10 @@ impl LinearSolve for Timed<'_> {
         self.solver.refines()
     }
 
+    fn start_at(&mut self, values: &[(usize, f64)]) {
+        self.solver.start_at(values);
+    }
+
     fn work(&self) -> Work {
         self.solver.work()
     }
