@@ -238,8 +238,12 @@ impl fmt::Display for DataError {
                 f,
                 "g = {g} < {lower} = {value} at the boundary vertex {}: (3.4) takes g_h, the \
                  interpolant of g, which must be ≥ {lower} at every boundary vertex of the mesh \
-                 (membrane 1 may not lie below what it rests on)",
-                Point(*point)
+                 ({})",
+                Point(*point),
+                match *lower {
+                    "psi" => "the membrane may not lie below the obstacle",
+                    _ => "membrane 1 may not lie below membrane 2",
+                }
             ),
             DataError::Group { name, why } => write!(f, "key '{name}': {why}"),
             DataError::Jump {

@@ -307,8 +307,16 @@ fn the_obstacle_problem_and_g2_run_and_their_keys_are_checked() {
         "g = 0.2 < psi = 1.1 at the boundary vertex (0, 0)",
     );
     key(
+        &OBSTACLE.replace("0.1 - x*x", "1.1 - x*x"),
+        "(the membrane may not lie below the obstacle)",
+    );
+    key(
         &format!("{GOOD}g2 = 0.05\n"),
         "g = 0 < g2 = 0.05 at the boundary vertex (0, 0)",
+    );
+    key(
+        &format!("{GOOD}g2 = 0.05\n"),
+        "(membrane 1 may not lie below membrane 2)",
     );
     key(
         &format!("{OBSTACLE}[exact]\nu1 = 0\nu2 = 0\nlambda = 0\n"),
