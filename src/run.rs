@@ -97,13 +97,13 @@ pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
         ))
         .into());
     }
+    // Before the mesh is built: what this problem cannot compute fails at once.
+    case.check_options(options.estimate)?;
     let clock = Instant::now();
     progress::phase(|| "meshing".into());
     // The coarser meshes serve nested iteration and multigrid.
     let multigrid = case.solver.linear == LinearSolver::Multigrid;
     let after = options.postprocess();
-    // Before the mesh is built: what this problem cannot compute fails at once.
-    case.check_options(options.estimate)?;
     let (mesh, coarser) = case.hierarchy(multigrid || matches!(options.start, Start::Nested), after)?;
     case.check_on(&mesh)?;
     on_mesh(case, mesh, coarser, options, clock.elapsed().as_secs_f64())

@@ -101,3 +101,27 @@ fn a_closed_pipe_or_a_full_stdout_does_not_cost_the_result() {
     );
     assert!(dir.path().join("full/solution.h5").exists());
 }
+
+#[test]
+fn what_the_problem_cannot_compute_is_refused_before_meshing() {
+    // The estimator with g2 ≠ 0 is not available: refused at once, before the mesh is made, so
+    // that no phase is shown.
+    let dir = tempfile::tempdir().unwrap();
+    let case = dir.path().join("g2.toml");
+    let text = "mu1 = 1.0\nmu2 = 2.0\nf1 = -5\nf2 = 5\ng = \"0.1*x\"\ng2 = -0.1\n[mesh]\nkind = \"rectangle\"\nn = [6, 6]\n";
+    std::fs::write(&case, text).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .arg("solve")
+        .arg(&case)
+        .arg("--estimate")
+        .arg("-o")
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("not available yet"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("meshing"), "{stderr}");
+}
