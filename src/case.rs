@@ -529,6 +529,18 @@ impl Case {
         }
     }
 
+    /// The cells along the shorter side of a built-in rectangle whose sides have different
+    /// numbers of cells (after refinement); none otherwise.
+    pub fn cells_across(&self) -> Option<usize> {
+        match &self.mesh {
+            MeshSpec::Rectangle { n, .. } if n[0] != n[1] => {
+                let factor = 2usize.saturating_pow(u32::try_from(self.refine).unwrap_or(u32::MAX));
+                Some(n[0].min(n[1]).saturating_mul(factor))
+            }
+            _ => None,
+        }
+    }
+
     /// The files the case reads: the case file, a mesh file and its heavy data.
     pub fn inputs(&self) -> Vec<PathBuf> {
         let mut files: Vec<PathBuf> = self.path.iter().cloned().collect();

@@ -242,3 +242,21 @@ fn disk_study_by_refinement_converges_at_rate_one() {
     assert!(String::from_utf8_lossy(&bad.stderr)
         .contains("not to kind = \"disk\": give refinements instead (--refine"));
 }
+
+#[test]
+fn a_rectangle_with_unequal_sides_is_labelled_by_both() {
+    // 2.5 × 2 with 40 × 32 cells: at 10 cells along the longer side, 8 along the shorter.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("rect.toml");
+    let text = "mu1 = 1.0\nmu2 = 2.0\nf1 = -5\nf2 = 5\ng = 0\n[mesh]\nkind = \"rectangle\"\n\
+                corners = [[-1.0, -1.0], [1.5, 1.0]]\nn = [40, 32]\n";
+    std::fs::write(&path, text).unwrap();
+    let case = Case::read(&path).unwrap();
+    let l = levels(&case, &[10, 20], false);
+    assert_eq!(l[0].vertices, 11 * 9);
+    let table = study::markdown_table("rect", &l);
+    assert!(
+        table.contains("| 10 × 8 |") && table.contains("| 20 × 16 |"),
+        "{table}"
+    );
+}

@@ -21,8 +21,10 @@ use std::path::Path;
 /// One level of a study.
 #[derive(Debug, Clone, Serialize)]
 pub struct Level {
-    /// Cells per side of a built-in mesh.
+    /// Cells per side of a built-in mesh (along the longer side of a rectangle).
     pub cells: Option<usize>,
+    /// Cells along the shorter side of a rectangle whose sides differ.
+    pub cells_across: Option<usize>,
     /// Uniform refinements of the case's mesh, in a study by refinement.
     pub refine: Option<usize>,
     /// The mesh size.
@@ -56,12 +58,13 @@ impl Level {
         }
     }
 
-    /// The level in tables: `n²` cells, or its refinements.
+    /// The level in tables: `n²` or `n × m` cells, or its refinements.
     fn label(&self) -> String {
-        match (self.refine, self.cells) {
-            (Some(k), _) => k.to_string(),
-            (None, Some(n)) => format!("{n}²"),
-            (None, None) => "—".into(),
+        match (self.refine, self.cells, self.cells_across) {
+            (Some(k), _, _) => k.to_string(),
+            (None, Some(n), Some(m)) => format!("{n} × {m}"),
+            (None, Some(n), None) => format!("{n}²"),
+            (None, None, _) => "—".into(),
         }
     }
 }
@@ -273,6 +276,7 @@ pub fn run_levels(
         let stats = &r.solution.obstacle.stats;
         let level = Level {
             cells: c.cells(),
+            cells_across: c.cells_across(),
             refine: by_refinement.then_some(c.refine),
             h: r.problem.mesh.h(),
             vertices: r.problem.mesh.n_vertices(),
