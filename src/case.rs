@@ -519,12 +519,9 @@ impl Case {
 
     /// Cells per side of a built-in mesh, after refinement.
     pub fn cells(&self) -> Option<usize> {
-        let refined = |n: usize| {
-            n.saturating_mul(2usize.saturating_pow(u32::try_from(self.refine).unwrap_or(u32::MAX)))
-        };
         match &self.mesh {
-            MeshSpec::Rectangle { n, .. } => Some(refined(n[0].max(n[1]))),
-            MeshSpec::Lshape { n, .. } => Some(refined(*n)),
+            MeshSpec::Rectangle { n, .. } => Some(self.refined_cells(n[0].max(n[1]))),
+            MeshSpec::Lshape { n, .. } => Some(self.refined_cells(*n)),
             MeshSpec::Domain { .. } | MeshSpec::File { .. } | MeshSpec::Given { .. } => None,
         }
     }
@@ -533,12 +530,14 @@ impl Case {
     /// numbers of cells (after refinement); none otherwise.
     pub fn cells_across(&self) -> Option<usize> {
         match &self.mesh {
-            MeshSpec::Rectangle { n, .. } if n[0] != n[1] => {
-                let factor = 2usize.saturating_pow(u32::try_from(self.refine).unwrap_or(u32::MAX));
-                Some(n[0].min(n[1]).saturating_mul(factor))
-            }
+            MeshSpec::Rectangle { n, .. } if n[0] != n[1] => Some(self.refined_cells(n[0].min(n[1]))),
             _ => None,
         }
+    }
+
+    /// n cells along a side after the case's refinements (saturating).
+    fn refined_cells(&self, n: usize) -> usize {
+        n.saturating_mul(2usize.saturating_pow(u32::try_from(self.refine).unwrap_or(u32::MAX)))
     }
 
     /// The files the case reads: the case file, a mesh file and its heavy data.

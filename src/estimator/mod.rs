@@ -278,25 +278,25 @@ impl Estimate {
         e.total = (eta_fr2 + e.boundary_total.powi(2) + 2.0 * e.contact_total)
             .max(0.0)
             .sqrt();
-        e.lambda = e.lambda_bound(problem, membranes, terms, rest);
+        e.lambda = e.lambda_bound(problem, membranes, terms, rest, friedrichs);
         e
     }
 
     /// §8: ‖λ − λ_h‖ ≤ μ̄^½ E_w + η_λ, E_w ≤ (η_λ²/μ̄ + μ̄‖∇z‖² + 2η_C)^½, from the totals of
-    /// the energy bound, the triangles' terms and what the lift leaves (`rest`).
+    /// the energy bound, the triangles' terms, what the lift leaves (`rest`) and C_F.
     fn lambda_bound(
         &self,
         problem: &DiscreteProblem,
         membranes: &[Membrane],
         terms: &[TriangleTerms],
         rest: &[Vec<f64>],
+        friedrichs: f64,
     ) -> f64 {
         let (alpha, mu_bar) = weights(membranes);
         let combined: Vec<f64> = (0..problem.mesh.n_vertices())
             .map(|a| alpha * rest[0][a] - rest.get(1).map_or(0.0, |c| (1.0 - alpha) * c[a]))
             .collect();
         let lambda_sum: f64 = terms.iter().map(|t| t.lambda2).sum();
-        let friedrichs = friedrichs_constant(&problem.mesh);
         let eta_lambda = lambda_sum.sqrt() + friedrichs * mass_norm(problem, &combined);
         let grad_z2 = self.boundary_total.powi(2) / membranes[0].mu;
         let e_w = (eta_lambda.powi(2) / mu_bar + mu_bar * grad_z2 + 2.0 * self.contact_total)
