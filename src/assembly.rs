@@ -213,6 +213,8 @@ const TRIANGLES_PER_BLOCK: usize = 16;
 pub struct NotFinite {
     /// Where.
     pub point: [f64; 2],
+    /// The triangle the point lies in.
+    pub triangle: usize,
     /// The value there.
     pub value: f64,
 }
@@ -225,6 +227,7 @@ pub fn load(mesh: &Mesh, f: &Expr, quad: Quadrature) -> Result<Vec<f64>, NotFini
         if !c.is_finite() {
             return Err(NotFinite {
                 point: mesh.points[0],
+                triangle: 0,
                 value: c,
             });
         }
@@ -256,6 +259,7 @@ pub fn loads<const E: usize>(
             e,
             NotFinite {
                 point: mesh.points[0],
+                triangle: 0,
                 value: c,
             },
         ));
@@ -296,7 +300,14 @@ fn load_by<const E: usize>(
             for (q, p) in points.iter().enumerate() {
                 for (e, v) in values.iter().map(|v| v[q]).enumerate() {
                     if !v.is_finite() && bad.is_none() {
-                        bad = Some((e, NotFinite { point: p.x, value: v }));
+                        bad = Some((
+                            e,
+                            NotFinite {
+                                point: p.x,
+                                triangle: t,
+                                value: v,
+                            },
+                        ));
                     }
                     for (k, b) in p.barycentric.iter().enumerate() {
                         local[(3 * (t - first) + k) * E + e] += p.weight * v * b;

@@ -1006,7 +1006,7 @@ fn exact_solution(
 /// An expression of the case language, using the named values `names`.
 fn parse_expression(key: &str, e: &Expression, names: &Names) -> Result<Expr, String> {
     let source = match e {
-        Expression::Number(v) => format!("{v:?}"),
+        Expression::Number(v) => number(key, *v)?,
         Expression::Text(s) => s.clone(),
         Expression::Table(_) => {
             return Err(format!(
@@ -1016,6 +1016,14 @@ fn parse_expression(key: &str, e: &Expression, names: &Names) -> Result<Expr, St
         }
     };
     Expr::parse_with(&source, names).map_err(|error| quote(key, &source, &error))
+}
+
+/// The source of a number given as a TOML float; TOML's nan and inf are refused by name.
+fn number(key: &str, v: f64) -> Result<String, String> {
+    match v.is_finite() {
+        true => Ok(format!("{v:?}")),
+        false => Err(format!("key '{key}' = {v}: need a finite number")),
+    }
 }
 
 /// A datum: an expression, or a table of expressions keyed by the names of physical groups
@@ -1059,7 +1067,7 @@ fn let_names(table: &toml::Table) -> Result<Names, String> {
         let key_path = format!("let.{key}");
         let source = match value {
             toml::Value::String(s) => s.clone(),
-            toml::Value::Float(v) => format!("{v:?}"),
+            toml::Value::Float(v) => number(&key_path, *v)?,
             toml::Value::Integer(v) => v.to_string(),
             other => {
                 return Err(format!(

@@ -65,6 +65,16 @@ impl Datum {
         }
     }
 
+    /// The group whose entry a table gives on triangle t of `mesh` (for messages); `None` for one
+    /// expression.
+    pub fn group_of_triangle(&self, mesh: &Mesh, t: usize) -> Option<String> {
+        let pieces = self.pieces("", mesh, On::Surfaces).ok()?;
+        pieces
+            .single()
+            .is_none()
+            .then(|| pieces.name_of(self, pieces.entry(t)))
+    }
+
     /// Whether the datum is a table per group.
     pub fn is_table(&self) -> bool {
         matches!(self, Datum::Table(_))
@@ -287,22 +297,23 @@ pub fn vertex_values(
     on: On,
 ) -> Result<Vec<Option<f64>>, DataError> {
     let pieces = datum.pieces(name, mesh, on)?;
-    let finite = |e: &Expr, p: [f64; 2]| {
-        let value = e.eval(p[0], p[1]);
+    let finite = |entry: usize, p: [f64; 2]| {
+        let value = pieces.exprs[entry].eval(p[0], p[1]);
         match value.is_finite() {
             true => Ok(value),
             false => Err(DataError::NotFinite {
                 name,
+                group: pieces.single().is_none().then(|| pieces.name_of(datum, entry)),
                 point: p,
                 value,
             }),
         }
     };
     let n = mesh.n_vertices();
-    if let Some(e) = pieces.single() {
+    if pieces.single().is_some() {
         return (0..n)
             .map(|a| match on == On::Surfaces || mesh.on_boundary[a] {
-                true => finite(e, mesh.points[a]).map(Some),
+                true => finite(0, mesh.points[a]).map(Some),
                 false => Ok(None),
             })
             .collect();
@@ -314,7 +325,7 @@ pub fn vertex_values(
         match first[a] {
             Some((e, _)) if e == entry => Ok(()),
             Some((e, v)) => {
-                let w = finite(pieces.exprs[entry], p)?;
+                let w = finite(entry, p)?;
                 match (w - v).abs() <= 1e-12 * v.abs().max(1.0) {
                     true => Ok(()),
                     false => Err(DataError::Jump {
@@ -326,7 +337,7 @@ pub fn vertex_values(
                 }
             }
             None => {
-                first[a] = Some((entry, finite(pieces.exprs[entry], p)?));
+                first[a] = Some((entry, finite(entry, p)?));
                 Ok(())
             }
         }

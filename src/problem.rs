@@ -173,6 +173,8 @@ pub enum DataError {
     NotFinite {
         /// The datum's key.
         name: &'static str,
+        /// The physical group whose entry it is, for a datum given per group.
+        group: Option<String>,
         /// Where.
         point: [f64; 2],
         /// The value there.
@@ -224,9 +226,15 @@ impl fmt::Display for DataError {
                     write!(f, "key '{name}' = {value}: the tension must be a positive number")
                 }
             }
-            DataError::NotFinite { name, point, value } => write!(
+            DataError::NotFinite {
+                name,
+                group,
+                point,
+                value,
+            } => write!(
                 f,
-                "{name} is {value} at {}: every datum must be finite in ω",
+                "{name}{} is {value} at {}: every datum must be finite in ω",
+                group.as_ref().map_or(String::new(), |g| format!(".{g}")),
                 Point(*point)
             ),
             DataError::BoundaryBelowLower {
@@ -306,11 +314,13 @@ impl DiscreteProblem {
     pub fn new(mesh: Mesh, data: &Data) -> Result<Self, DataError> {
         let heights = boundary_values(&mesh, data)?;
         let f1 = if data.is_obstacle() { "f" } else { "f1" };
-        let not_finite = |name, e: assembly::NotFinite| DataError::NotFinite {
-            name,
-            point: e.point,
-            value: e.value,
-        };
+        let not_finite =
+            |(name, datum): (&'static str, &Datum), e: assembly::NotFinite| DataError::NotFinite {
+                name,
+                group: datum.group_of_triangle(&mesh, e.triangle),
+                point: e.point,
+                value: e.value,
+            };
         let loads = match &data.lower {
             Lower::Membrane { f2, .. } => {
                 let both = [
@@ -318,12 +328,12 @@ impl DiscreteProblem {
                     &f2.pieces("f2", &mesh, On::Surfaces)?,
                 ];
                 assembly::loads(&mesh, both, data.quadrature)
-                    .map_err(|(e, bad)| not_finite([f1, "f2"][e], bad))?
+                    .map_err(|(e, bad)| not_finite([(f1, &data.f1), ("f2", f2)][e], bad))?
             }
             Lower::Rigid { .. } => {
                 let one = [&data.f1.pieces(f1, &mesh, On::Surfaces)?];
-                let [load] =
-                    assembly::loads(&mesh, one, data.quadrature).map_err(|(_, bad)| not_finite(f1, bad))?;
+                let [load] = assembly::loads(&mesh, one, data.quadrature)
+                    .map_err(|(_, bad)| not_finite((f1, &data.f1), bad))?;
                 [load, Vec::new()]
             }
         };

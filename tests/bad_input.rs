@@ -352,6 +352,17 @@ fn unknown_name_in_expression() {
 }
 
 #[test]
+fn toml_nan_and_inf_are_refused_as_numbers() {
+    for (value, shown) in [("nan", "NaN"), ("-inf", "-inf"), ("+inf", "inf")] {
+        let e = case_fails(&format!(
+            "{}{SQUARE}",
+            GOOD.replace("f1 = -5", &format!("f1 = {value}"))
+        ));
+        contains(&e, &format!("key 'f1' = {shown}: need a finite number"));
+    }
+}
+
+#[test]
 fn nan_in_the_domain() {
     let e = case_fails(&format!(
         "{}{SQUARE}",

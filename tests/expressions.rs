@@ -138,6 +138,7 @@ fn let_table_errors_name_the_key() {
         ("r = 1\nC = 2\nsin = 3", "key 'let.sin'", "shadow a function"),
         ("r = 1\nC = [2]", "key 'let.C'", "need an expression"),
         ("r = 1\nC = \"x < 1\"", "key 'let.C'", "condition"),
+        ("r = 1\nC = nan", "key 'let.C' = NaN", "need a finite number"),
     ];
     for (lets, key, message) in cases {
         let err = case_with_lets(lets).unwrap_err();

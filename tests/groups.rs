@@ -346,3 +346,27 @@ fn an_entry_for_a_curve_inside_the_domain_is_refused() {
     let g = table(&[("clamped", "0.05"), ("rim", "0.05")]);
     assert!(g.pieces("g", &mesh, membrane_contact::datum::On::Curves).is_ok());
 }
+
+/// A datum that is not finite in one group's entry is named with that group: the load of the
+/// group on the triangle where a quadrature point saw it, the boundary value of the group whose
+/// edge has the vertex.
+#[test]
+fn a_non_finite_entry_names_its_group() {
+    let mesh = two_regions();
+    let refused = |f1: Datum, g: Datum| {
+        let data = Data::new([1.0, 1.0], f1, e("0"), g, Quadrature { degree: 2 }).unwrap();
+        DiscreteProblem::new(mesh.clone(), &data).unwrap_err().to_string()
+    };
+    let zero = || table(&[("clamped", "0"), ("rim", "0")]);
+    for (group, other) in [("free", "loaded"), ("loaded", "free")] {
+        let f1 = table(&[(group, "log(x - 5)"), (other, "1")]);
+        let message = refused(f1, zero());
+        assert!(
+            message.starts_with(&format!("f1.{group} is NaN at (")),
+            "{message}"
+        );
+    }
+    let g = table(&[("clamped", "0"), ("rim", "sqrt(y - 0.5)")]);
+    let message = refused(e("1").into(), g);
+    assert!(message.starts_with("g.rim is NaN at (2, "), "{message}");
+}
