@@ -230,9 +230,30 @@ pub fn steps(
             mesh: &r.problem.mesh,
             obstacle: &r.solution.obstacle,
         };
-        r = run::on_mesh(case, fine, Vec::new(), &estimating(start), 0.0)?;
+        r = run::on_mesh(case, fine, Vec::new(), &estimating(start), 0.0).map_err(|e| {
+            named(
+                case,
+                e,
+                &format!("adapt step {}, on the mesh refined from step {step}", step + 1),
+            )
+        })?;
     }
     Ok(adaptive)
+}
+
+/// `e`, from a run on a refined mesh, its origin followed by `which` mesh: a datum or the solver
+/// may fail only there (at a boundary vertex new on that mesh, say).
+fn named(case: &Case, e: RunError, which: &str) -> RunError {
+    let origin = format!("{} ({which})", case.origin);
+    match e {
+        RunError::Case(CaseError(message)) => match message.strip_prefix(&case.origin) {
+            Some(rest) => RunError::Case(CaseError(format!("{origin}{rest}"))),
+            None => RunError::Case(CaseError(message)),
+        },
+        RunError::Solve(_, e) => RunError::Solve(origin, e),
+        RunError::Check(_, e) => RunError::Check(origin, e),
+        RunError::Output(e) => RunError::Output(e),
+    }
 }
 
 /// A run with the estimator.
@@ -287,7 +308,9 @@ fn uniform(case: &Case, vertices: usize) -> Result<Vec<Step>, RunError> {
             mesh: &r.problem.mesh,
             obstacle: &r.solution.obstacle,
         };
-        let next = run::on_mesh(case, fine, Vec::new(), &estimating(start), 0.0)?;
+        let which = format!("adapt's uniform comparison, refinement {}", out.len());
+        let next = run::on_mesh(case, fine, Vec::new(), &estimating(start), 0.0)
+            .map_err(|e| named(case, e, &which))?;
         out.push(Step::new(&next, 0, clock.elapsed().as_secs_f64()));
         r = next;
     }

@@ -402,7 +402,7 @@ impl Run<'_> {
         };
         format!(
             "seconds     mesh {:.3}, assembly {:.3}, contact solve {:.3} (coarser levels {:.3}, {} {:.3}, \
-             {} {:.3} + {} {:.3} {}), postprocess {:.3}{}, write {:.3}; on {} threads{}\n",
+             {} {:.3} + {} {:.3} {}), postprocess {:.3}{}, write {:.3}; on {}{}\n",
             t.mesh,
             t.assembly,
             s.wall_seconds,
@@ -421,7 +421,10 @@ impl Run<'_> {
             t.postprocess,
             (self.estimate.as_ref()).map_or(String::new(), |_| format!(", estimate {:.3}", t.estimate)),
             t.write,
-            crate::parallel::threads(),
+            match crate::parallel::threads() {
+                1 => "1 thread".to_string(),
+                n => format!("{n} threads"),
+            },
             crate::pages::peak_resident_bytes()
                 .map_or(String::new(), |b| format!(", peak memory {} MB", b >> 20))
         )

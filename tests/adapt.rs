@@ -229,3 +229,28 @@ fn adapt_says_why_it_stopped() {
     assert!(why(None, 200, 40).contains("the next mesh would have had more vertices"));
     assert!(why(None, 1000, 40).contains("the next mesh would have had more vertices"));
 }
+
+/// A datum that fails only on a refined mesh (g dips below g2 = 0 around x = 0.55 on the bottom
+/// side, between the first mesh's boundary vertices) is named with the mesh it failed on, and
+/// nothing is written.
+#[test]
+fn a_failure_on_a_refined_mesh_names_the_step() {
+    let text = "mu1 = 1.0\nmu2 = 1.0\nf1 = -10\nf2 = 2\ng = \"0.05 - 0.1*max(0, 1 - 10000*(x-0.55)^2)\"\n\
+                [mesh]\nkind = \"polygon\"\nboundary = [[0, 0], [1, 0], [1, 1], [0, 1]]\nh = 0.1\n";
+    let case = Case::parse(text, "dip.toml", std::env::temp_dir()).unwrap();
+    let settings = |steps: usize| Adaptivity {
+        theta: 0.5,
+        target: None,
+        max_vertices: 20_000,
+        steps,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("adapt");
+    let e = adapt(&case, &settings(40), false, &out).unwrap_err().to_string();
+    assert!(
+        e.starts_with("dip.toml (adapt step 2, on the mesh refined from step 1): g = -0.05 < g2 = 0"),
+        "{e}"
+    );
+    assert!(!out.exists());
+    assert!(adapt(&case, &settings(1), false, &out).is_ok());
+}

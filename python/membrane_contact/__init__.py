@@ -55,9 +55,8 @@ def _case(case):
     if isinstance(case, bytes):
         case = case.decode()
     if isinstance(case, str):
-        # A string naming a file, or one line ending in .toml, is a path; anything else is TOML.
-        single = "\n" not in case and "=" not in case
-        if single and (case.endswith(".toml") or os.path.isfile(case)):
+        # One line without "=" is a path (no case fits in it); anything else is TOML.
+        if "\n" not in case and "=" not in case:
             return ("path", case), case
         return ("text", case), "case text"
     raise InputError(
@@ -232,7 +231,8 @@ def solve(
 ):
     """Solves a case (the built-in default case without one) and returns its `Result`.
 
-    case: a path (str or os.PathLike), a TOML string or a dict of the case file's keys.
+    case: a path (str or os.PathLike; a str of one line without "=" is always a path), a TOML string
+        or a dict of the case file's keys.
     mesh: a meshio.Mesh (its "triangle" cells), a (points, triangles) pair (points (N, 2), or
     (N, 3) with z = 0; triangles (M, 3) of any integer type) or a dolfinx mesh; it replaces the
     case's [mesh] (which may then be left out), keeps its vertex numbering (but for the points of

@@ -51,6 +51,13 @@ def test_dict_toml_and_path_cases_agree(tmp_path):
         assert same_bits(r.u1, results[0].u1) and same_bits(r.lambda_, results[0].lambda_)
 
 
+def test_a_mistyped_path_is_named_as_a_path():
+    # One line without "=" is a path, whatever its ending: the error names the file.
+    for path in ("nope", "cases/defualt.toml", "data/cases/default.tom"):
+        with pytest.raises(mc.InputError, match=f"^{path}: cannot read the case file"):
+            mc.solve(path)
+
+
 def test_meshio_pair_and_dolfinx_meshes_agree(small):
     from dolfinx import mesh as dmesh
     from mpi4py import MPI
