@@ -68,6 +68,11 @@ pub struct Checks {
     /// The round-off λ_h would carry if each u_ib were exact to its own size: `noise` with s_a
     /// made of the |μ_i K_ab u_ib|.
     pub own_noise: f64,
+    /// The size of each membrane, max(the displacement its own data give, max_b |u_ib|)
+    /// ([`own_size`]), against which the round-off of its values, 8ε max_b c_b, is measured; 0
+    /// where its data are all 0 (it moves only where it touches the other) and above a rigid
+    /// obstacle (not checked).
+    pub sizes: [f64; 2],
 }
 
 /// A discrete solution that fails its own checks.
@@ -75,6 +80,15 @@ pub struct Checks {
 pub enum CheckError {
     /// A value overflowed or is NaN.
     NotFinite,
+    /// A membrane is below the round-off of what its values are computed from.
+    MembraneUnresolved {
+        /// 1 or 2.
+        which: usize,
+        /// The round-off of its values.
+        noise: f64,
+        /// Its size ([`own_size`]).
+        size: f64,
+    },
     /// λ_h is below the round-off of (4.5).
     Unresolved {
         /// The round-off λ_h can carry.
@@ -101,6 +115,14 @@ impl fmt::Display for CheckError {
                 f,
                 "the discrete solution has non-finite values (overflow): the data are too large for \
                  double precision; nothing is written"
+            ),
+            CheckError::MembraneUnresolved { which, noise, size } => write!(
+                f,
+                "u{which}h is not resolved in double precision: it is computed (from v and w) with \
+                 a round-off of {noise:.1e}, {:.1e} of the displacement of size {size:.1e} that its \
+                 own data give (limit {RESOLUTION:.0e}): the two membranes' data are too many orders \
+                 of magnitude apart; nothing is written",
+                noise / size
             ),
             CheckError::Unresolved {
                 noise,
@@ -136,6 +158,12 @@ impl fmt::Display for CheckError {
 impl std::error::Error for CheckError {}
 
 impl Checks {
+    /// The largest round-off of a membrane's values relative to its size ([`Checks::sizes`]).
+    pub fn membrane_resolution(&self) -> f64 {
+        let noise = ROUNDOFF * self.values[1];
+        (self.sizes.iter().filter(|&&s| s > 0.0)).fold(0.0, |m, s| m.max(noise / s))
+    }
+
     /// Fails when a check exceeds [`TOLERANCE`] or is not a number.
     pub fn verify(&self) -> Result<(), CheckError> {
         let all = [
@@ -144,8 +172,21 @@ impl Checks {
             ("the complementarity (4.8)", self.complementarity),
             ("u1h − u2h ≥ 0", self.negative_gap),
         ];
-        if all.iter().any(|(_, v)| !v.is_finite()) || !self.resolution.is_finite() {
+        if all.iter().any(|(_, v)| !v.is_finite())
+            || !self.resolution.is_finite()
+            || !self.values[1].is_finite()
+        {
             return Err(CheckError::NotFinite);
+        }
+        let noise = ROUNDOFF * self.values[1];
+        for (i, &size) in self.sizes.iter().enumerate() {
+            if size > 0.0 && noise > RESOLUTION * size {
+                return Err(CheckError::MembraneUnresolved {
+                    which: i + 1,
+                    noise,
+                    size,
+                });
+            }
         }
         if self.resolution > RESOLUTION {
             return Err(CheckError::Unresolved {
@@ -190,6 +231,7 @@ impl Action {
             loads: 0.0,
             values: [0.0; 2],
             own_noise: 0.0,
+            sizes: [0.0; 2],
         };
         // The size of u_ib as computed, v + μ2/(μ1+μ2) w and v − μ1/(μ1+μ2) w (ψ_h + w above a rigid
         // obstacle), which bounds its round-off: |v| + |w| ≤ |u_ib| + 2|w| for both. It is not |u_ib|,
@@ -204,6 +246,9 @@ impl Action {
             largest(u1).min(largest(u2))
         };
         checks.values = [smaller, (0..n).map(computed).fold(0.0, f64::max)];
+        if !solution.rigid {
+            checks.sizes = [own_size(problem, 0, u1), own_size(problem, 1, u2)];
+        }
         for a in (0..n).filter(|&a| !mesh.on_boundary[a]) {
             let m = problem.mass[a];
             let l1 = (mu1 * k.row_dot(a, u1) - problem.load1[a]) / m;
@@ -246,6 +291,32 @@ impl Action {
     }
 }
 
+/// The size of membrane i (0 or 1, of displacement `u`) for the round-off of its values: the
+/// displacement its own data give, max |g_ih| on ∂ω + max_a |(f_i, φ_a)|/m_a · d²/(8μ_i) (d the
+/// diameter of the mesh: the Poisson problem's bound on a disk of diameter d), or max_b |u_ib| if
+/// larger; 0 when its data are all 0 (it moves only where it touches the other membrane).
+fn own_size(problem: &DiscreteProblem, i: usize, u: &[f64]) -> f64 {
+    let mesh = &problem.mesh;
+    let (lo, hi) = mesh.bounding_box();
+    let d2 = (hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2);
+    let (load, mu) = match i {
+        0 => (&problem.load1, problem.data.mu1),
+        _ => (&problem.load2, problem.data.mu2().expect("two membranes")),
+    };
+    let height = |a: usize| match i {
+        0 => problem.g_h[a],
+        _ => problem.g_h[a] - problem.gap_h[a],
+    };
+    let boundary = (0..mesh.n_vertices()).filter(|&a| mesh.on_boundary[a]);
+    let g = boundary.map(height).fold(0.0_f64, |m, h| m.max(h.abs()));
+    let f = (load.iter().zip(&problem.mass)).fold(0.0_f64, |m, (l, w)| m.max(l.abs() / w));
+    let own = g + f * d2 / (8.0 * mu);
+    match own > 0.0 {
+        true => own.max(u.iter().fold(0.0_f64, |m, x| m.max(x.abs()))),
+        false => 0.0,
+    }
+}
+
 impl Describe for Action {
     fn fields(&self) -> Vec<Field<'_>> {
         let mut fields = vec![Field::new("lambda", Place::Vertices, &self.lambda)];
@@ -265,6 +336,7 @@ impl Describe for Action {
             ("check_complementarity", c.complementarity.into()),
             ("check_negative_gap", c.negative_gap.into()),
             ("check_resolution", c.resolution.into()),
+            ("check_membrane_resolution", c.membrane_resolution().into()),
             ("check_tolerance", TOLERANCE.into()),
         ]
     }
@@ -291,6 +363,7 @@ mod tests {
             loads: 1e3,
             values: [1.0, 3.0],
             own_noise: 1.0,
+            sizes: [1.0, 0.0],
         };
         assert_eq!(ok.verify(), Ok(()));
         let failed = Checks {
@@ -322,6 +395,27 @@ mod tests {
                 })
             );
         }
+        // Membrane 2 of a size such that the round-off of its values is twice the limit; one of
+        // size 0 (its data all 0) is not checked.
+        let noise = ROUNDOFF * 3.0;
+        let size = noise / (2.0 * RESOLUTION);
+        let small = Checks {
+            sizes: [0.0, size],
+            ..ok
+        };
+        let which = 2;
+        assert_eq!(
+            small.verify(),
+            Err(CheckError::MembraneUnresolved { which, noise, size })
+        );
+        assert_eq!(
+            Checks {
+                sizes: [2.0 * size, 0.0],
+                ..ok
+            }
+            .verify(),
+            Ok(())
+        );
         for nan in [
             Checks {
                 negative_lambda: f64::NAN,

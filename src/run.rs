@@ -369,18 +369,19 @@ impl Run<'_> {
     /// The summary's lines on λ_h and the checks of the solution.
     fn action_lines(&self) -> String {
         let (a, c) = (&self.action, &self.action.checks);
-        let (same, gap) = match self.solution.rigid {
-            true => (String::new(), "u_h − ψ_h"),
+        let (same, gap, membranes) = match self.solution.rigid {
+            true => (String::new(), "u_h − ψ_h", String::new()),
             false => (
                 format!("λ_h the same from either membrane {:.1e}, ", c.prop12),
                 "u1h − u2h",
+                format!(", of u_ih {:.1e} of their size", c.membrane_resolution()),
             ),
         };
         format!(
             "action      ∫λ_h = {:.6e}, contact area = {:.6e}, max λ = {:.6e}\n\
              checks      passed, each relative to the terms that cancel (tolerance {:.0e}): {same}\
              λ_h ≥ 0 {:.1e}, λ_h ({gap}) = 0 {:.1e}, {gap} ≥ 0 {:.1e}; \
-             round-off of λ_h {:.1e} of the loads (limit {:.0e})\n",
+             round-off of λ_h {:.1e} of the loads{membranes} (limit {:.0e})\n",
             a.total,
             a.contact_area,
             a.lambda.iter().copied().fold(0.0, f64::max),

@@ -120,3 +120,44 @@ fn multigrid_solves_in_any_units_as_the_direct_solver() {
         );
     }
 }
+
+/// Membrane 1 pushed up by f1 = F, away from membrane 2 (f2 = −2, no contact): u2 does not depend
+/// on F, but it is computed from v and w, of size F. Its round-off, predicted as 8ε max c_b, stays
+/// above what it is measured to be (against F = 0); beyond 1e-3 of u2's own size the run is
+/// refused, naming u2h; a membrane whose data are all 0 (u2 ≡ 0, computed as round-off) is not.
+#[test]
+fn a_membrane_below_the_round_off_of_the_other_is_refused() {
+    let text = |f1: &str, f2: &str| {
+        format!(
+            "mu1 = 1.0\nmu2 = 1.0\nf1 = {f1}\nf2 = {f2}\ng = 0.05\n[mesh]\nkind = \"rectangle\"\nn = 16\n"
+        )
+    };
+    let solve = |c: &Case| run::run(c, &options()).map(|r| (r.solution, r.action));
+    let (reference, _) = solve(&case(&text("0", "-2"))).unwrap();
+    let size = reference.u2.iter().fold(0.0_f64, |m, u| m.max(u.abs()));
+    for f1 in ["1e6", "1e9", "1e11"] {
+        let (solution, action) = solve(&case(&text(f1, "-2"))).unwrap();
+        assert_eq!(solution.obstacle.contact.iter().filter(|&&c| c).count(), 0);
+        let error = max_relative_difference(&solution.u2, &reference.u2) * size;
+        let checks = action.checks;
+        let predicted = checks.membrane_resolution() * checks.sizes[1];
+        assert!(
+            error <= predicted,
+            "f1 = {f1}: u2 off by {error:.1e}, predicted {predicted:.1e}"
+        );
+        assert!(
+            error >= 1e-3 * predicted,
+            "f1 = {f1}: prediction {predicted:.1e} far above {error:.1e}"
+        );
+    }
+    match solve(&case(&text("1e13", "-2"))) {
+        Err(RunError::Check(_, e)) => {
+            let e = e.to_string();
+            assert!(e.starts_with("u2h is not resolved in double precision"), "{e}");
+        }
+        other => panic!("f1 = 1e13 accepted: {:?}", other.map(|(_, a)| a.checks)),
+    }
+    let (unloaded, action) = solve(&case(&text("10", "0"))).unwrap();
+    assert!(unloaded.u2.iter().all(|u| u.abs() < 1e-12));
+    assert_eq!(action.checks.sizes[1], 0.0);
+}
