@@ -37,8 +37,8 @@ pub struct Step {
     pub estimator: f64,
     /// |||u − u_h|||, for a case with an exact solution.
     pub error: Option<f64>,
-    /// How far the exact solution misses the boundary data on ∂ω_h (a curved ω), relative.
-    pub mismatch: Option<f64>,
+    /// Where the exact solution misses the boundary data on ∂ω_h (a curved ω) most, relative.
+    pub mismatch: Option<crate::norms::Mismatch>,
     /// Active-set iterations.
     pub iterations: usize,
     /// Seconds of refinement, assembly, solve and estimate.
@@ -54,7 +54,7 @@ impl Step {
             marked,
             estimator: r.estimate.as_ref().expect("estimated").total,
             error: r.errors.as_ref().and_then(|e| e.energy),
-            mismatch: r.errors.as_ref().and_then(|e| Some(e.boundary?.relative)),
+            mismatch: r.errors.as_ref().and_then(|e| e.boundary),
             iterations: r.solution.obstacle.stats.iterations,
             seconds,
         }
@@ -412,11 +412,10 @@ fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted) -> String {
             slope(rate(steps, |st| st.error))
         );
     }
-    let mismatch = (a.adaptive.iter().chain(&a.uniform))
-        .filter_map(|st| st.mismatch)
-        .reduce(f64::max);
-    if let Some(m) = mismatch {
-        s += &crate::norms::Mismatch::note(m);
+    if let Some(note) =
+        crate::norms::Mismatch::note(a.adaptive.iter().chain(&a.uniform).filter_map(|st| st.mismatch))
+    {
+        s += &note;
     }
     s += "![η and error against N](adapt.png)\n\nOpen `adapt.xdmf` in ParaView (Xdmf3 reader) for the meshes and fields of every step.\n";
     s

@@ -288,12 +288,20 @@ impl Run<'_> {
                 e.quadrature
             );
             if let Some(m) = &e.boundary {
-                out += &format!(
-                    "exact       misses the boundary data on ∂ω_h, the mesh's polygon, by up to {:.1e} of \
-                     their size (at ({:.4}, {:.4})): the errors above are against the solution on \
-                     another domain, while η bounds the error against the solution on ω_h\n",
-                    m.relative, m.at[0], m.at[1]
-                );
+                out += &match m.at_vertex {
+                    true => format!(
+                        "exact       does not take the boundary data at the boundary vertex ({:.4}, {:.4}) \
+                         (off by {:.1e} of their size): [exact] is not a solution of this case, and the \
+                         errors above are not its errors\n",
+                        m.at[0], m.at[1], m.relative
+                    ),
+                    false => format!(
+                        "exact       misses the boundary data on ∂ω_h, the mesh's polygon, by up to {:.1e} of \
+                         their size (at ({:.4}, {:.4})): the errors above are against the solution on \
+                         another domain, while η bounds the error against the solution on ω_h\n",
+                        m.relative, m.at[0], m.at[1]
+                    ),
+                };
             }
         }
         if let Some(e) = &self.estimate {

@@ -381,9 +381,19 @@ fn a_curved_domain_s_exact_solution_is_said_to_miss_the_polygon_s_boundary_data(
         "at {:?}",
         m.at
     );
+    assert!(!m.at_vertex);
     assert!(r
         .summary(false)
         .contains("the errors above are against the solution on another domain"));
+    // An exact solution off g at the vertices of a square is not another domain's: it is not a
+    // solution of the case, and the run says so at the vertex.
+    let body = "mu1 = 1.0\nmu2 = 1.0\nf1 = -10\nf2 = 0\ng = \"x*y + 0.1\"\n\
+                [exact]\nu1 = \"x*y + 0.1 + 0.2*x*(1 - x)\"\nu2 = \"0\"\nlambda = \"0\"";
+    let wrong = square(body, 8, "right");
+    let r = estimated(&wrong);
+    let m = r.errors.as_ref().unwrap().boundary.expect("a mismatch");
+    assert!(m.at_vertex && m.at[1] * (1.0 - m.at[1]) == 0.0 && (m.at[0] - 0.5).abs() < 0.1, "{m:?}");
+    assert!(r.summary(false).contains("[exact] is not a solution of this case"));
     // With g = g2 = 0 the boundary values are round-off of sin(π) (full_contact): no mismatch.
     for name in ["default", "full_contact"] {
         let square = shipped(name, 8);

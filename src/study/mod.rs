@@ -385,11 +385,9 @@ pub fn markdown_table(title: &str, levels: &[Level]) -> String {
             l.seconds
         );
     }
-    let mismatch = (levels.iter())
-        .filter_map(|l| Some(l.errors.as_ref()?.boundary?.relative))
-        .reduce(f64::max);
-    if let Some(m) = mismatch {
-        s += &format!("\n{}", crate::norms::Mismatch::note(m));
+    let mismatches = levels.iter().filter_map(|l| l.errors.as_ref()?.boundary);
+    if let Some(note) = crate::norms::Mismatch::note(mismatches) {
+        s += &format!("\n{note}");
     }
     s
 }
