@@ -853,7 +853,14 @@ fn geometric(mesh: Mesh, diagonal: Diagonal) -> Mesh {
 /// A TOML error on one line, with the line and column of the key or value it is about (none for
 /// the whole file: a top-level key missing).
 fn toml_error(text: &str, e: &toml::de::Error) -> String {
-    let message = e.message().trim_end().replace('\n', " ");
+    let mut message = e.message().trim_end().replace('\n', " ");
+    // serde names Rust's types; a case file has whole numbers and numbers.
+    for (rust, toml) in [
+        ("expected usize", "expected a whole number ≥ 0"),
+        ("expected f64", "expected a number"),
+    ] {
+        message = message.replace(rust, toml);
+    }
     match e.span() {
         Some(span) if span.start == 0 && text[..span.end.min(text.len())].trim_end().contains('\n') => {
             message
@@ -985,7 +992,8 @@ fn exact_solution(
             u1: one("exact.u", &e.u)?.ok_or_else(|| missing("u"))?,
             u2: (psi.expr().cloned()).ok_or(
                 "key 'psi' is a table per physical group: with an [exact] \
-                 solution, whose u2 is ψ, give ψ as one expression",
+                 solution, give ψ as one expression (the errors take it as the obstacle's exact \
+                 height)",
             )?,
             lambda,
             grad_u1: grad("exact.grad_u", &e.grad_u)?,

@@ -351,6 +351,21 @@ fn unknown_name_in_expression() {
     );
 }
 
+/// A value of the wrong type is named in the case file's terms, not Rust's (usize, f64).
+#[test]
+fn a_wrong_type_is_named_in_the_case_file_s_terms() {
+    let e = case_fails(&format!("{GOOD}{SQUARE}[solver]\nmax_iterations = 2.5\n"));
+    contains(
+        &e,
+        "(«max_iterations = 2.5»): invalid type: floating point `2.5`, expected a whole number ≥ 0",
+    );
+    let e = case_fails(&format!("{}{SQUARE}", GOOD.replace("mu1 = 1.0", "mu1 = \"a\"")));
+    contains(
+        &e,
+        "(«mu1 = \"a\"»): invalid type: string \"a\", expected a number",
+    );
+}
+
 #[test]
 fn toml_nan_and_inf_are_refused_as_numbers() {
     for (value, shown) in [("nan", "NaN"), ("-inf", "-inf"), ("+inf", "inf")] {

@@ -392,8 +392,13 @@ fn a_curved_domain_s_exact_solution_is_said_to_miss_the_polygon_s_boundary_data(
     let wrong = square(body, 8, "right");
     let r = estimated(&wrong);
     let m = r.errors.as_ref().unwrap().boundary.expect("a mismatch");
-    assert!(m.at_vertex && m.at[1] * (1.0 - m.at[1]) == 0.0 && (m.at[0] - 0.5).abs() < 0.1, "{m:?}");
-    assert!(r.summary(false).contains("[exact] is not a solution of this case"));
+    assert!(
+        m.at_vertex && m.at[1] * (1.0 - m.at[1]) == 0.0 && (m.at[0] - 0.5).abs() < 0.1,
+        "{m:?}"
+    );
+    assert!(r
+        .summary(false)
+        .contains("[exact] is not a solution of this case"));
     // With g = g2 = 0 the boundary values are round-off of sin(π) (full_contact): no mismatch.
     for name in ["default", "full_contact"] {
         let square = shipped(name, 8);
