@@ -398,3 +398,33 @@ fn a_strip_keeps_its_proportion_on_every_level() {
     case.set_cells(640).unwrap();
     assert_eq!(case.mesh().unwrap().n_vertices(), 641 * 3);
 }
+
+/// The README's example, as shipped (examples/plate: the Gmsh mesh of plate.geo, and the same
+/// domain with a square hole as a polygon): both solve, on meshes of the plate's area, with
+/// contact mostly on the left half, where membrane 1 is pressed down.
+#[test]
+fn the_readme_s_plate_solves_as_shipped() {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/plate");
+    let hole = [PI * 0.2 * 0.2, 0.4 * 0.4];
+    for (file, hole) in [("plate.toml", hole[0]), ("poly.toml", hole[1])] {
+        let case = Case::read(&dir.join(file)).unwrap();
+        let r = solve(&case);
+        let mesh = &r.problem.mesh;
+        let area: f64 = (0..mesh.n_triangles()).map(|t| mesh.area(t)).sum();
+        assert!((area - (2.0 - hole)).abs() < 2e-2 * hole, "{file}: area {area}");
+        let contact = r
+            .solution
+            .obstacle
+            .contact
+            .iter()
+            .enumerate()
+            .filter(|&(_, &c)| c);
+        let (touching, left) = contact.fold((0, 0), |(n, l), (a, _)| {
+            (n + 1, l + usize::from(mesh.points[a][0] < 1.0))
+        });
+        assert!(
+            touching > 0 && 5 * left >= 4 * touching,
+            "{file}: {left} of {touching} in x < 1"
+        );
+    }
+}
