@@ -69,10 +69,12 @@ pub struct Checks {
     /// made of the |μ_i K_ab u_ib|.
     pub own_noise: f64,
     /// The size of each membrane, max(the displacement its own data give, max_b |u_ib|)
-    /// ([`own_size`]), against which the round-off of its values, 8ε max_b c_b, is measured; 0
-    /// where its data are all 0 (it moves only where it touches the other) and above a rigid
-    /// obstacle (not checked).
+    /// ([`own_size`]), against which the round-off of its values is measured; 0 where its data are
+    /// all 0 (it moves only where it touches the other) and above a rigid obstacle (not checked).
     pub sizes: [f64; 2],
+    /// The round-off of each membrane's values, computed as u1 = v + μ2/(μ1+μ2) w and
+    /// u2 = v − μ1/(μ1+μ2) w: 8ε max_b (|v_b| + μ_j/(μ1+μ2) |w_b|), j the other membrane.
+    pub noises: [f64; 2],
 }
 
 /// A discrete solution that fails its own checks.
@@ -160,8 +162,9 @@ impl std::error::Error for CheckError {}
 impl Checks {
     /// The largest round-off of a membrane's values relative to its size ([`Checks::sizes`]).
     pub fn membrane_resolution(&self) -> f64 {
-        let noise = ROUNDOFF * self.values[1];
-        (self.sizes.iter().filter(|&&s| s > 0.0)).fold(0.0, |m, s| m.max(noise / s))
+        (self.sizes.iter().zip(self.noises))
+            .filter(|&(&s, _)| s > 0.0)
+            .fold(0.0, |m, (s, noise)| m.max(noise / s))
     }
 
     /// Fails when a check exceeds [`TOLERANCE`] or is not a number.
@@ -178,8 +181,7 @@ impl Checks {
         {
             return Err(CheckError::NotFinite);
         }
-        let noise = ROUNDOFF * self.values[1];
-        for (i, &size) in self.sizes.iter().enumerate() {
+        for (i, (&size, noise)) in self.sizes.iter().zip(self.noises).enumerate() {
             if size > 0.0 && noise > RESOLUTION * size {
                 return Err(CheckError::MembraneUnresolved {
                     which: i + 1,
@@ -232,6 +234,7 @@ impl Action {
             values: [0.0; 2],
             own_noise: 0.0,
             sizes: [0.0; 2],
+            noises: [0.0; 2],
         };
         // The size of u_ib as computed, v + μ2/(μ1+μ2) w and v − μ1/(μ1+μ2) w (ψ_h + w above a rigid
         // obstacle), which bounds its round-off: |v| + |w| ≤ |u_ib| + 2|w| for both. It is not |u_ib|,
@@ -248,6 +251,7 @@ impl Action {
         checks.values = [smaller, (0..n).map(computed).fold(0.0, f64::max)];
         if !solution.rigid {
             checks.sizes = [own_size(problem, 0, u1), own_size(problem, 1, u2)];
+            checks.noises = membrane_noises(problem, u1, u2, gap);
         }
         for a in (0..n).filter(|&a| !mesh.on_boundary[a]) {
             let m = problem.mass[a];
@@ -289,6 +293,16 @@ impl Action {
             checks,
         }
     }
+}
+
+/// [`Checks::noises`] of the displacements `u1`, `u2` with the gap `w` (two membranes).
+fn membrane_noises(problem: &DiscreteProblem, u1: &[f64], u2: &[f64], w: &[f64]) -> [f64; 2] {
+    let (mu1, mu2) = (problem.data.mu1, problem.data.mu2().expect("two membranes"));
+    let v = |b: usize| (mu1 * u1[b] + mu2 * u2[b]) / (mu1 + mu2);
+    [mu2, mu1].map(|mu_j| {
+        let largest = (0..w.len()).map(|b| v(b).abs() + mu_j / (mu1 + mu2) * w[b].abs());
+        ROUNDOFF * largest.fold(0.0, f64::max)
+    })
 }
 
 /// The size of membrane i (0 or 1, of displacement `u`) for the round-off of its values: the
@@ -364,6 +378,7 @@ mod tests {
             values: [1.0, 3.0],
             own_noise: 1.0,
             sizes: [1.0, 0.0],
+            noises: [ROUNDOFF, ROUNDOFF],
         };
         assert_eq!(ok.verify(), Ok(()));
         let failed = Checks {
@@ -397,7 +412,7 @@ mod tests {
         }
         // Membrane 2 of a size such that the round-off of its values is twice the limit; one of
         // size 0 (its data all 0) is not checked.
-        let noise = ROUNDOFF * 3.0;
+        let noise = ROUNDOFF;
         let size = noise / (2.0 * RESOLUTION);
         let small = Checks {
             sizes: [0.0, size],
