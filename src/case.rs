@@ -325,6 +325,15 @@ impl Case {
     /// assert!(case.exact.is_some());
     /// ```
     pub fn read(path: &Path) -> Result<Case, CaseError> {
+        let text = Case::read_text(path)?;
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let mut case = Case::parse(&text, &path.display().to_string(), base)?;
+        case.path = Some(path.to_path_buf());
+        Ok(case)
+    }
+
+    /// The text of a case file: UTF-8, at most 1 MiB.
+    pub fn read_text(path: &Path) -> Result<String, CaseError> {
         let err = |m: String| CaseError(format!("{}: {m}", path.display()));
         let cannot = |e: std::io::Error| err(format!("cannot read the case file: {e}"));
         let file = std::fs::File::open(path).map_err(cannot)?;
@@ -344,12 +353,7 @@ impl Case {
                 "the case file has more than {MAX_CASE_BYTES} bytes; at most {MAX_CASE_BYTES} are read"
             )));
         }
-        let text = String::from_utf8(bytes)
-            .map_err(|_| err("cannot read the case file: it is not UTF-8 text".into()))?;
-        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let mut case = Case::parse(&text, &path.display().to_string(), base)?;
-        case.path = Some(path.to_path_buf());
-        Ok(case)
+        String::from_utf8(bytes).map_err(|_| err("cannot read the case file: it is not UTF-8 text".into()))
     }
 
     /// The built-in default case.
@@ -494,12 +498,15 @@ impl Case {
     }
 
     /// Replaces the case's mesh by `mesh`, checked already ([`Mesh::new`]), as a mesh file of
-    /// the same triangles would: it keeps its vertex numbering, `refine` refines it, and the
-    /// coarser levels of nested iteration are its domain meshed coarser.
+    /// the same triangles would: it keeps its vertex numbering, the coarser levels of nested
+    /// iteration are its domain meshed coarser, and the `[mesh]` table's `refine` no longer
+    /// applies (set [`Case::refine`] after to refine it).
     pub fn set_mesh(&mut self, mesh: Mesh) {
         self.mesh = MeshSpec::Given {
             mesh: std::sync::Arc::new(mesh),
         };
+        // The [mesh] table's refinements were of the mesh it named.
+        self.refine = 0;
     }
 
     /// Sets the grading exponent of an L-shaped mesh.

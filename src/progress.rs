@@ -93,7 +93,8 @@ pub fn finish() {
 static CANCELLED: AtomicBool = AtomicBool::new(false);
 
 /// Asks the runs of this process to stop: the active-set method checks before each iteration and
-/// fails with [`crate::contact::SolveError::Cancelled`], and so does a run between its phases.
+/// fails with [`crate::contact::SolveError::Cancelled`], and so does a run between its phases; the
+/// estimator's patches stop at their next block and the error norms' cutting at its next round.
 /// The command line never calls it (its signals end the process, [`crate::atomic`]); the Python
 /// package does on Ctrl-C. Process-wide: every run under way stops, until [`resume`].
 pub fn cancel() {

@@ -109,6 +109,15 @@ pub fn run<'c>(case: &'c Case, options: &Options) -> Result<Run<'c>, RunError> {
     on_mesh(case, mesh, coarser, options, clock.elapsed().as_secs_f64())
 }
 
+/// The run's end when it is asked to stop ([`progress::cancel`]); the phases that loop over
+/// blocks stop at their next block and leave values that are not their results.
+fn stop_if_cancelled(case: &Case) -> Result<(), RunError> {
+    match progress::cancelled() {
+        true => Err(RunError::Solve(case.origin.clone(), SolveError::Cancelled)),
+        false => Ok(()),
+    }
+}
+
 /// Computes a run on `mesh` (built in `mesh_seconds`), with the `coarser` meshes of nested
 /// iteration.
 pub fn on_mesh<'c>(
@@ -132,9 +141,7 @@ pub fn on_mesh<'c>(
     progress::phase(|| "contact solve".into());
     let solution = contact_solve(case, &problem, options, coarser, solver)?;
     clock.lap();
-    if progress::cancelled() {
-        return Err(RunError::Solve(case.origin.clone(), SolveError::Cancelled));
-    }
+    stop_if_cancelled(case)?;
     progress::phase(|| {
         let errors = if case.exact.is_some() { ", error norms" } else { "" };
         let flux = if options.flux { ", fluxes" } else { "" };
@@ -158,10 +165,13 @@ pub fn on_mesh<'c>(
         .flux
         .then(|| Fluxes::reconstruct(&problem, &dual, &solution, &action));
     let postprocess = clock.lap();
+    stop_if_cancelled(case)?;
     if options.estimate {
         progress::phase(|| "estimate".into());
     }
     let estimate = (options.estimate).then(|| Estimate::compute(&problem, &dual, &solution, &action));
+    // A phase cut short by a cancel leaves values that are not its results.
+    stop_if_cancelled(case)?;
     let timings = Timings {
         mesh: mesh_seconds,
         assembly,

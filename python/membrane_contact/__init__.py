@@ -69,11 +69,21 @@ def _mesh(mesh):
     if mesh is None:
         return None, None
     if hasattr(mesh, "cells_dict") and hasattr(mesh, "points"):  # meshio.Mesh
+        kinds = ", ".join(sorted(mesh.cells_dict)) or "none"
         if "triangle" not in mesh.cells_dict:
-            kinds = ", ".join(sorted(mesh.cells_dict)) or "none"
             raise InputError(f"mesh: a meshio mesh needs 'triangle' cells (it has {kinds})")
+        # Cells of lower dimension (Gmsh's lines and points of its physical groups) are not part
+        # of the domain; any other kind of cell is, and the domain would lose it.
+        others = sorted(set(mesh.cells_dict) - {"triangle", "line", "vertex"})
+        if others:
+            raise InputError(
+                f"mesh: a meshio mesh of linear triangles only is solved on; it has {kinds}: "
+                f"{', '.join(others)} cells are not supported (split quadrilaterals into triangles, "
+                "and use linear triangles, not curved ones)"
+            )
         points, triangles = _used_points(np.asarray(mesh.points), np.asarray(mesh.cells_dict["triangle"]))
     elif hasattr(mesh, "geometry") and hasattr(mesh, "topology"):  # a dolfinx mesh
+        _linear_triangles(mesh)
         points = mesh.geometry.x
         dofmap = mesh.geometry.dofmap
         # dolfinx 0.5–0.6: an adjacency list; later versions: an array.
@@ -112,6 +122,21 @@ def _mesh(mesh):
     return points, triangles
 
 
+def _linear_triangles(mesh):
+    """Raises InputError unless the dolfinx mesh is of linear (straight) triangles."""
+    cell = getattr(mesh.topology, "cell_type", None)
+    name = getattr(cell, "name", str(cell))
+    if name != "triangle":
+        raise InputError(f"mesh: a dolfinx mesh of triangles is solved on; this one has {name} cells")
+    element = getattr(mesh, "ufl_domain", lambda: None)()
+    degree = element.ufl_coordinate_element().degree() if element is not None else 1
+    if degree != 1:
+        raise InputError(
+            f"mesh: a dolfinx mesh of linear triangles is solved on; this one's geometry has degree "
+            f"{degree} (curved triangles)"
+        )
+
+
 def _used_points(points, triangles):
     """The points the triangles use, in their order, and the triangles renumbered: a file read by
     meshio keeps every node (a Gmsh geometry point that no triangle uses, say)."""
@@ -140,6 +165,11 @@ def _counts(name, values):
     return None if values is None else [_count(name, v) for v in values]
 
 
+def _read_only(array):
+    array.flags.writeable = False
+    return array
+
+
 class Result:
     """A solved case: the mesh, the fields and the summary's figures.
 
@@ -148,7 +178,8 @@ class Result:
     an obstacle `u`, `psi`, `gap`, `lambda_`, `contact`; with an exact solution `u1_exact`, …;
     with `estimate=True` per triangle `estimator` and its terms; on a mesh with physical groups (a
     Gmsh file) per triangle `group`, the index of its surface in the JSON list `surface_groups`.
-    `fields` maps the file's names to the arrays, `places` to "vertices" or "cells".
+    `fields` maps the file's names to the arrays, `places` to "vertices" or "cells". The arrays are
+    read-only: they are what `write` writes (copy one to change it).
 
     Figures: every attribute of `solution.h5` (`iterations`, `check_*`, `error_*`, `estimator`,
     `effectivity`, …) is an attribute of the result and in `attributes`; `eta` is η.
@@ -156,14 +187,14 @@ class Result:
 
     def __init__(self, parts):
         self._parts = parts
-        self.points = parts.points()
-        self.triangles = parts.triangles()
+        self.points = _read_only(parts.points())
+        self.triangles = _read_only(parts.triangles())
         self.fields = {}
         self.places = {}
         for name, place, values in parts.fields():
             if name == "contact":
                 values = values != 0.0
-            self.fields[name] = values
+            self.fields[name] = _read_only(values)
             self.places[name] = place
         self.dual_fields = parts.dual_field_names()
         self.attributes = parts.attributes()
@@ -199,7 +230,8 @@ class Result:
         return sorted(set(super().__dir__()) | set(self.fields) | set(self.attributes))
 
     def summary(self):
-        """The summary the command line prints (its write time 0)."""
+        """The summary the command line prints (its write time 0); of a result read back (`read`),
+        one line: its size (the figures are in `attributes`)."""
         return self._parts.summary()
 
     def write(self, directory):

@@ -89,8 +89,9 @@ fn wait<T: Send + 'static>(
             Err(RecvTimeoutError::Timeout) => {
                 if let Err(interrupt) = py.check_signals() {
                     // The run stops at its next check (before an active-set iteration, between
-                    // phases); it is waited for a second at most, then left to stop by itself
-                    // (the next run's `resume` lets one still inside a long phase finish).
+                    // phases, at the next block of the estimator's patches or round of the
+                    // norms' cutting); it is waited for a second at most, then left to stop by
+                    // itself (the next run's `resume` lets one still inside a long phase finish).
                     progress::cancel();
                     let _ = py.allow_threads(move || receive.recv_timeout(Duration::from_secs(1)));
                     return Err(interrupt);
@@ -133,7 +134,7 @@ impl CaseSource {
             "default" => Case::default_case(),
             "path" => {
                 let path = Path::new(&self.value);
-                let text = std::fs::read_to_string(path).unwrap_or_default();
+                let text = Case::read_text(path)?;
                 if without_mesh(&text) {
                     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
                     let origin = path.display().to_string();

@@ -249,3 +249,42 @@ def test_the_readme_example_runs_as_written(tmp_path):
     assert run.returncode == 0, run.stderr
     assert "active-set" in run.stdout
     assert (tmp_path / "mine" / "solution.h5").exists()
+
+
+def test_a_missing_case_file_beside_a_mesh_is_named(tmp_path):
+    points, triangles = unit_square(4)
+    for case in ("nope.toml", tmp_path / "nope.toml", str(tmp_path)):
+        with pytest.raises(mc.InputError, match="cannot read the case file"):
+            mc.solve(case, (points, triangles))
+
+
+def test_meshes_of_other_cells_are_refused(small):
+    points, triangles = unit_square(4)
+    quads = np.array([[0, 1, 6, 5]])
+    mixed = meshio.Mesh(points, [("quad", quads), ("triangle", triangles[2:])])
+    with pytest.raises(mc.InputError, match="quad cells are not supported"):
+        mc.solve(small, mixed)
+    # Lines (Gmsh's physical curves) are not cells of the domain: accepted.
+    lines = meshio.Mesh(points, [("line", np.array([[0, 1]])), ("triangle", triangles)])
+    assert len(mc.solve(small, lines).points) == len(points)
+    from dolfinx import mesh as dmesh
+    from mpi4py import MPI
+
+    square = dmesh.create_unit_square(MPI.COMM_WORLD, 3, 3, dmesh.CellType.quadrilateral)
+    with pytest.raises(mc.InputError, match="has quadrilateral cells"):
+        mc.solve(small, square)
+
+
+def test_a_given_mesh_replaces_the_whole_mesh_table(small):
+    points, triangles = unit_square(4)
+    r = mc.solve({**small, "mesh": {"kind": "file", "path": "x.msh", "refine": 2}}, (points, triangles))
+    assert len(r.points) == len(points)
+    assert len(mc.solve(small, (points, triangles), refine=1).points) == 81
+
+
+def test_result_arrays_are_read_only(small):
+    r = mc.solve(small)
+    with pytest.raises(ValueError):
+        r.u1[:] = 7.0
+    with pytest.raises(ValueError):
+        r.points[0, 0] = 1.0

@@ -175,6 +175,10 @@ pub fn equilibrate<L: CellPairings + Send + Sync, R: Default + Send>(
         .collect();
     let mut window = Window::new(mesh.n_triangles());
     for (j, entering) in sweep.entering.iter().enumerate() {
+        // Asked to stop: the values so far, which the run discards.
+        if crate::progress::cancelled() {
+            break;
+        }
         window.enter(entering, &loads);
         let block = &sweep.order[j * BLOCK..((j + 1) * BLOCK).min(sweep.order.len())];
         // Each piece's patches' shares, star after star, and where each vertex's star begins.

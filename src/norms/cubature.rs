@@ -161,7 +161,8 @@ fn refine<const M: usize, D: Density<M>>(
     for _ in 0..MAX_ROUNDS {
         let total = sum(&closed, &open);
         let tol = total.value.map(|v| RTOL * v);
-        if (0..M).all(|m| total.error[m] <= tol[m]) || budget < cost || open.is_empty() {
+        let done = (0..M).all(|m| total.error[m] <= tol[m]) || budget < cost || open.is_empty();
+        if done || crate::progress::cancelled() {
             break;
         }
         // The pieces above an even share of half the tolerance, the largest first if the budget
