@@ -161,7 +161,8 @@ impl MeshError {
                 format!("{} refers to vertex {index}, which does not exist", t(*triangle))
             }
             MeshError::Degenerate { triangle, area, at } if area.is_finite() => format!(
-                "{} (near {}) has zero area ({area:e}) or repeats a vertex",
+                "{} (near {}) has zero area to round-off ({area:e}, at most 1e-13 of the mesh's \
+                 diameter squared) or repeats a vertex",
                 t(*triangle),
                 Point(*at)
             ),
@@ -602,6 +603,22 @@ fn by_smaller_vertex<T: Copy + Default>(
     (start, items)
 }
 
+/// Two of the triangles sharing an edge (`edge`'s second entries) with the same three vertices.
+fn duplicate(triangles: &[[usize; 3]], edge: &[(usize, usize)]) -> Result<(), MeshError> {
+    let sorted = |t: usize| {
+        let mut v = triangles[t];
+        v.sort_unstable();
+        v
+    };
+    for (i, &(_, t)) in edge.iter().enumerate() {
+        if let Some(&(_, s)) = edge[i + 1..].iter().find(|&&(_, s)| sorted(s) == sorted(t)) {
+            let (first, triangle) = (t.min(s), t.max(s));
+            return Err(MeshError::DuplicateTriangle { triangle, first });
+        }
+    }
+    Ok(())
+}
+
 /// The boundary vertices and edges of a triangle set, and its number of components.
 type EdgeMatch = (Vec<bool>, Vec<(usize, usize)>, usize);
 
@@ -627,15 +644,7 @@ fn match_edges(n: usize, triangles: &[[usize; 3]]) -> Result<EdgeMatch, MeshErro
                 }
                 [(_, t), (_, s)] => {
                     // Counter-clockwise neighbours traverse a shared edge in opposite directions.
-                    let sorted = |t: usize| {
-                        let mut v = triangles[t];
-                        v.sort_unstable();
-                        v
-                    };
-                    if sorted(*t) == sorted(*s) {
-                        let (first, triangle) = (*t.min(s), *t.max(s));
-                        return Err(MeshError::DuplicateTriangle { triangle, first });
-                    }
+                    duplicate(triangles, edge)?;
                     if traverses(&triangles[*t], a, b) == traverses(&triangles[*s], a, b) {
                         return Err(MeshError::Inverted {
                             triangle: *s,
@@ -645,11 +654,12 @@ fn match_edges(n: usize, triangles: &[[usize; 3]]) -> Result<EdgeMatch, MeshErro
                     union(&mut parent, *t, *s);
                 }
                 _ => {
+                    duplicate(triangles, edge)?;
                     return Err(MeshError::NonManifoldEdge {
                         a,
                         b,
                         count: edge.len(),
-                    })
+                    });
                 }
             }
         }
@@ -846,6 +856,35 @@ mod tests {
             MeshError::DuplicateTriangle {
                 triangle: 4,
                 first: 2
+            }
+        );
+        // A duplicate of a triangle with no boundary edge: each of its edges is shared by three.
+        let ring = vec![
+            [0.0, 0.0],
+            [1.0, 0.0],
+            [1.0, 1.0],
+            [0.0, 1.0],
+            [0.3, 0.3],
+            [0.7, 0.3],
+            [0.5, 0.7],
+        ];
+        let mut inner = vec![
+            [4, 5, 6],
+            [0, 1, 5],
+            [0, 5, 4],
+            [1, 2, 5],
+            [2, 6, 5],
+            [2, 3, 6],
+            [3, 4, 6],
+            [3, 0, 4],
+        ];
+        assert!(Mesh::new(ring.clone(), inner.clone()).is_ok());
+        inner.push([6, 4, 5]);
+        assert_eq!(
+            Mesh::new(ring, inner).unwrap_err(),
+            MeshError::DuplicateTriangle {
+                triangle: 8,
+                first: 0
             }
         );
         let mut folded = sq.clone();
