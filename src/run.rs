@@ -12,7 +12,7 @@ use crate::mesh::{self, DualMesh, Edges, Mesh, Postprocess};
 use crate::norms::Errors;
 use crate::problem::DiscreteProblem;
 use crate::progress;
-use crate::result::{self, Attribute, Describe, Field};
+use crate::result::{self, Attr, Attribute, Describe, Field};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -277,6 +277,11 @@ impl Run<'_> {
     /// A short human-readable summary; `verbose` adds the solver's details (coarser levels, local
     /// corrections, CG iterations or factorizations) and why Cholesky ran in place of multigrid.
     pub fn summary(&self, verbose: bool) -> String {
+        self.figures(verbose) + &self.seconds_line()
+    }
+
+    /// The summary but for its line on the times, which differ from run to run.
+    fn figures(&self, verbose: bool) -> String {
         let mut out = self.mesh_line() + &self.solver_line(verbose) + &self.action_lines();
         if let Some(e) = &self.errors {
             let show = |v: Option<f64>| v.map_or("—".into(), |v| format!("{v:.4e}"));
@@ -320,7 +325,7 @@ impl Run<'_> {
         if let Some(f) = &self.flux {
             out += &f.summary();
         }
-        out + &self.seconds_line()
+        out
     }
 
     /// The summary's line on the mesh: its size and the longest edge, beside the case's h.
@@ -497,6 +502,8 @@ impl Describe for Run<'_> {
         attrs.extend(self.estimate.iter().flat_map(Describe::attributes));
         attrs.extend(self.effectivity().map(|x| ("effectivity", x.into())));
         attrs.extend(self.timings.attributes());
+        // The summary as the run printed it, for a reader of the file (the times are above).
+        attrs.push(("summary", Attr::Text(self.figures(false))));
         attrs
     }
 }

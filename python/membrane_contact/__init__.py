@@ -231,7 +231,7 @@ class Result:
 
     def summary(self):
         """The summary the command line prints (its write time 0); of a result read back (`read`),
-        one line: its size (the figures are in `attributes`)."""
+        the one its run stored (but for the times, in `attributes`), and a line saying so."""
         return self._parts.summary()
 
     def write(self, directory):

@@ -535,8 +535,13 @@ fn read_parts(dir: &Path) -> Result<Parts, String> {
         };
         attributes.push((intern(&name), value));
     }
+    let printed = attributes.iter().find_map(|(name, value)| match (*name, value) {
+        ("summary", Attr::Text(text)) => Some(text.clone()),
+        _ => None,
+    });
     let summary = format!(
-        "result      {} (read back: {} vertices, {} triangles; the summary is the one its run printed)\n",
+        "{}result      {} (read back: {} vertices, {} triangles)\n",
+        printed.unwrap_or_default(),
         dir.display(),
         mesh.n_vertices(),
         mesh.n_triangles()

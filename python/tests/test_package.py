@@ -186,6 +186,9 @@ def test_write_then_read_is_the_result(tmp_path):
     for name in r.fields:
         assert np.array_equal(back.fields[name], r.fields[name]), name
     assert back.attributes == r.attributes
+    # Its summary is the run's, and says it was read back.
+    assert back.summary().startswith(r.summary().rsplit("seconds", 1)[0])
+    assert "(read back: 81 vertices, 128 triangles)" in back.summary()
     # Written again from what was read, the file holds the same data.
     back.write(tmp_path / "again")
     assert all(same_bits(a, b) for a, b in zip(h5(tmp_path / "out")[0].values(), h5(tmp_path / "again")[0].values()))
