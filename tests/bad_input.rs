@@ -552,6 +552,14 @@ fn several_components() {
     p.extend([[3.0, 0.0], [4.0, 0.0], [4.0, 1.0], [3.0, 1.0], [3.5, 0.5]]);
     c.extend([[5, 6, 9], [6, 7, 9], [7, 8, 9], [8, 5, 9]]);
     contains(&mesh_fails(&p, &c), "2 separate components");
+    // Two squares meeting at a corner (vertex 2): named where they meet.
+    let (mut p, mut c) = fan();
+    p.extend([[2.0, 1.0], [2.0, 2.0], [1.0, 2.0], [1.5, 1.5]]);
+    c.extend([[2, 5, 8], [5, 6, 8], [6, 7, 8], [7, 2, 8]]);
+    contains(
+        &mesh_fails(&p, &c),
+        "2 components that share no edge, two of them meeting only at vertex 2;",
+    );
 }
 
 #[test]

@@ -88,6 +88,8 @@ pub enum MeshError {
     },
     Disconnected {
         components: usize,
+        /// A vertex where two components meet, if any (they share no edge).
+        joined_at: Option<usize>,
     },
     NoInteriorVertex,
     Generation(String),
@@ -206,9 +208,18 @@ impl MeshError {
                 v(second.0),
                 v(second.1)
             ),
-            MeshError::Disconnected { components } => {
-                format!("the mesh has {components} separate components; ω must be connected")
-            }
+            MeshError::Disconnected {
+                components,
+                joined_at: None,
+            } => format!("the mesh has {components} separate components; ω must be connected"),
+            MeshError::Disconnected {
+                components,
+                joined_at: Some(vertex),
+            } => format!(
+                "the mesh has {components} components that share no edge, two of them meeting only at \
+                 {}; ω must be connected through edges",
+                v(*vertex)
+            ),
             MeshError::NoInteriorVertex => "the mesh has no interior vertex: nothing to solve".into(),
             MeshError::Generation(why) => format!("the mesh could not be generated: {why}"),
             // A count that saturated (e.g. 30 refinements) is past any memory.
@@ -365,13 +376,16 @@ impl Mesh {
         if let Some(vertex) = used.iter().position(|u| !u) {
             return Err(MeshError::UnusedVertex { vertex });
         }
-        let (on_boundary, boundary_edges, components) = match_edges(points.len(), &triangles)?;
+        let (on_boundary, boundary_edges, (components, joined_at)) = match_edges(points.len(), &triangles)?;
         // A hanging node is a vertex lying inside a boundary edge of the triangle set.
         if let Some(vertex) = hanging_node(&points, &boundary_edges, diameter) {
             return Err(MeshError::HangingNode { vertex });
         }
         if components > 1 {
-            return Err(MeshError::Disconnected { components });
+            return Err(MeshError::Disconnected {
+                components,
+                joined_at,
+            });
         }
         turns_once(&points, &triangles, &on_boundary)?;
         boundary_is_simple(&points, &boundary_edges)?;
@@ -619,13 +633,14 @@ fn duplicate(triangles: &[[usize; 3]], edge: &[(usize, usize)]) -> Result<(), Me
     Ok(())
 }
 
-/// The boundary vertices and edges of a triangle set, and its number of components.
-type EdgeMatch = (Vec<bool>, Vec<(usize, usize)>, usize);
+/// The boundary vertices and edges of a triangle set, its number of components and a vertex
+/// where two of them meet.
+type EdgeMatch = (Vec<bool>, Vec<(usize, usize)>, (usize, Option<usize>));
 
 /// Matches the edges: each is shared by one (boundary) or two (interior) triangles, traversed in
 /// opposite directions. Half-edges are grouped by their smaller vertex (a counting sort), then
-/// matched by the larger one. Returns the boundary vertices and edges, and the number of
-/// components of triangles joined by edges.
+/// matched by the larger one. Returns the boundary vertices and edges, the number of components
+/// of triangles joined by edges, and a vertex where two components meet, if any.
 fn match_edges(n: usize, triangles: &[[usize; 3]]) -> Result<EdgeMatch, MeshError> {
     let (start, mut half) = by_smaller_vertex(n, triangles.iter().copied(), |t, b| (b, t));
     let mut on_boundary = vec![false; n];
@@ -667,7 +682,19 @@ fn match_edges(n: usize, triangles: &[[usize; 3]]) -> Result<EdgeMatch, MeshErro
     let components = (0..triangles.len())
         .filter(|&t| find(&mut parent, t) == t)
         .count();
-    Ok((on_boundary, boundary_edges, components))
+    // A vertex whose triangles lie in two components: where they meet.
+    let mut component_at: Vec<Option<usize>> = vec![None; n];
+    let mut joined_at = None;
+    for (t, tri) in triangles.iter().enumerate() {
+        let root = find(&mut parent, t);
+        for &v in tri {
+            match component_at[v] {
+                Some(r) if r != root => joined_at = joined_at.or(Some(v)),
+                _ => component_at[v] = Some(root),
+            }
+        }
+    }
+    Ok((on_boundary, boundary_edges, (components, joined_at)))
 }
 
 /// The angles of the triangles at each vertex sum to 2π at an interior vertex and to less at a
@@ -929,8 +956,23 @@ mod tests {
         tris.extend(fan.iter().map(|t| t.map(|v| v + 5)));
         assert!(matches!(
             Mesh::new(two, tris),
-            Err(MeshError::Disconnected { components: 2 })
+            Err(MeshError::Disconnected {
+                components: 2,
+                joined_at: None
+            })
         ));
+        // The same two fans meeting at a corner: joined there only.
+        let mut pinched = sq.clone();
+        pinched.extend(sq[1..].iter().map(|p| [p[0] + 1.0, p[1] + 1.0]));
+        let mut tris = fan.clone();
+        tris.extend(fan.iter().map(|t| t.map(|v| if v == 0 { 2 } else { v + 4 })));
+        assert_eq!(
+            Mesh::new(pinched, tris).unwrap_err(),
+            MeshError::Disconnected {
+                components: 2,
+                joined_at: Some(2)
+            }
+        );
         // Hanging node: split the right triangle's neighbour only.
         let pts = vec![
             [0.0, 0.0],
