@@ -248,6 +248,15 @@ fn check_replaceable(target: &Path, inputs: &[PathBuf]) -> Result<(), OutputErro
     let Ok(meta) = target.symlink_metadata() else {
         return Ok(());
     };
+    let in_a_result = target.parent().is_some_and(|p| p.join(MARKER).is_file());
+    if meta.is_dir() && in_a_result && !target.join(MARKER).is_file() {
+        return Err(err(
+            "is part of a result of membrane-contact (a step of `adapt`, say), which replacing it \
+             would leave inconsistent; it is left alone: choose another name, or replace the whole \
+             result"
+                .into(),
+        ));
+    }
     if !meta.is_dir() || !target.join(MARKER).is_file() {
         return Err(err(
             "exists and is not a result of membrane-contact; it is left alone: choose another name".into(),

@@ -89,6 +89,29 @@ fn a_result_replaces_an_earlier_one_whole() {
     assert_eq!((read_whole(&out), read_whole(&dual)), (289, 81));
 }
 
+/// A step of an `adapt` result is part of that result: a solve into it is refused as such,
+/// and the step is left as it was.
+#[test]
+fn a_step_of_an_adapt_result_is_not_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("adapt");
+    let adapt = Command::new(BIN)
+        .args(["-q", "adapt", "--n", "8", "--steps", "1", "-o"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(adapt.status.success());
+    let step = out.join("step-001");
+    let before = read_whole(&step);
+    let refused = solve(&step, 16);
+    let e = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        !refused.status.success() && e.contains("is part of a result of membrane-contact"),
+        "{e}"
+    );
+    assert_eq!(read_whole(&step), before);
+}
+
 #[test]
 fn any_file_name_works() {
     // XML's special characters and a colon never reach the XDMF files, and a name of 250
