@@ -302,6 +302,21 @@ impl Run<'_> {
                 show(e.hminus1_lambda),
                 e.quadrature
             );
+            if let Some(u) = &e.unsolved {
+                let equation = match (u.equation, self.solution.rigid) {
+                    (_, true) => "−μΔu − λ = f",
+                    (1, false) => "−μ1Δu1 − λ = f1",
+                    _ => "−μ2Δu2 + λ = f2",
+                };
+                out += &format!(
+                    "exact       does not solve {equation} (by differences) at {:.0}% of the points sampled \
+                     (the most at ({:.4}, {:.4})): [exact] is not a solution of this case, and the errors \
+                     above are not its errors\n",
+                    100.0 * u.share,
+                    u.at[0],
+                    u.at[1]
+                );
+            }
             if let Some(m) = &e.boundary {
                 out += &match m.at_vertex {
                     true => format!(

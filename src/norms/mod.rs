@@ -85,6 +85,8 @@ pub struct Errors {
     /// (a curved ω, or a mesh of another domain): the errors are then against the solution of
     /// another problem than the one on ω_h, which the estimator's η bounds the error against.
     pub boundary: Option<Mismatch>,
+    /// Where the exact solution does not solve the equations ([`unsolved`]).
+    pub unsolved: Option<Unsolved>,
 }
 
 /// The norms by name (a study's JSON): u1's and u2's, or above a rigid obstacle u's alone
@@ -196,6 +198,7 @@ impl Errors {
             quadrature,
             rigid: exact.rigid,
             boundary: boundary_mismatch(problem, exact, [&solution.u1, &solution.u2]),
+            unsolved: unsolved(problem, exact),
         }
     }
 }
@@ -242,6 +245,84 @@ fn boundary_mismatch(problem: &DiscreteProblem, exact: &Exact, uh: [&[f64]; 2]) 
     })
 }
 
+/// Where the exact solution misses the equations of (1.1) (above a rigid obstacle −μΔu − λ = f)
+/// on a share of sample points too large for kinks and jumps of the data between the points of
+/// the difference stencil.
+#[derive(Debug, Clone, Copy)]
+pub struct Unsolved {
+    /// The share of the sample points where a residual exceeds [`UNSOLVED`] of its terms.
+    pub share: f64,
+    /// The point of the largest relative residual.
+    pub at: [f64; 2],
+    /// The equation missed there: 1 (membrane 1's, or the obstacle problem's) or 2.
+    pub equation: usize,
+}
+
+/// A residual above this part of the size of its terms misses the equation.
+const UNSOLVED: f64 = 1e-3;
+
+/// The exact solution is said not to solve the equations beyond this share of the points.
+const UNSOLVED_SHARE: f64 = 0.1;
+
+/// Triangles whose centroids are sampled, at most.
+const SAMPLES: usize = 4096;
+
+/// The residuals of −μ1Δu1 − λ = f1 and −μ2Δu2 + λ = f2 (−μΔu − λ = f above a rigid obstacle) at
+/// the centroids of up to [`SAMPLES`] triangles, Δ by the five-point difference of step 10⁻³ of
+/// the mesh's diameter: [`Unsolved`] when more than [`UNSOLVED_SHARE`] of the points miss one.
+fn unsolved(problem: &DiscreteProblem, exact: &Exact) -> Option<Unsolved> {
+    let (mesh, data) = (&problem.mesh, &problem.data);
+    let (lo, hi) = mesh.bounding_box();
+    let s = 1e-3 * (hi[0] - lo[0]).hypot(hi[1] - lo[1]);
+    let fit = "the data fit the mesh's groups (checked by DiscreteProblem::new)";
+    let f1 = data.f1.pieces("f1", mesh, On::Surfaces).expect(fit);
+    let f2 = match &data.lower {
+        Lower::Membrane { f2, .. } => Some(f2.pieces("f2", mesh, On::Surfaces).expect(fit)),
+        Lower::Rigid { .. } => None,
+    };
+    // −μΔu, the size of its terms μ(|∂xx u| + |∂yy u|) (a harmonic u has Δu = 0 from terms that
+    // are not), and the round-off of the differences.
+    let operator = |mu: f64, u: &Expr, x: [f64; 2]| {
+        let v =
+            [[0.0, 0.0], [s, 0.0], [-s, 0.0], [0.0, s], [0.0, -s]].map(|d| u.eval(x[0] + d[0], x[1] + d[1]));
+        let [dxx, dyy] = [
+            (v[1] + v[2] - 2.0 * v[0]) / (s * s),
+            (v[3] + v[4] - 2.0 * v[0]) / (s * s),
+        ];
+        let noise = 16.0 * f64::EPSILON * v.iter().map(|v| v.abs()).sum::<f64>() / (s * s);
+        (-mu * (dxx + dyy), mu * (dxx.abs() + dyy.abs()), mu * noise)
+    };
+    let stride = (mesh.n_triangles() / SAMPLES).max(1);
+    let (mut missed, mut samples, mut worst) = (0, 0, (0.0, [0.0; 2], 0));
+    for t in (0..mesh.n_triangles()).step_by(stride) {
+        let [p, q, r] = mesh.corners(t);
+        let x = [0, 1].map(|k| (p[k] + q[k] + r[k]) / 3.0);
+        let lambda = exact.lambda.eval(x[0], x[1]);
+        let mut equations = vec![(1, data.mu1, &exact.u1, -lambda, f1.on_triangle(t))];
+        if let (Some(mu2), Some(f2)) = (data.mu2(), &f2) {
+            equations.push((2, mu2, &exact.u2, lambda, f2.on_triangle(t)));
+        }
+        samples += 1;
+        let mut miss = false;
+        for (equation, mu, u, lambda, f) in equations {
+            let ((a, size, noise), f) = (operator(mu, u, x), f.eval(x[0], x[1]));
+            let terms = (size + lambda.abs() + f.abs()).max(f64::MIN_POSITIVE);
+            let relative = ((a + lambda - f).abs() - noise).max(0.0) / terms;
+            miss |= relative > UNSOLVED;
+            if relative > worst.0 {
+                worst = (relative, x, equation);
+            }
+        }
+        missed += usize::from(miss);
+    }
+    let share = missed as f64 / samples.max(1) as f64;
+    (share > UNSOLVED_SHARE).then_some(Unsolved {
+        share,
+        at: worst.1,
+        equation: worst.2,
+    })
+}
+
 impl Errors {
     /// Whether every norm computed is a finite number.
     pub fn all_finite(&self) -> bool {
@@ -271,6 +352,11 @@ impl Describe for Errors {
                 "exact_boundary_mismatch",
                 "exact_boundary_mismatch",
                 Some(self.boundary.map_or(0.0, |m| m.relative)),
+            ),
+            (
+                "exact_equation_mismatch",
+                "exact_equation_mismatch",
+                Some(self.unsolved.map_or(0.0, |u| u.share)),
             ),
             (
                 "error_hminus1_lambda",
@@ -446,6 +532,36 @@ pub(crate) fn dual_norm(mesh: &Mesh, f: &Expr, c: impl Fn(usize) -> f64) -> f64 
 
 #[cfg(test)]
 mod tests {
+    use crate::case::Case;
+    use crate::problem::DiscreteProblem;
+
+    /// The shipped exact solutions solve their equations (the ball's is harmonic with f = 0 off
+    /// its contact set: Δu = 0 from second derivatives that are not), one written for other loads
+    /// does not, and the equation it misses is named.
+    #[test]
+    fn an_exact_solution_of_other_loads_is_found_out() {
+        let unsolved = |case: &Case| {
+            let problem = DiscreteProblem::new(case.mesh().unwrap(), &case.data).unwrap();
+            super::unsolved(&problem, case.exact.as_ref().unwrap())
+        };
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases");
+        for name in ["ball", "default", "disk_unloaded", "lshape_corner"] {
+            let mut case = Case::read(&dir.join(format!("{name}.toml"))).unwrap();
+            let _ = case.set_cells(16);
+            assert!(unsolved(&case).is_none(), "{name}");
+        }
+        let text = |f2: &str| {
+            format!(
+                "mu1 = 1.0\nmu2 = 2.0\nf1 = -4\nf2 = {f2}\ng = \"x*x + y*y\"\n[exact]\nu1 = \"x*x + y*y\"\n\
+                 u2 = \"x*x\"\nlambda = 0\n[mesh]\nkind = \"rectangle\"\nn = 8\n"
+            )
+        };
+        // −Δ(x² + y²) = −4 = f1; −2Δ(x²) = −4 = f2 solves, −2 does not.
+        assert!(unsolved(&Case::parse(&text("-4"), "t", ".".into()).unwrap()).is_none());
+        let u = unsolved(&Case::parse(&text("-2"), "t", ".".into()).unwrap()).expect("missed");
+        assert_eq!((u.share, u.equation), (1.0, 2));
+    }
+
     #[test]
     fn a_study_names_the_norms_of_the_obstacle_problem_as_u() {
         let json = |rigid: bool| {
