@@ -33,6 +33,19 @@ pub struct Options<'a> {
     pub dual: bool,
 }
 
+/// The command line's `solve` without options: nested iteration, the solution and its checks.
+impl Default for Options<'_> {
+    fn default() -> Self {
+        Options {
+            start: Start::Nested,
+            hminus1: false,
+            flux: false,
+            estimate: false,
+            dual: false,
+        }
+    }
+}
+
 /// The result of one run.
 pub struct Run<'c> {
     /// The case solved.

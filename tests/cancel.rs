@@ -3,7 +3,6 @@
 //! rather than finishing them. Alone in its own test binary: the request is process-wide.
 
 use membrane_contact::case::Case;
-use membrane_contact::contact::Start;
 use membrane_contact::estimator::Estimate;
 use membrane_contact::mesh::{DualMesh, Edges};
 use membrane_contact::progress;
@@ -13,13 +12,7 @@ use membrane_contact::run;
 fn a_cancelled_estimate_solves_no_patch() {
     let mut case = Case::default_case();
     case.set_cells(256).unwrap();
-    let options = run::Options {
-        start: Start::Nested,
-        hminus1: false,
-        flux: false,
-        estimate: false,
-        dual: false,
-    };
+    let options = run::Options::default();
     let r = run::run(&case, &options).unwrap();
     let mesh = &r.problem.mesh;
     let edges = Edges::new(mesh);
