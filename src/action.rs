@@ -177,7 +177,7 @@ impl Checks {
         ];
         if all.iter().any(|(_, v)| !v.is_finite())
             || !self.resolution.is_finite()
-            || !self.values[1].is_finite()
+            || self.noises.iter().any(|n| !n.is_finite())
         {
             return Err(CheckError::NotFinite);
         }

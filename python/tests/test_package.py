@@ -276,6 +276,14 @@ def test_meshes_of_other_cells_are_refused(small):
     square = dmesh.create_unit_square(MPI.COMM_WORLD, 3, 3, dmesh.CellType.quadrilateral)
     with pytest.raises(mc.InputError, match="has quadrilateral cells"):
         mc.solve(small, square)
+    # Two triangles of a P2 geometry (curved in general): refused, not read as a hanging node.
+    import ufl
+
+    x = np.array([[0, 0], [1, 0], [0, 1], [0.5, 0], [0.5, 0.5], [0, 0.5], [1, 1], [1, 0.5], [0.5, 1]], dtype=float)
+    cells = np.array([[0, 1, 2, 3, 4, 5], [1, 6, 2, 7, 8, 4]], dtype=np.int64)
+    curved = dmesh.create_mesh(MPI.COMM_WORLD, cells, x, ufl.Mesh(ufl.VectorElement("Lagrange", "triangle", 2)))
+    with pytest.raises(mc.InputError, match="geometry has degree 2"):
+        mc.solve(small, curved)
 
 
 def test_a_given_mesh_replaces_the_whole_mesh_table(small):
