@@ -113,20 +113,24 @@ mod libmvec {
     /// out[i] = g of the i-th values of `args`, four at a time; a short tail padded with zeros.
     #[target_feature(enable = "avx2,fma")]
     fn by_fours<const N: usize>(args: &[&[f64]; N], out: &mut [f64], g: impl Fn([__m256d; N]) -> __m256d) {
-        let load = |at: usize| {
-            args.map(|a| {
+        let full = out.len() / 4 * 4;
+        for at in (0..full).step_by(4) {
+            // SAFETY: each slice holds four doubles.
+            let v = args.map(|a| unsafe { _mm256_loadu_pd(a[at..at + 4].as_ptr()) });
+            unsafe { _mm256_storeu_pd(out[at..at + 4].as_mut_ptr(), g(v)) };
+        }
+        let n = out.len() - full;
+        if n > 0 {
+            let v = args.map(|a| {
                 let mut x = [0.0; 4];
-                let n = (a.len() - at).min(4);
-                x[..n].copy_from_slice(&a[at..at + n]);
+                x[..n].copy_from_slice(&a[full..full + n]);
                 // SAFETY: x holds four doubles.
                 unsafe { _mm256_loadu_pd(x.as_ptr()) }
-            })
-        };
-        for (k, out) in out.chunks_mut(4).enumerate() {
+            });
             let mut y = [0.0; 4];
             // SAFETY: y holds four doubles.
-            unsafe { _mm256_storeu_pd(y.as_mut_ptr(), g(load(4 * k))) };
-            out.copy_from_slice(&y[..out.len()]);
+            unsafe { _mm256_storeu_pd(y.as_mut_ptr(), g(v)) };
+            out[full..].copy_from_slice(&y[..n]);
         }
     }
 
