@@ -100,21 +100,25 @@ pub fn integrate<const M: usize, D: Density<M>>(
                 .map(|(c, _)| piece(c))
                 .collect();
             let mut estimated = ev.estimates(&rest).into_iter();
-            let estimates: Vec<Estimate<M>> = (range.zip(constant))
-                .map(|(c, d)| match d {
-                    Some(d) => Estimate::constant(piece(c), d),
-                    None => estimated.next().expect("an estimate for each cell not constant"),
+            let mut whole = Integral::zero();
+            let errors: Vec<[f32; M]> = (range.zip(constant))
+                .map(|(c, d)| {
+                    let (value, error) = match d {
+                        // A constant's integral is exact.
+                        Some(d) => {
+                            let area = piece(c).area();
+                            (d.map(|d| d * area), [0.0; M])
+                        }
+                        None => {
+                            let e = estimated.next().expect("an estimate for each cell not constant");
+                            (e.value, e.error)
+                        }
+                    };
+                    whole.add(&value, &error);
+                    error.map(|e| e as f32)
                 })
                 .collect();
-            let mut whole = Integral::zero();
-            estimates.iter().for_each(|e| whole.add(e));
-            (
-                whole,
-                estimates
-                    .iter()
-                    .map(|e| e.error.map(|e| e as f32))
-                    .collect::<Vec<_>>(),
-            )
+            (whole, errors)
         },
     );
     let whole = first.iter().fold(Integral::zero(), |s, (w, _)| s.plus(w));
@@ -193,7 +197,7 @@ fn refine<const M: usize, D: Density<M>>(
             across_branch(parent, quarters);
             for e in quarters.iter() {
                 if (0..M).all(|m| e.error[m] <= CLOSE * e.value[m]) {
-                    closed.add(e);
+                    closed.add(&e.value, &e.error);
                 } else {
                     open.push(*e);
                 }
@@ -226,7 +230,7 @@ fn across_branch<const M: usize>(parent: &Estimate<M>, quarters: &mut [Estimate<
 fn sum<const M: usize>(closed: &Integral<M>, open: &[Estimate<M>]) -> Integral<M> {
     let mut total = *closed;
     for e in open {
-        total.add(e);
+        total.add(&e.value, &e.error);
     }
     total
 }
@@ -239,10 +243,10 @@ impl<const M: usize> Integral<M> {
         }
     }
 
-    fn add(&mut self, e: &Estimate<M>) {
+    fn add(&mut self, value: &[f64; M], error: &[f64; M]) {
         for m in 0..M {
-            self.value[m] += e.value[m];
-            self.error[m] += e.error[m];
+            self.value[m] += value[m];
+            self.error[m] += error[m];
         }
     }
 
@@ -289,19 +293,6 @@ struct Estimate<const M: usize> {
     rules: [f64; M],
     /// Where the piece lies from the branches of the fields.
     kind: Kind,
-}
-
-impl<const M: usize> Estimate<M> {
-    /// The piece of a density constant there, `d`: its integral exact.
-    fn constant(piece: Piece, d: [f64; M]) -> Self {
-        Estimate {
-            value: d.map(|d| d * piece.area()),
-            error: [0.0; M],
-            rules: [0.0; M],
-            kind: Kind::Smooth,
-            piece,
-        }
-    }
 }
 
 /// The value of `e` on each cell 0..n (`corners` of each) where it is a constant as far as its
