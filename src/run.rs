@@ -166,10 +166,10 @@ pub fn on_mesh<'c>(
     let dual = DualMesh::new(&problem.mesh, &edges);
     let errors = (case.exact.as_ref())
         .map(|exact| Errors::compute(&problem, &dual, &solution, &action, exact, options.hminus1));
-    if errors.as_ref().is_some_and(|e| !e.all_finite()) {
+    if let Some(key) = errors.as_ref().and_then(Errors::not_finite) {
         return Err(CaseError(format!(
-            "{}: an error norm is not finite: the exact solution or its gradient is NaN or infinite \
-             at a quadrature point",
+            "{}: the error norm of {key} is not finite: it, or its difference from the solution, is NaN \
+             or infinite at a quadrature point",
             case.origin
         ))
         .into());
@@ -185,6 +185,17 @@ pub fn on_mesh<'c>(
     let estimate = (options.estimate).then(|| Estimate::compute(&problem, &dual, &solution, &action));
     // A phase cut short by a cancel leaves values that are not its results.
     stop_if_cancelled(case)?;
+    if let Some(e) = estimate
+        .as_ref()
+        .filter(|e| !(e.total.is_finite() && e.lambda.is_finite()))
+    {
+        return Err(CaseError(format!(
+            "{}: the error estimate is not finite (η = {:.4e}): its squared terms overflow double \
+             precision at the size of this case's data; solve without --estimate, or scale the data",
+            case.origin, e.total
+        ))
+        .into());
+    }
     let timings = Timings {
         mesh: mesh_seconds,
         assembly,
@@ -316,19 +327,7 @@ impl Run<'_> {
                 e.quadrature
             );
             if let Some(u) = &e.unsolved {
-                let equation = match (u.equation, self.solution.rigid) {
-                    (_, true) => "−μΔu − λ = f",
-                    (1, false) => "−μ1Δu1 − λ = f1",
-                    _ => "−μ2Δu2 + λ = f2",
-                };
-                out += &format!(
-                    "exact       does not solve {equation} (by differences) at {:.0}% of the points sampled \
-                     (the most at ({:.4}, {:.4})): [exact] is not a solution of this case, and the errors \
-                     above are not its errors\n",
-                    100.0 * u.share,
-                    u.at[0],
-                    u.at[1]
-                );
+                out += &format!("exact       {}\n", u.describe(self.solution.rigid));
             }
             if let Some(m) = &e.boundary {
                 out += &match m.at_vertex {

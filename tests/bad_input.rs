@@ -1044,8 +1044,16 @@ fn a_nan_exact_gradient_is_refused() {
     let exact = "[exact]\nu1 = 0\nu2 = 0\nlambda = 0\ngrad_u1 = [\"sqrt(x - 0.5)\", \"0\"]\n";
     contains(
         &case_fails(&format!("{GOOD}{exact}{SQUARE}")),
-        "an error norm is not finite",
+        "the error norm of exact.grad_u1 is not finite",
     );
+}
+
+/// Data whose estimate overflows double precision (e^700 squared) are refused, not reported as η = ∞.
+#[test]
+fn an_estimate_beyond_double_precision_is_refused() {
+    let case = format!("{}{SQUARE}", GOOD.replace("f1 = -5", "f1 = \"-exp(700*x)\""));
+    let e = fails(&case, |_| {}, &["--estimate"], None);
+    contains(&e, "the error estimate is not finite (η = inf)");
 }
 
 /// Cells per side that are neither a number nor two say what is expected, not serde's words.

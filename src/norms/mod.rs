@@ -254,8 +254,47 @@ pub struct Unsolved {
     pub share: f64,
     /// The point of the largest relative residual.
     pub at: [f64; 2],
-    /// The equation missed there: 1 (membrane 1's, or the obstacle problem's) or 2.
-    pub equation: usize,
+    /// What is missed there.
+    pub missed: Missed,
+}
+
+impl Unsolved {
+    /// What the exact solution misses, and what that does to the errors, in words (`rigid`: above
+    /// a rigid obstacle).
+    pub fn describe(&self, rigid: bool) -> String {
+        let u = |i: usize| match (rigid, i) {
+            (true, _) => "u",
+            (false, 1) => "u1",
+            _ => "u2",
+        };
+        let missed = match (self.missed, rigid) {
+            (Missed::Equation(_), true) => "does not solve −μΔu − λ = f".to_string(),
+            (Missed::Equation(1), false) => "does not solve −μ1Δu1 − λ = f1".to_string(),
+            (Missed::Equation(_), false) => "does not solve −μ2Δu2 + λ = f2".to_string(),
+            (Missed::Gradient(i), _) => format!("grad_{0} is not the gradient of {0}", u(i)),
+        };
+        let consequence = match self.missed {
+            Missed::Equation(_) => {
+                "[exact] is not a solution of this case, and the errors are not its errors"
+            }
+            Missed::Gradient(_) => "the H1 errors are against the gradient given, not against ∇u",
+        };
+        format!(
+            "{missed} (by differences) at {:.0}% of the points sampled (the most at ({:.4}, {:.4})): {consequence}",
+            100.0 * self.share,
+            self.at[0],
+            self.at[1]
+        )
+    }
+}
+
+/// What the exact solution misses at a point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Missed {
+    /// The equation of membrane 1 (or the obstacle problem's), or of membrane 2.
+    Equation(usize),
+    /// ∇u_i given beside u_i (i = 1, 2) is not its gradient.
+    Gradient(usize),
 }
 
 /// A residual above this part of the size of its terms misses the equation.
@@ -269,7 +308,8 @@ const SAMPLES: usize = 4096;
 
 /// The residuals of −μ1Δu1 − λ = f1 and −μ2Δu2 + λ = f2 (−μΔu − λ = f above a rigid obstacle) at
 /// the centroids of up to [`SAMPLES`] triangles, Δ by the five-point difference of step 10⁻³ of
-/// the mesh's diameter: [`Unsolved`] when more than [`UNSOLVED_SHARE`] of the points miss one.
+/// the mesh's diameter, and the given ∇u_i against the central differences of u_i there:
+/// [`Unsolved`] when more than [`UNSOLVED_SHARE`] of the points miss one.
 fn unsolved(problem: &DiscreteProblem, exact: &Exact) -> Option<Unsolved> {
     let (mesh, data) = (&problem.mesh, &problem.data);
     let (lo, hi) = mesh.bounding_box();
@@ -281,7 +321,8 @@ fn unsolved(problem: &DiscreteProblem, exact: &Exact) -> Option<Unsolved> {
         Lower::Rigid { .. } => None,
     };
     // −μΔu, the size of its terms μ(|∂xx u| + |∂yy u|) (a harmonic u has Δu = 0 from terms that
-    // are not), and the round-off of the differences.
+    // are not), and the round-off of the differences; ∇u by central differences, and its
+    // round-off.
     let operator = |mu: f64, u: &Expr, x: [f64; 2]| {
         let v =
             [[0.0, 0.0], [s, 0.0], [-s, 0.0], [0.0, s], [0.0, -s]].map(|d| u.eval(x[0] + d[0], x[1] + d[1]));
@@ -289,28 +330,44 @@ fn unsolved(problem: &DiscreteProblem, exact: &Exact) -> Option<Unsolved> {
             (v[1] + v[2] - 2.0 * v[0]) / (s * s),
             (v[3] + v[4] - 2.0 * v[0]) / (s * s),
         ];
-        let noise = 16.0 * f64::EPSILON * v.iter().map(|v| v.abs()).sum::<f64>() / (s * s);
-        (-mu * (dxx + dyy), mu * (dxx.abs() + dyy.abs()), mu * noise)
+        let size = 16.0 * f64::EPSILON * v.iter().map(|v| v.abs()).sum::<f64>();
+        let laplacian = (
+            -mu * (dxx + dyy),
+            mu * (dxx.abs() + dyy.abs()),
+            mu * size / (s * s),
+        );
+        let gradient = ([(v[1] - v[2]) / (2.0 * s), (v[3] - v[4]) / (2.0 * s)], size / s);
+        (laplacian, gradient)
+    };
+    // |∇u given − its differences| relative to their sizes, less the differences' round-off.
+    let gradient_miss = |given: &[Expr; 2], (d, noise): ([f64; 2], f64), x: [f64; 2]| {
+        let g = given.each_ref().map(|g| g.eval(x[0], x[1]));
+        let off = (g[0] - d[0]).abs() + (g[1] - d[1]).abs();
+        let size = g[0].abs() + g[1].abs() + d[0].abs() + d[1].abs();
+        (off - noise).max(0.0) / size.max(f64::MIN_POSITIVE)
     };
     let stride = (mesh.n_triangles() / SAMPLES).max(1);
-    let (mut missed, mut samples, mut worst) = (0, 0, (0.0, [0.0; 2], 0));
+    let (mut missed, mut samples, mut worst) = (0, 0, (0.0, [0.0; 2], Missed::Equation(1)));
     for t in (0..mesh.n_triangles()).step_by(stride) {
         let [p, q, r] = mesh.corners(t);
         let x = [0, 1].map(|k| (p[k] + q[k] + r[k]) / 3.0);
         let lambda = exact.lambda.eval(x[0], x[1]);
-        let mut equations = vec![(1, data.mu1, &exact.u1, -lambda, f1.on_triangle(t))];
+        let mut equations = vec![(1, data.mu1, &exact.u1, &exact.grad_u1, -lambda, f1.on_triangle(t))];
         if let (Some(mu2), Some(f2)) = (data.mu2(), &f2) {
-            equations.push((2, mu2, &exact.u2, lambda, f2.on_triangle(t)));
+            equations.push((2, mu2, &exact.u2, &exact.grad_u2, lambda, f2.on_triangle(t)));
         }
         samples += 1;
         let mut miss = false;
-        for (equation, mu, u, lambda, f) in equations {
-            let ((a, size, noise), f) = (operator(mu, u, x), f.eval(x[0], x[1]));
+        for (i, mu, u, grad, lambda, f) in equations {
+            let (((a, size, noise), differences), f) = (operator(mu, u, x), f.eval(x[0], x[1]));
             let terms = (size + lambda.abs() + f.abs()).max(f64::MIN_POSITIVE);
             let relative = ((a + lambda - f).abs() - noise).max(0.0) / terms;
-            miss |= relative > UNSOLVED;
-            if relative > worst.0 {
-                worst = (relative, x, equation);
+            let gradient = grad.as_ref().map_or(0.0, |g| gradient_miss(g, differences, x));
+            for (relative, missed) in [(relative, Missed::Equation(i)), (gradient, Missed::Gradient(i))] {
+                miss |= relative > UNSOLVED;
+                if relative > worst.0 {
+                    worst = (relative, x, missed);
+                }
             }
         }
         missed += usize::from(miss);
@@ -319,21 +376,30 @@ fn unsolved(problem: &DiscreteProblem, exact: &Exact) -> Option<Unsolved> {
     (share > UNSOLVED_SHARE).then_some(Unsolved {
         share,
         at: worst.1,
-        equation: worst.2,
+        missed: worst.2,
     })
 }
 
 impl Errors {
-    /// Whether every norm computed is a finite number.
-    pub fn all_finite(&self) -> bool {
-        [self.l2_u1, self.l2_u2, self.l2_lambda]
-            .into_iter()
-            .chain(
-                [self.h1_u1, self.h1_u2, self.energy, self.hminus1_lambda]
-                    .into_iter()
-                    .flatten(),
-            )
-            .all(f64::is_finite)
+    /// The key of `[exact]` whose error norm is not a finite number, if one is not.
+    pub fn not_finite(&self) -> Option<&'static str> {
+        let u = if self.rigid { "exact.u" } else { "exact.u1" };
+        let grad_u = if self.rigid {
+            "exact.grad_u"
+        } else {
+            "exact.grad_u1"
+        };
+        [
+            (u, Some(self.l2_u1)),
+            ("exact.u2", Some(self.l2_u2)),
+            (grad_u, self.h1_u1),
+            ("exact.grad_u2", self.h1_u2),
+            ("exact.lambda", Some(self.l2_lambda)),
+            ("exact.lambda", self.hminus1_lambda),
+        ]
+        .into_iter()
+        .find(|(_, norm)| norm.is_some_and(|n| !n.is_finite()))
+        .map(|(key, _)| key)
     }
 }
 
@@ -550,16 +616,22 @@ mod tests {
             let _ = case.set_cells(16);
             assert!(unsolved(&case).is_none(), "{name}");
         }
-        let text = |f2: &str| {
+        let text = |f2: &str, grad_u2: &str| {
             format!(
                 "mu1 = 1.0\nmu2 = 2.0\nf1 = -4\nf2 = {f2}\ng = \"x*x + y*y\"\n[exact]\nu1 = \"x*x + y*y\"\n\
-                 u2 = \"x*x\"\nlambda = 0\n[mesh]\nkind = \"rectangle\"\nn = 8\n"
+                 u2 = \"x*x\"\nlambda = 0\ngrad_u1 = [\"2*x\", \"2*y\"]\ngrad_u2 = {grad_u2}\n\
+                 [mesh]\nkind = \"rectangle\"\nn = 8\n"
             )
         };
-        // −Δ(x² + y²) = −4 = f1; −2Δ(x²) = −4 = f2 solves, −2 does not.
-        assert!(unsolved(&Case::parse(&text("-4"), "t", ".".into()).unwrap()).is_none());
-        let u = unsolved(&Case::parse(&text("-2"), "t", ".".into()).unwrap()).expect("missed");
-        assert_eq!((u.share, u.equation), (1.0, 2));
+        let of =
+            |f2: &str, grad_u2: &str| unsolved(&Case::parse(&text(f2, grad_u2), "t", ".".into()).unwrap());
+        // −Δ(x² + y²) = −4 = f1; −2Δ(x²) = −4 = f2 solves, −2 does not; ∇(x²) = (2x, 0), not (x, 0).
+        assert!(of("-4", r#"["2*x", "0"]"#).is_none());
+        let u = of("-2", r#"["2*x", "0"]"#).expect("missed");
+        assert_eq!((u.share, u.missed), (1.0, Missed::Equation(2)));
+        let u = of("-4", r#"["x", "0"]"#).expect("missed");
+        assert_eq!((u.share, u.missed), (1.0, Missed::Gradient(2)));
+        assert!(u.describe(false).starts_with("grad_u2 is not the gradient of u2"));
     }
 
     #[test]

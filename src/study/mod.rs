@@ -389,15 +389,9 @@ pub fn markdown_table(title: &str, levels: &[Level]) -> String {
     if let Some(note) = crate::norms::Mismatch::note(mismatches) {
         s += &format!("\n{note}");
     }
-    if let Some(u) = levels.iter().find_map(|l| l.errors.as_ref()?.unsolved) {
-        s += &format!(
-            "\nThe exact solution does not solve the equations (by differences) at {:.0}% of the points \
-             sampled on a level (the most at ({:.4}, {:.4})): [exact] is not a solution of this case, \
-             and the errors are not its errors.\n",
-            100.0 * u.share,
-            u.at[0],
-            u.at[1]
-        );
+    let unsolved = levels.iter().filter_map(|l| l.errors.as_ref());
+    if let Some((u, rigid)) = unsolved.filter_map(|e| Some((e.unsolved?, e.rigid))).next() {
+        s += &format!("\nOn a level, [exact] {}.\n", u.describe(rigid));
     }
     s
 }
