@@ -233,7 +233,7 @@ impl fmt::Display for DataError {
                 value,
             } => write!(
                 f,
-                "{name}{} is {value} at {}: every datum must be finite in ω",
+                "{name}{} is {value} at {}: every datum must be finite in ω and on ∂ω",
                 group.as_ref().map_or(String::new(), |g| format!(".{g}")),
                 Point(*point)
             ),
