@@ -141,6 +141,11 @@ impl Quadrature {
         TRIANGLE_RULES[self.degree.min(Self::MAX_DEGREE)]
     }
 
+    /// The barycentric coordinates of the rule's points, in the order of [`Quadrature::rule`].
+    pub fn barycentric(&self) -> impl Iterator<Item = [f64; 3]> {
+        self.rule().iter().map(|&[xi, eta, _]| [1.0 - xi - eta, xi, eta])
+    }
+
     /// Visits the triangles `range` (corners given by `corners`) with the E `fields` evaluated at
     /// their quadrature points: `visit(t, points, values)`, `values[e][q]` the field e at `points[q]`.
     /// The fields are evaluated together for `TRIANGLES_PER_BLOCK` triangles at a time, what
@@ -165,8 +170,7 @@ impl Quadrature {
             for t in block.clone() {
                 let [p, q, r] = corners(t);
                 let jac = crate::mesh::orient(p, q, r);
-                for &[xi, eta, w] in rule {
-                    let l = [1.0 - xi - eta, xi, eta];
+                for (&[_, _, w], l) in rule.iter().zip(self.barycentric()) {
                     points.push(QuadraturePoint {
                         x: [
                             l[0] * p[0] + l[1] * q[0] + l[2] * r[0],

@@ -650,23 +650,29 @@ impl Link {
 /// In-place Cholesky factorization LLᵀ of the SPD n×n row-major matrix `m` (lower triangle).
 fn cholesky(m: &mut [f64], n: usize) {
     for j in 0..n {
-        let d = m[j * n + j] - (0..j).map(|k| m[j * n + k] * m[j * n + k]).sum::<f64>();
+        let (row_j, below) = m[j * n..].split_at_mut(n);
+        let d = row_j[j] - dot(&row_j[..j], &row_j[..j]);
         debug_assert!(d > 0.0, "the stream-function system is positive definite");
         let d = d.sqrt();
-        m[j * n + j] = d;
-        for i in j + 1..n {
-            let s = m[i * n + j] - (0..j).map(|k| m[i * n + k] * m[j * n + k]).sum::<f64>();
-            m[i * n + j] = s / d;
+        row_j[j] = d;
+        for row_i in below.chunks_exact_mut(n) {
+            row_i[j] = (row_i[j] - dot(&row_i[..j], &row_j[..j])) / d;
         }
     }
 }
 
 /// Solves LLᵀx = b in place with the factor of [`cholesky`].
 fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
-    for i in 0..n {
-        b[i] = (b[i] - (0..i).map(|k| l[i * n + k] * b[k]).sum::<f64>()) / l[i * n + i];
+    for (i, row) in l.chunks_exact(n).enumerate() {
+        b[i] = (b[i] - dot(&row[..i], &b[..i])) / row[i];
     }
     for i in (0..n).rev() {
-        b[i] = (b[i] - (i + 1..n).map(|k| l[k * n + i] * b[k]).sum::<f64>()) / l[i * n + i];
+        let s: f64 = (i + 1..n).map(|k| l[k * n + i] * b[k]).sum();
+        b[i] = (b[i] - s) / l[i * n + i];
     }
+}
+
+/// x · y, summed in order.
+fn dot(x: &[f64], y: &[f64]) -> f64 {
+    x.iter().zip(y).map(|(x, y)| x * y).sum()
 }

@@ -75,10 +75,34 @@ pub fn lift(
 /// ∫_κ c φ_j for the three vertices j of the triangle of the cell s of S_h, c constant on each
 /// dual cell: c_a |κ| φ_j(centroid of κ), a the owner of κ (φ_j is affine on κ).
 pub fn on_cell(mesh: &Mesh, dual: &DualMesh, c: &[f64], s: usize) -> [f64; 3] {
-    let frame = DualMesh::frame(s);
-    let value = c[dual.owner(s)] * mesh.area(s / 6) / 6.0;
-    std::array::from_fn(|j| value * (0..3).map(|v| frame[v][j]).sum::<f64>() / 3.0)
+    on_cells(mesh, dual, [c], s)[0]
 }
+
+/// [`on_cell`] for several fields `c` at once (the cell's geometry looked up once).
+pub fn on_cells<const N: usize>(mesh: &Mesh, dual: &DualMesh, c: [&[f64]; N], s: usize) -> [[f64; 3]; N] {
+    let (owner, area) = (dual.owner(s), mesh.area(s / 6));
+    let phi = &PHI_AT_CENTROID[s % 6];
+    c.map(|c| {
+        let value = c[owner] * area / 6.0;
+        phi.map(|phi| value * phi / 3.0)
+    })
+}
+
+/// 3 φ_j at the centroid of cell c of a triangle (the sum of φ_j at its corners), j its vertices.
+const PHI_AT_CENTROID: [[f64; 3]; 6] = {
+    let mut phi = [[0.0; 3]; 6];
+    let mut c = 0;
+    while c < 6 {
+        let frame = DualMesh::FRAMES[c];
+        let mut j = 0;
+        while j < 3 {
+            phi[c][j] = frame[0][j] + frame[1][j] + frame[2][j];
+            j += 1;
+        }
+        c += 1;
+    }
+    phi
+};
 
 /// (c, φ_b) at every vertex b: each triangle's three terms in parallel, added up in order.
 fn pairing(mesh: &Mesh, dual: &DualMesh, c: &[f64]) -> Vec<f64> {

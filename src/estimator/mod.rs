@@ -183,8 +183,8 @@ fn local_terms(
         let mut cells = [CellLoads::default(); 6];
         let range = 6 * triangles.start..6 * triangles.end;
         visit_cell_loads((problem, dual), f, alpha, range, |s, mut l| {
-            for (f, c) in l.f_phi.iter_mut().zip(defects) {
-                let add = means::on_cell(mesh, dual, c, s);
+            let adds = means::on_cells(mesh, dual, [&defects[0], defects.last().expect("one")], s);
+            for ((f, add), _) in l.f_phi.iter_mut().zip(adds).zip(defects) {
                 *f = std::array::from_fn(|j| f[j] + add[j]);
             }
             cells[s % 6] = l;
@@ -459,6 +459,12 @@ fn visit_cell_loads(
     cells: Range<usize>,
     mut each: impl FnMut(usize, CellLoads),
 ) {
+    // φ_j, j the vertices of the triangle, at each point of the rule on each of its six cells.
+    let phi: Vec<[[f64; 3]; 6]> = (problem.data.quadrature.barycentric())
+        .map(|b| {
+            DualMesh::FRAMES.map(|frame| std::array::from_fn(|j| (0..3).map(|v| b[v] * frame[v][j]).sum()))
+        })
+        .collect();
     // The cell s of S_h lies in the triangle s / 6 of T_h: its loads are that triangle's.
     datum::visit(
         &problem.data.quadrature,
@@ -467,13 +473,11 @@ fn visit_cell_loads(
         cells,
         f,
         |s, points, [f1, f2]| {
-            let frame = DualMesh::frame(s);
             let mut l = CellLoads::default();
             let f = |k: usize| [f1[k], f2[k], alpha * f1[k] - (1.0 - alpha) * f2[k]];
             let (mut mean, mut area) = ([0.0; 3], 0.0);
             for (k, p) in points.iter().enumerate() {
-                let phi: [f64; 3] =
-                    std::array::from_fn(|j| (0..3).map(|v| p.barycentric[v] * frame[v][j]).sum());
+                let phi = phi[k][s % 6];
                 for (f_phi, f) in l.f_phi.iter_mut().zip(f(k)) {
                     for (v, phi) in f_phi.iter_mut().zip(phi) {
                         *v += p.weight * f * phi;

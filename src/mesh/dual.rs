@@ -144,18 +144,30 @@ impl<'a> DualMesh<'a> {
     /// The barycentric coordinates, in its triangle K, of the corners of cell s of S_h: cell 2k is
     /// [v_k, m_{k,k+1}, g], cell 2k + 1 is [v_k, g, m_{k+2,k}].
     pub fn frame(s: usize) -> [[f64; 3]; 3] {
-        let k = (s % 6) / 2;
-        let vertex = |j: usize| std::array::from_fn(|i| f64::from(u8::from(i == j)));
-        let mid = |a: usize, b: usize| {
-            std::array::from_fn(|i| 0.5 * f64::from(u8::from(i == a) + u8::from(i == b)))
-        };
-        let centre = [1.0 / 3.0; 3];
-        if s.is_multiple_of(2) {
-            [vertex(k), mid(k, (k + 1) % 3), centre]
-        } else {
-            [vertex(k), centre, mid(k, (k + 2) % 3)]
-        }
+        Self::FRAMES[s % 6]
     }
+
+    /// [`DualMesh::frame`] of the six cells of a triangle.
+    pub const FRAMES: [[[f64; 3]; 3]; 6] = {
+        let mut frames = [[[0.0; 3]; 3]; 6];
+        let centre = [1.0 / 3.0; 3];
+        let mut c = 0;
+        while c < 6 {
+            let k = c / 2;
+            let (mut vertex, mut mid) = ([0.0; 3], [0.0; 3]);
+            vertex[k] = 1.0;
+            mid[k] = 0.5;
+            if c % 2 == 0 {
+                mid[(k + 1) % 3] = 0.5;
+                frames[c] = [vertex, mid, centre];
+            } else {
+                mid[(k + 2) % 3] = 0.5;
+                frames[c] = [vertex, centre, mid];
+            }
+            c += 1;
+        }
+        frames
+    };
 }
 
 /// The corners of cell c (0 … 5) of the triangle with corners `v`: cell 2k is [v_k, m_{k,k+1}, g],
