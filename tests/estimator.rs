@@ -189,7 +189,8 @@ fn the_equilibrated_fluxes_have_the_loads_as_divergence() {
 }
 
 /// The ball obstacle (data/cases/ball.toml) from 16² to 128²: the bound holds at every level and
-/// tightens towards 1.3; the one flux is conserved on the dual cells (Lemma 17 with f).
+/// tightens, below 1.2 at 128² through ũ = u_h + z (Theorem (O'); through u_h alone, 1.30); the
+/// one flux is conserved on the dual cells (Lemma 17 with f).
 #[test]
 fn above_an_obstacle_the_bound_holds_and_tightens() {
     let mut effectivities = Vec::new();
@@ -222,7 +223,10 @@ fn above_an_obstacle_the_bound_holds_and_tightens() {
         );
     }
     assert!(effectivities.windows(2).all(|w| w[1] < w[0]), "{effectivities:?}");
-    assert!(effectivities[3] < 1.35, "{effectivities:?}");
+    assert!(
+        effectivities[2] < 1.25 && effectivities[3] < 1.2,
+        "{effectivities:?}"
+    );
 }
 
 /// A membrane pressed onto ψ = sin πx sin πy (f = −1, g = 0): contact everywhere, u = ψ and
@@ -241,8 +245,10 @@ fn in_full_contact_the_obstacle_term_is_the_interpolation_error() {
             r.estimate.as_ref().unwrap(),
             r.errors.as_ref().unwrap().energy.unwrap(),
         );
+        // Through u_h alone the interpolation error counts twice (1.42 × the error); through
+        // ũ = u_h + z = ψ once (Theorem (O')).
         assert!(
-            e.total >= error && e.total <= 1.5 * error,
+            e.total >= error && e.total <= 1.2 * error,
             "{n}²: η = {:e}, error {error:e}",
             e.total
         );

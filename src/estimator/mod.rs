@@ -16,7 +16,9 @@
 //! Per triangle K the indicator η_K² = Σ_i Σ_{κ⊂K} [η_F,κ + η_osc,κ]² + η_D,K² + 2 η_C,K says
 //! where to refine. Above a rigid obstacle (§14, Theorem (O)) the sum is over the one membrane,
 //! and the lifting is z = max(ψ, ψ_obstacle − u_h) ([`obstacle`]), which keeps u_h + z above the
-//! obstacle itself, not only above ψ_h at the vertices.
+//! obstacle itself, not only above ψ_h at the vertices; η is then also the smaller of that and of
+//! Theorem (O'), whose flux terms are of u_h + z where the obstacle is above u_h, so that ψ − ψ_h
+//! is counted once.
 
 pub mod boundary;
 pub mod equilibration;
@@ -153,11 +155,10 @@ impl LoadData {
 /// u_ih + z_i/μ_i with the loads f_i + c_i (§4(c')), and the terms (7) and (§8) of their cells.
 fn local_terms(
     (problem, dual, patches): (&DiscreteProblem, &DualMesh, &Patches),
-    solution: &Solution,
-    action: &Action,
+    (solution, action): (&Solution, &Action),
     membranes: &[Membrane],
-    f: [&Pieces; 2],
-    loads: &LoadData,
+    (f, loads): ([&Pieces; 2], &LoadData),
+    lifting: &Lifting,
 ) -> Vec<TriangleTerms> {
     let mesh = &problem.mesh;
     let (alpha, _) = weights(membranes);
@@ -193,12 +194,20 @@ fn local_terms(
             }
         });
     };
+    let psi = match &problem.data.lower {
+        Lower::Rigid { psi } => Some(
+            (psi.pieces("psi", mesh, datum::On::Surfaces))
+                .expect("the data fit the mesh's groups (checked by DiscreteProblem::new)"),
+        ),
+        Lower::Membrane { .. } => None,
+    };
     let terms = Terms {
         problem,
         dual,
         membranes,
         action,
         gap: &solution.obstacle.gap,
+        above: (psi.as_ref().zip(lifting.above.as_deref())).map(|(psi, above)| (psi, f[0], above)),
     };
     equilibrate((mesh, dual, patches), &local, cells, |t, loads, tau| {
         terms.of(t, loads, tau)
@@ -222,9 +231,9 @@ impl Estimate {
         let f = [&pieces[0], pieces.last().expect("one membrane at least")];
         let loads = LoadData::of(problem, dual, solution, &membranes, f);
         let patches = Patches::new(&problem.mesh);
-        let setting = (problem, dual, &patches);
-        let terms = local_terms(setting, solution, action, &membranes, f, &loads);
         let lifting = Lifting::compute(problem, dual, solution, action, &patches);
+        let setting = (problem, dual, &patches);
+        let terms = local_terms(setting, (solution, action), &membranes, (f, &loads), &lifting);
         Estimate::of_terms(problem, &membranes, &terms, &lifting, loads)
     }
 
@@ -278,8 +287,22 @@ impl Estimate {
         e.total = (eta_fr2 + e.boundary_total.powi(2) + 2.0 * e.contact_total)
             .max(0.0)
             .sqrt();
+        if lifting.above.is_some() {
+            e.total = e.total.min(e.through_lifted(terms));
+        }
         e.lambda = e.lambda_bound(problem, membranes, terms, rest, friedrichs);
         e
+    }
+
+    /// Theorem (O') of §14, above an obstacle that stays apart from the lifting ℓ of g − g_h:
+    /// E ≤ (η̃² + η_D² + 2η_C + 2X)^½, η̃ the membrane's term with the flux terms of ũ = u_h + z on
+    /// the cells where the obstacle is above u_h, X = Σ (λ_ψ⁻, ψ − u_h) there.
+    fn through_lifted(&self, terms: &[TriangleTerms]) -> f64 {
+        let lifted = terms.iter().map(|t| t.local2_lifted).sum::<f64>().sqrt() + self.means[0];
+        let cross: f64 = terms.iter().map(|t| t.cross).sum();
+        (lifted.powi(2) + self.boundary_total.powi(2) + 2.0 * (self.contact_total + cross))
+            .max(0.0)
+            .sqrt()
     }
 
     /// §8: ‖λ − λ_h‖ ≤ μ̄^½ E_w + η_λ, E_w ≤ (η_λ²/μ̄ + μ̄‖∇z‖² + 2η_C)^½, from the totals of
@@ -374,6 +397,9 @@ struct Lifting {
     contact: Option<Vec<f64>>,
     /// Above an obstacle, Σ_K of the part of ‖∇z‖²_K that ψ − u_h adds.
     obstacle: Option<f64>,
+    /// Above an obstacle, the cells of each triangle where it is above u_h (bits), when ℓ
+    /// vanishes on every triangle that has one (the bound through ũ = u_h + z of §14 holds).
+    above: Option<Vec<u8>>,
 }
 
 impl Lifting {
@@ -396,13 +422,17 @@ impl Lifting {
                 with_lambda: l.iter().map(|l| l.with_lambda).collect(),
                 contact: None,
                 obstacle: None,
+                above: None,
             };
         };
         let l = boundary::lifting(mesh, &patches.neighbour, &g, &action.lambda, None);
         let psi = (psi.pieces("psi", mesh, On::Surfaces))
             .expect("the data fit the mesh's groups (checked by DiscreteProblem::new)");
         let o = obstacle::terms(problem, dual, &psi, &solution.u1, &action.lambda, &l);
+        let apart =
+            (l.iter().zip(&o)).all(|(l, o)| o.above == 0 || (l.grad_norm == 0.0 && l.range == [0.0; 2]));
         Lifting {
+            above: apart.then(|| o.iter().map(|o| o.above).collect()),
             grad2: (l.iter().zip(&o))
                 .map(|(l, o)| l.grad_norm.powi(2) + o.grad2)
                 .collect(),
@@ -550,6 +580,10 @@ struct TriangleTerms {
     lambda2: f64,
     /// (λ_h, w_h)_K: w_h is affine and λ_h constant on each κ (between two membranes).
     contact: f64,
+    /// Above an obstacle, Σ_κ (η̃_F,κ + η_osc,κ)², η̃_F,κ the flux term of ũ = u_h + z where the
+    /// obstacle is above u_h (of u_h elsewhere), and Σ_κ (λ_ψ⁻, ψ − u_h)_κ there (§14).
+    local2_lifted: f64,
+    cross: f64,
 }
 
 /// What the terms of a triangle are computed from, besides its fluxes.
@@ -560,6 +594,8 @@ struct Terms<'a> {
     action: &'a Action,
     /// w_h (u1h − u2h), or u_h − ψ_h above an obstacle.
     gap: &'a [f64],
+    /// Above an obstacle: ψ, f and the cells of each triangle where ψ is above u_h (bits).
+    above: Option<(&'a Pieces<'a>, &'a Pieces<'a>, &'a [u8])>,
 }
 
 impl Terms<'_> {
@@ -605,6 +641,33 @@ impl Terms<'_> {
                 terms.flux2[i] += flux * flux;
                 terms.oscillation2[i] += oscillation * oscillation;
                 terms.local2[i] += (flux + oscillation).powi(2);
+            }
+            if let Some((psi, f, above)) = self.above {
+                let m = &membranes[0];
+                let lifted = match above[t] & (1 << c) {
+                    0 => norm(values[0]) / m.mu.sqrt(),
+                    _ => {
+                        // u_h is affine on K: its value at a corner plus its gradient.
+                        let corner = mesh.corners(t)[0];
+                        let u_at = |x: [f64; 2]| {
+                            let d = [0, 1].map(|k| grad[0][k] * (x[k] - corner[k]));
+                            m.u[tri[0]] + (d[0] + d[1]) / m.mu
+                        };
+                        let cell = obstacle::AboveCell::compute(
+                            (psi.on_triangle(t), f.on_triangle(t)),
+                            (p, mesh.diameter(t)),
+                            m.mu,
+                            grad[0],
+                            u_at,
+                            |x| at(0, x),
+                            obstacle::rule(self.problem),
+                        );
+                        terms.cross += cell.cross;
+                        (cell.flux2 / m.mu).sqrt()
+                    }
+                };
+                let oscillation = diameter / PI * cell_loads.oscillation[0].sqrt() / m.mu.sqrt();
+                terms.local2_lifted += (lifted + oscillation).powi(2);
             }
             // ζ = α(μ1∇u1h + τ1) − (1 − α)(μ2∇u2h + τ2), or μ∇u_h + τ above an obstacle.
             let [a, b] = values;

@@ -34,6 +34,8 @@ pub struct OnTriangle {
     pub grad2: f64,
     /// The bound of (λ_h, u_h + z − ψ)_K: the whole contact term of K.
     pub contact: f64,
+    /// Bit c set where the obstacle is above u_h on the cell c of K.
+    pub above: u8,
 }
 
 /// The obstacle's part of z on every triangle: ψ given by `psi`, u_h = `u`, λ_a = `lambda`, ℓ as
@@ -47,9 +49,7 @@ pub fn terms(
     lifting: &[boundary::OnTriangle],
 ) -> Vec<OnTriangle> {
     let mesh = &problem.mesh;
-    let rule = Quadrature {
-        degree: problem.data.quadrature.degree.max(4),
-    };
+    let rule = rule(problem);
     let mut out = vec![OnTriangle::default(); mesh.n_triangles()];
     parallel::map_mut(&mut out, PIECE, |base, out| {
         let cells = 6 * base..6 * (base + out.len());
@@ -70,6 +70,7 @@ pub fn terms(
             let lambda_h = lambda[dual.owner(s)];
             let o = &mut out[t - base];
             if above {
+                o.above |= 1 << (s % 6);
                 o.grad2 += grad2(mesh, t, psi, u, points);
                 o.contact += lambda_h * dip().map(|(w, d)| w * (-d).max(0.0)).sum::<f64>();
             } else {
@@ -103,6 +104,13 @@ pub fn terms(
     out
 }
 
+/// The rule on the cells of S_h: the case's, of degree 4 at least.
+pub(super) fn rule(problem: &DiscreteProblem) -> Quadrature {
+    Quadrature {
+        degree: problem.data.quadrature.degree.max(4),
+    }
+}
+
 /// ‖∇(ψ − u_h)‖²_κ by the rule's `points` on κ ⊂ K = triangle t, ∇ψ by a fourth-order central
 /// difference.
 fn grad2(
@@ -113,28 +121,105 @@ fn grad2(
     points: &[crate::assembly::QuadraturePoint],
 ) -> f64 {
     let tri = mesh.triangle(t);
-    let corners = mesh.corners(t);
-    let g = gradients(corners);
+    let g = gradients(mesh.corners(t));
     let grad_u = [0, 1].map(|k| (0..3).map(|j| g[j][k] * u[tri[j]]).sum::<f64>());
-    let diameter = (0..3)
-        .map(|e| crate::mesh::dist(corners[e], corners[(e + 1) % 3]))
-        .fold(0.0, f64::max);
-    let h = STEP * diameter;
-    let psi = psi.on_triangle(t);
-    let derivative = |x: [f64; 2], k: usize| {
-        let at = |d: f64| {
-            let mut y = x;
-            y[k] += d;
-            psi.eval(y[0], y[1])
-        };
-        (8.0 * (at(h) - at(-h)) - at(2.0 * h) + at(-2.0 * h)) / (12.0 * h)
-    };
+    let psi = Differences::new(psi.on_triangle(t), mesh.diameter(t));
     (points.iter())
         .map(|p| {
-            let d = [0, 1].map(|k| derivative(p.x, k) - grad_u[k]);
+            let d = [0, 1].map(|k| psi.derivative(p.x, k) - grad_u[k]);
             p.weight * (d[0] * d[0] + d[1] * d[1])
         })
         .sum()
+}
+
+/// Derivatives of ψ on one triangle by fourth-order central differences of step [`STEP`] × its
+/// diameter.
+struct Differences<'e> {
+    psi: &'e crate::expr::Expr,
+    h: f64,
+}
+
+impl<'e> Differences<'e> {
+    fn new(psi: &'e crate::expr::Expr, diameter: f64) -> Self {
+        Differences {
+            psi,
+            h: STEP * diameter,
+        }
+    }
+
+    /// ψ at x + d e_k.
+    fn at(&self, x: [f64; 2], k: usize, d: f64) -> f64 {
+        let mut y = x;
+        y[k] += d;
+        self.psi.eval(y[0], y[1])
+    }
+
+    /// ∂_k ψ(x).
+    fn derivative(&self, x: [f64; 2], k: usize) -> f64 {
+        let (h, at) = (self.h, |d: f64| self.at(x, k, d));
+        (8.0 * (at(h) - at(-h)) - at(2.0 * h) + at(-2.0 * h)) / (12.0 * h)
+    }
+
+    /// Δψ(x).
+    fn laplacian(&self, x: [f64; 2]) -> f64 {
+        let h = self.h;
+        let centre = self.psi.eval(x[0], x[1]);
+        (0..2)
+            .map(|k| {
+                let at = |d: f64| self.at(x, k, d);
+                (16.0 * (at(h) + at(-h)) - at(2.0 * h) - at(-2.0 * h) - 30.0 * centre) / (12.0 * h * h)
+            })
+            .sum()
+    }
+}
+
+/// What the bound through ũ = u_h + z (§14, Theorem (O')) needs of one cell κ where the obstacle
+/// is above u_h: an upper bound of ‖μ∇ũ + τ‖²_κ (∇ũ = ∇ψ where ψ > u_h, ∇u_h elsewhere: at a
+/// cell where the rule's points disagree, the sum of the two squares), and (λ_ψ⁻, ψ − u_h)_κ with
+/// λ_ψ = −μΔψ − f, the action the obstacle would exert where it held the membrane.
+pub struct AboveCell {
+    /// The bound of ‖μ∇ũ + τ‖²_κ.
+    pub flux2: f64,
+    /// (λ_ψ⁻, ψ − u_h)_κ where ψ > u_h.
+    pub cross: f64,
+}
+
+impl AboveCell {
+    /// On the cell with corners `p` (in its triangle t of the obstacle's `psi`, diameter of t
+    /// `diameter`), for the tension `mu`, the load `f`, μ∇u_h = `grad_u`, u_h at a point `u_at`
+    /// and μ∇u_h + τ at a point `flux`, by the rule `rule`.
+    pub fn compute(
+        (psi, f): (&crate::expr::Expr, &crate::expr::Expr),
+        (p, diameter): ([[f64; 2]; 3], f64),
+        mu: f64,
+        grad_u: [f64; 2],
+        u_at: impl Fn([f64; 2]) -> f64,
+        flux: impl Fn([f64; 2]) -> [f64; 2],
+        rule: Quadrature,
+    ) -> AboveCell {
+        let psi_d = Differences::new(psi, diameter);
+        let area = 0.5 * crate::mesh::orient(p[0], p[1], p[2]);
+        let (mut on_u, mut on_psi, mut cross, mut everywhere) = (0.0, 0.0, 0.0, true);
+        for (&[_, _, w], b) in rule.rule().iter().zip(rule.barycentric()) {
+            let x = [0, 1].map(|k| b[0] * p[0][k] + b[1] * p[1][k] + b[2] * p[2][k]);
+            let w = 2.0 * area * w;
+            let v = flux(x);
+            let dpsi = [0, 1].map(|k| psi_d.derivative(x, k));
+            let v_psi = [0, 1].map(|k| v[k] - grad_u[k] + mu * dpsi[k]);
+            on_u += w * (v[0] * v[0] + v[1] * v[1]);
+            on_psi += w * (v_psi[0] * v_psi[0] + v_psi[1] * v_psi[1]);
+            let dip = psi.eval(x[0], x[1]) - u_at(x);
+            everywhere &= dip > 0.0;
+            if dip > 0.0 {
+                let lambda_psi = -mu * psi_d.laplacian(x) - f.eval(x[0], x[1]);
+                cross += w * (-lambda_psi).max(0.0) * dip;
+            }
+        }
+        AboveCell {
+            flux2: if everywhere { on_psi } else { on_u + on_psi },
+            cross,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -171,5 +256,33 @@ mod tests {
         let above = terms(&problem, &dual, &pieces, &[1.0, 0.0, 0.0], &[1.0; 3], &none);
         assert_eq!(above[0].grad2, 0.0);
         assert!((above[0].contact - 1.0 / 3.0).abs() < 1e-14, "{:?}", above[0]);
+    }
+
+    /// The same K and ψ with u_h = ψ_h = −x − y, μ = 1, f = 5 and τ = −μ∇u_h: λ_ψ = −Δψ − f = −1,
+    /// so Σ_κ (λ_ψ⁻, ψ − u_h)_κ = ∫_K x + y − x² − y² = 1/6, and ψ is above u_h inside K, so the
+    /// flux term of ũ = ψ is Σ_κ ‖μ∇ψ + τ‖²_κ = ∫_K |∇ψ − ∇ψ_h|² = 1/3.
+    #[test]
+    fn above_the_obstacle_the_terms_through_the_lifted_solution_have_their_closed_forms() {
+        let corners = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
+        let mesh = Mesh::from_parts(corners.to_vec(), vec![[0, 1, 2]], vec![true; 3]);
+        let edges = Edges::new(&mesh);
+        let dual = DualMesh::new(&mesh, &edges);
+        let (psi, f) = (Expr::parse("-x^2 - y^2").unwrap(), Expr::parse("5").unwrap());
+        let grad_u = [-1.0, -1.0];
+        let (mut flux2, mut cross) = (0.0, 0.0);
+        for s in 0..6 {
+            let cell = AboveCell::compute(
+                (&psi, &f),
+                (dual.corners(s), mesh.diameter(0)),
+                1.0,
+                grad_u,
+                |x| -x[0] - x[1],
+                |_| [0.0; 2],
+                Quadrature { degree: 4 },
+            );
+            (flux2, cross) = (flux2 + cell.flux2, cross + cell.cross);
+        }
+        assert!((cross - 1.0 / 6.0).abs() < 1e-9, "{cross}");
+        assert!((flux2 - 1.0 / 3.0).abs() < 1e-9, "{flux2}");
     }
 }

@@ -475,14 +475,16 @@ impl Mesh {
 
     /// The mesh size h: the largest triangle diameter.
     pub fn h(&self) -> f64 {
-        let longest = |t| {
-            let [p, q, r] = self.corners(t);
-            dist(p, q).max(dist(q, r)).max(dist(r, p))
-        };
         let pieces = crate::parallel::map(self.n_triangles(), crate::parallel::PIECE, |range| {
-            range.map(longest).fold(0.0, f64::max)
+            range.map(|t| self.diameter(t)).fold(0.0, f64::max)
         });
         pieces.into_iter().fold(0.0, f64::max)
+    }
+
+    /// The diameter of triangle t: its longest edge.
+    pub fn diameter(&self, t: usize) -> f64 {
+        let [p, q, r] = self.corners(t);
+        dist(p, q).max(dist(q, r)).max(dist(r, p))
     }
 
     /// |ω|.
