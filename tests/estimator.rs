@@ -227,6 +227,10 @@ fn above_an_obstacle_the_bound_holds_and_tightens() {
         effectivities[2] < 1.25 && effectivities[3] < 1.2,
         "{effectivities:?}"
     );
+    // At 128² η is (O')'s, and the summary says so.
+    let e = estimated_with(&shipped("ball", 128), false).estimate.unwrap();
+    let lifted = e.lifted_membrane.expect("Theorem (O') at 128²");
+    assert!(lifted < e.membranes[0] && e.summary(None).contains("Theorem (O')"));
 }
 
 /// A membrane pressed onto ψ = sin πx sin πy (f = −1, g = 0): contact everywhere, u = ψ and

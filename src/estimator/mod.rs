@@ -65,6 +65,9 @@ pub struct Estimate {
     pub obstacle_total: Option<f64>,
     /// η_C.
     pub contact_total: f64,
+    /// Above an obstacle, when Theorem (O') gave η: η̃, the membrane's term through u_h + z where
+    /// the obstacle is above u_h (in place of η_1 in η).
+    pub lifted_membrane: Option<f64>,
     /// The bound of ‖λ − λ_h‖_H⁻¹ (§8).
     pub lambda: f64,
     /// What the case's rule misses of the loads: whether η is a bound for the loads as given.
@@ -268,6 +271,7 @@ impl Estimate {
             means: Vec::new(),
             boundary_total: 0.0,
             obstacle_total: lifting.obstacle.map(|o| (mu1 * o).sqrt()),
+            lifted_membrane: None,
             contact_total: 0.0,
             lambda: 0.0,
             resolution: loads.resolution,
@@ -288,7 +292,10 @@ impl Estimate {
             .max(0.0)
             .sqrt();
         if lifting.above.is_some() {
-            e.total = e.total.min(e.through_lifted(terms));
+            let (total, lifted) = e.through_lifted(terms);
+            if total < e.total {
+                (e.total, e.lifted_membrane) = (total, Some(lifted));
+            }
         }
         e.lambda = e.lambda_bound(problem, membranes, terms, rest, friedrichs);
         e
@@ -296,13 +303,13 @@ impl Estimate {
 
     /// Theorem (O') of §14, above an obstacle that stays apart from the lifting ℓ of g − g_h:
     /// E ≤ (η̃² + η_D² + 2η_C + 2X)^½, η̃ the membrane's term with the flux terms of ũ = u_h + z on
-    /// the cells where the obstacle is above u_h, X = Σ (λ_ψ⁻, ψ − u_h) there.
-    fn through_lifted(&self, terms: &[TriangleTerms]) -> f64 {
+    /// the cells where the obstacle is above u_h, X = Σ (λ_ψ⁻, ψ − u_h) there. Returns the bound
+    /// and η̃.
+    fn through_lifted(&self, terms: &[TriangleTerms]) -> (f64, f64) {
         let lifted = terms.iter().map(|t| t.local2_lifted).sum::<f64>().sqrt() + self.means[0];
         let cross: f64 = terms.iter().map(|t| t.cross).sum();
-        (lifted.powi(2) + self.boundary_total.powi(2) + 2.0 * (self.contact_total + cross))
-            .max(0.0)
-            .sqrt()
+        let total = lifted.powi(2) + self.boundary_total.powi(2) + 2.0 * (self.contact_total + cross);
+        (total.max(0.0).sqrt(), lifted)
     }
 
     /// §8: ‖λ − λ_h‖ ≤ μ̄^½ E_w + η_λ, E_w ≤ (η_λ²/μ̄ + μ̄‖∇z‖² + 2η_C)^½, from the totals of
@@ -330,7 +337,10 @@ impl Estimate {
 
     /// The summary's line.
     pub fn summary(&self, effectivity: Option<f64>) -> String {
-        let membranes: Vec<String> = self.membranes.iter().map(|x| format!("{x:.3e}")).collect();
+        let mut membranes: Vec<String> = self.membranes.iter().map(|x| format!("{x:.3e}")).collect();
+        if let Some(lifted) = self.lifted_membrane {
+            membranes[0] += &format!(", through u_h + z where ψ is above u_h {lifted:.3e} (Theorem (O'))");
+        }
         let label = if self.membranes.len() == 1 {
             "membrane"
         } else {
@@ -725,6 +735,9 @@ impl Describe for Estimate {
             attrs.push((means, self.means[i].into()));
         }
         attrs.push(("estimator_boundary", self.boundary_total.into()));
+        if let Some(lifted) = self.lifted_membrane {
+            attrs.push(("estimator_membrane_lifted", lifted.into()));
+        }
         if let Some(o) = self.obstacle_total {
             attrs.push(("estimator_obstacle", o.into()));
         }
