@@ -61,6 +61,28 @@ fn adaptivity_with_a_load_jumping_across_a_curve_keeps_a_sharp_bound_at_the_opti
     assert!(eta >= 0.48 && error >= 0.48, "rates: η {eta}, error {error}");
 }
 
+/// Above an obstacle (the ball, data/cases/ball.toml): the bound holds at every step, and from
+/// 4 000 vertices on it is within 1.2 × the error, ψ − ψ_h counted once on the contact set
+/// (Theorem (O') of docs/a-posteriori.md §14; counted twice, 1.24–1.25).
+#[test]
+fn adaptivity_above_an_obstacle_keeps_the_bound_within_1_2_of_the_error() {
+    let case = Case::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases/ball.toml")).unwrap();
+    let (a, _dir, _) = adapted(case, 12_000);
+    let steps = &a.adaptive;
+    assert!(steps.last().unwrap().vertices > 4_000, "{} steps", steps.len());
+    for (k, s) in steps.iter().enumerate() {
+        let effectivity = s.estimator / s.error.unwrap();
+        assert!(effectivity >= 1.0, "step {k}: effectivity {effectivity}");
+        if s.vertices >= 4_000 {
+            assert!(
+                effectivity < 1.2,
+                "step {k}, N = {}: effectivity {effectivity}",
+                s.vertices
+            );
+        }
+    }
+}
+
 #[test]
 fn adaptivity_on_the_l_shape_reaches_the_optimal_rate_with_a_guaranteed_bound() {
     let case =
