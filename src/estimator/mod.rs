@@ -329,9 +329,12 @@ impl Estimate {
         let lambda_sum: f64 = terms.iter().map(|t| t.lambda2).sum();
         let eta_lambda = lambda_sum.sqrt() + friedrichs * mass_norm(problem, &combined);
         let grad_z2 = self.boundary_total.powi(2) / membranes[0].mu;
+        // E_w ≤ E ≤ η as well (E² = (μ1 + μ2)‖∇e_v‖² + E_w²; E_w = E above an obstacle), which
+        // is the smaller where (O') of §14 gave η.
         let e_w = (eta_lambda.powi(2) / mu_bar + mu_bar * grad_z2 + 2.0 * self.contact_total)
             .max(0.0)
-            .sqrt();
+            .sqrt()
+            .min(self.total);
         mu_bar.sqrt() * e_w + eta_lambda
     }
 
