@@ -655,32 +655,12 @@ impl Terms<'_> {
                 terms.oscillation2[i] += oscillation * oscillation;
                 terms.local2[i] += (flux + oscillation).powi(2);
             }
-            if let Some((psi, f, above)) = self.above {
-                let m = &membranes[0];
-                let lifted = match above[t] & (1 << c) {
-                    0 => norm(values[0]) / m.mu.sqrt(),
-                    _ => {
-                        // u_h is affine on K: its value at a corner plus its gradient.
-                        let corner = mesh.corners(t)[0];
-                        let u_at = |x: [f64; 2]| {
-                            let d = [0, 1].map(|k| grad[0][k] * (x[k] - corner[k]));
-                            m.u[tri[0]] + (d[0] + d[1]) / m.mu
-                        };
-                        let cell = obstacle::AboveCell::compute(
-                            (psi.on_triangle(t), f.on_triangle(t)),
-                            (p, mesh.diameter(t)),
-                            m.mu,
-                            grad[0],
-                            u_at,
-                            |x| at(0, x),
-                            obstacle::rule(self.problem),
-                        );
-                        terms.cross += cell.cross;
-                        (cell.flux2 / m.mu).sqrt()
-                    }
-                };
-                let oscillation = diameter / PI * cell_loads.oscillation[0].sqrt() / m.mu.sqrt();
+            if self.above.is_some() {
+                let mu = membranes[0].mu;
+                let (lifted, cross) = self.lifted_flux((t, c, p), norm(values[0]), grad[0], |x| at(0, x));
+                let oscillation = diameter / PI * cell_loads.oscillation[0].sqrt() / mu.sqrt();
                 terms.local2_lifted += (lifted + oscillation).powi(2);
+                terms.cross += cross;
             }
             // ζ = α(μ1∇u1h + τ1) − (1 − α)(μ2∇u2h + τ2), or μ∇u_h + τ above an obstacle.
             let [a, b] = values;
@@ -692,6 +672,40 @@ impl Terms<'_> {
             terms.contact += lambda_h * area * cell_mean(mesh, s, self.gap);
         }
         terms
+    }
+}
+
+impl Terms<'_> {
+    /// Above an obstacle, on the cell c of the triangle t (corners `p`), where ‖μ∇u_h + τ‖_κ =
+    /// `flux_norm`, μ∇u_h = `grad` and μ∇u_h + τ is `flux` at a point: μ^-½‖μ∇ũ + τ‖_κ, ũ = u_h + z,
+    /// and (λ_ψ⁻, ψ − u_h)_κ (Theorem (O') of §14; u_h's flux term and 0 where ψ is not above u_h).
+    fn lifted_flux(
+        &self,
+        (t, c, p): (usize, usize, [[f64; 2]; 3]),
+        flux_norm: f64,
+        grad: [f64; 2],
+        flux: impl Fn([f64; 2]) -> [f64; 2],
+    ) -> (f64, f64) {
+        let (mesh, m) = (&self.problem.mesh, &self.membranes[0]);
+        let Some((psi, f, _)) = self.above.filter(|(_, _, above)| above[t] & (1 << c) != 0) else {
+            return (flux_norm / m.mu.sqrt(), 0.0);
+        };
+        // u_h is affine on K: its value at a corner plus its gradient.
+        let (tri, corner) = (mesh.triangle(t), mesh.corners(t)[0]);
+        let u_at = |x: [f64; 2]| {
+            let d = [0, 1].map(|k| grad[k] * (x[k] - corner[k]));
+            m.u[tri[0]] + (d[0] + d[1]) / m.mu
+        };
+        let cell = obstacle::AboveCell::compute(
+            (psi.on_triangle(t), f.on_triangle(t)),
+            (p, mesh.diameter(t)),
+            m.mu,
+            grad,
+            u_at,
+            flux,
+            obstacle::rule(self.problem),
+        );
+        ((cell.flux2 / m.mu).sqrt(), cell.cross)
     }
 }
 
