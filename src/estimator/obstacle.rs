@@ -124,9 +124,10 @@ fn grad2(
     let g = gradients(mesh.corners(t));
     let grad_u = [0, 1].map(|k| (0..3).map(|j| g[j][k] * u[tri[j]]).sum::<f64>());
     let psi = Differences::new(psi.on_triangle(t), mesh.diameter(t));
-    (points.iter())
-        .map(|p| {
-            let d = [0, 1].map(|k| psi.derivative(p.x, k) - grad_u[k]);
+    let x: Vec<[f64; 2]> = points.iter().map(|p| p.x).collect();
+    (points.iter().zip(psi.at(&x)))
+        .map(|(p, psi)| {
+            let d = [0, 1].map(|k| psi.gradient[k] - grad_u[k]);
             p.weight * (d[0] * d[0] + d[1] * d[1])
         })
         .sum()
@@ -139,6 +140,27 @@ struct Differences<'e> {
     h: f64,
 }
 
+/// ψ, ∇ψ and Δψ at a point.
+struct Stencil {
+    value: f64,
+    gradient: [f64; 2],
+    laplacian: f64,
+}
+
+/// The offsets of the stencil from its centre, in steps h: the centre, then ±1 and ±2 along x
+/// and along y.
+const OFFSETS: [[f64; 2]; 9] = [
+    [0.0, 0.0],
+    [1.0, 0.0],
+    [-1.0, 0.0],
+    [2.0, 0.0],
+    [-2.0, 0.0],
+    [0.0, 1.0],
+    [0.0, -1.0],
+    [0.0, 2.0],
+    [0.0, -2.0],
+];
+
 impl<'e> Differences<'e> {
     fn new(psi: &'e crate::expr::Expr, diameter: f64) -> Self {
         Differences {
@@ -147,29 +169,35 @@ impl<'e> Differences<'e> {
         }
     }
 
-    /// ψ at x + d e_k.
-    fn at(&self, x: [f64; 2], k: usize, d: f64) -> f64 {
-        let mut y = x;
-        y[k] += d;
-        self.psi.eval(y[0], y[1])
-    }
-
-    /// ∂_k ψ(x).
-    fn derivative(&self, x: [f64; 2], k: usize) -> f64 {
-        let (h, at) = (self.h, |d: f64| self.at(x, k, d));
-        (8.0 * (at(h) - at(-h)) - at(2.0 * h) + at(-2.0 * h)) / (12.0 * h)
-    }
-
-    /// Δψ(x).
-    fn laplacian(&self, x: [f64; 2]) -> f64 {
+    /// ψ, ∇ψ and Δψ at each of `points`, ψ evaluated at all their stencils together.
+    fn at(&self, points: &[[f64; 2]]) -> Vec<Stencil> {
         let h = self.h;
-        let centre = self.psi.eval(x[0], x[1]);
-        (0..2)
-            .map(|k| {
-                let at = |d: f64| self.at(x, k, d);
-                (16.0 * (at(h) + at(-h)) - at(2.0 * h) - at(-2.0 * h) - 30.0 * centre) / (12.0 * h * h)
+        let stencils: Vec<[f64; 2]> = (points.iter())
+            .flat_map(|x| OFFSETS.map(|o| [x[0] + o[0] * h, x[1] + o[1] * h]))
+            .collect();
+        let mut values = vec![0.0; stencils.len()];
+        self.psi.eval_many(&stencils, &mut values);
+        (values.chunks_exact(OFFSETS.len()))
+            .map(|v| {
+                // Along axis k: ψ(x ± h e_k) = v[1 + 4k], v[2 + 4k]; ψ(x ± 2h e_k) = v[3 + 4k], v[4 + 4k].
+                let along = |k: usize| [v[1 + 4 * k], v[2 + 4 * k], v[3 + 4 * k], v[4 + 4 * k]];
+                let gradient = [0, 1].map(|k| {
+                    let [p1, m1, p2, m2] = along(k);
+                    (8.0 * (p1 - m1) - p2 + m2) / (12.0 * h)
+                });
+                let laplacian = (0..2)
+                    .map(|k| {
+                        let [p1, m1, p2, m2] = along(k);
+                        (16.0 * (p1 + m1) - p2 - m2 - 30.0 * v[0]) / (12.0 * h * h)
+                    })
+                    .sum();
+                Stencil {
+                    value: v[0],
+                    gradient,
+                    laplacian,
+                }
             })
-            .sum()
+            .collect()
     }
 }
 
@@ -197,21 +225,22 @@ impl AboveCell {
         flux: impl Fn([f64; 2]) -> [f64; 2],
         rule: Quadrature,
     ) -> AboveCell {
-        let psi_d = Differences::new(psi, diameter);
         let area = 0.5 * crate::mesh::orient(p[0], p[1], p[2]);
+        let points: Vec<[f64; 2]> = (rule.barycentric())
+            .map(|b| [0, 1].map(|k| b[0] * p[0][k] + b[1] * p[1][k] + b[2] * p[2][k]))
+            .collect();
+        let (psi_at, f_at) = (Differences::new(psi, diameter).at(&points), f.values_at(&points));
         let (mut on_u, mut on_psi, mut cross, mut everywhere) = (0.0, 0.0, 0.0, true);
-        for (&[_, _, w], b) in rule.rule().iter().zip(rule.barycentric()) {
-            let x = [0, 1].map(|k| b[0] * p[0][k] + b[1] * p[1][k] + b[2] * p[2][k]);
+        for (((&[_, _, w], &x), psi), f) in rule.rule().iter().zip(&points).zip(&psi_at).zip(f_at) {
             let w = 2.0 * area * w;
             let v = flux(x);
-            let dpsi = [0, 1].map(|k| psi_d.derivative(x, k));
-            let v_psi = [0, 1].map(|k| v[k] - grad_u[k] + mu * dpsi[k]);
+            let v_psi = [0, 1].map(|k| v[k] - grad_u[k] + mu * psi.gradient[k]);
             on_u += w * (v[0] * v[0] + v[1] * v[1]);
             on_psi += w * (v_psi[0] * v_psi[0] + v_psi[1] * v_psi[1]);
-            let dip = psi.eval(x[0], x[1]) - u_at(x);
+            let dip = psi.value - u_at(x);
             everywhere &= dip > 0.0;
             if dip > 0.0 {
-                let lambda_psi = -mu * psi_d.laplacian(x) - f.eval(x[0], x[1]);
+                let lambda_psi = -mu * psi.laplacian - f;
                 cross += w * (-lambda_psi).max(0.0) * dip;
             }
         }
