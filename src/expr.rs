@@ -31,6 +31,7 @@
 use std::fmt;
 use std::ops::Range;
 
+mod derivative;
 mod vector;
 use vector::Function;
 
@@ -168,6 +169,20 @@ pub const BLOCK: usize = 64;
 const SMALL: usize = 256;
 
 impl Step {
+    /// The same operation on the operands `id(i)`.
+    fn map(self, mut id: impl FnMut(u32) -> u32) -> Step {
+        match self {
+            Step::Const(_) | Step::X | Step::Y => self,
+            Step::Unary(f, a) => Step::Unary(f, id(a)),
+            Step::Binary(f, a, b) => Step::Binary(f, id(a), id(b)),
+            Step::PowI(k, a) => Step::PowI(k, id(a)),
+            Step::Compare(f, a, b) => Step::Compare(f, id(a), id(b)),
+            Step::And(a, b) => Step::And(id(a), id(b)),
+            Step::Or(a, b) => Step::Or(id(a), id(b)),
+            Step::Select(s, a, b) => Step::Select(id(s), id(a), id(b)),
+        }
+    }
+
     /// Whether the step branches: its value, or its derivative, can jump where its operands'
     /// do not (a comparison, `sign`, `floor`; `abs`, `min`, `max`).
     fn branches(&self) -> bool {
@@ -215,6 +230,11 @@ impl Expr {
     /// The values at `points`, by blocks in parallel (as [`Expr::eval_many`], bit for bit).
     pub fn values_at(&self, points: &[[f64; 2]]) -> Vec<f64> {
         let size = crate::parallel::PIECE;
+        if points.len() <= size {
+            let mut values = vec![0.0; points.len()];
+            self.eval_many(points, &mut values);
+            return values;
+        }
         crate::parallel::collect_by_blocks(points.len(), size, |range, values| {
             values.resize(range.len(), 0.0);
             self.eval_many(&points[range], values);
@@ -237,17 +257,7 @@ impl Program {
                 let p = &e.program;
                 let mut at = Vec::with_capacity(p.steps.len());
                 for step in &p.steps {
-                    let id = |i: u32| at[i as usize];
-                    let step = match *step {
-                        Step::Const(_) | Step::X | Step::Y => *step,
-                        Step::Unary(f, a) => Step::Unary(f, id(a)),
-                        Step::Binary(f, a, b) => Step::Binary(f, id(a), id(b)),
-                        Step::PowI(k, a) => Step::PowI(k, id(a)),
-                        Step::Compare(f, a, b) => Step::Compare(f, id(a), id(b)),
-                        Step::And(a, b) => Step::And(id(a), id(b)),
-                        Step::Or(a, b) => Step::Or(id(a), id(b)),
-                        Step::Select(s, a, b) => Step::Select(id(s), id(a), id(b)),
-                    };
+                    let step = step.map(|i| at[i as usize]);
                     at.push(c.add(step));
                 }
                 at[p.outputs[0] as usize]
@@ -287,7 +297,15 @@ impl Program {
             self.copy_out(&values, out, 0..1);
             return;
         }
-        self.eval_with(points, out, &mut Vec::new());
+        if self.steps.len() > SMALL {
+            return self.eval_with(points, out, &mut Vec::new());
+        }
+        // The steps' values of a small program in room the thread keeps: a caller that evaluates
+        // a few points at a time (a cell's rule) neither allocates nor clears it each time.
+        thread_local! {
+            static ROOM: std::cell::RefCell<Vec<[f64; BLOCK]>> = const { std::cell::RefCell::new(Vec::new()) };
+        }
+        ROOM.with_borrow_mut(|values| self.eval_with(points, out, values));
     }
 
     /// As [`Program::eval_many`], the steps' values in `values` (room kept by a caller that
@@ -310,7 +328,10 @@ impl Program {
         values: &mut Vec<[f64; BLOCK]>,
         mut each: impl FnMut(&[[f64; BLOCK]], usize),
     ) {
-        values.resize(self.steps.len(), [0.0; BLOCK]);
+        // Grown, never shrunk: room kept for a larger program is not cleared again.
+        if values.len() < self.steps.len() {
+            values.resize(self.steps.len(), [0.0; BLOCK]);
+        }
         for (k, points) in points.chunks(BLOCK).enumerate() {
             self.run(points, values);
             self.copy_out(values, out, k * BLOCK..k * BLOCK + points.len());
