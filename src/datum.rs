@@ -222,9 +222,14 @@ impl<'a> Pieces<'a> {
         self.of_group.is_empty().then(|| self.exprs[0])
     }
 
-    /// The entry of `exprs` on triangle t (surfaces).
+    /// The distinct expressions, in the order of [`Pieces::entry`].
+    pub fn exprs(&self) -> &[&'a Expr] {
+        &self.exprs
+    }
+
+    /// The entry of [`Pieces::exprs`] on triangle t (surfaces).
     #[inline]
-    fn entry(&self, t: usize) -> usize {
+    pub fn entry(&self, t: usize) -> usize {
         self.of_group.get(t).map_or(0, |&e| e as usize)
     }
 

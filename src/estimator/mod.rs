@@ -204,6 +204,7 @@ fn local_terms(
         ),
         Lower::Membrane { .. } => None,
     };
+    let psi = psi.as_ref().map(obstacle::WithDerivatives::new);
     let terms = Terms {
         problem,
         dual,
@@ -259,7 +260,9 @@ impl Estimate {
             indicator: Vec::new(),
             flux: per(&|t, i| t.flux2[i]),
             oscillation: per(&|t, i| t.oscillation2[i]),
-            boundary: lifting.grad2.iter().map(|g| (mu1 * g).sqrt()).collect(),
+            boundary: (lifting.grad2.iter().zip(terms))
+                .map(|(g, t)| (mu1 * (g + t.obstacle2)).sqrt())
+                .collect(),
             contact: match &lifting.contact {
                 Some(c) => c.clone(),
                 None => (lifting.with_lambda.iter().zip(terms))
@@ -270,7 +273,8 @@ impl Estimate {
             membranes: Vec::new(),
             means: Vec::new(),
             boundary_total: 0.0,
-            obstacle_total: lifting.obstacle.map(|o| (mu1 * o).sqrt()),
+            obstacle_total: (lifting.above.is_some())
+                .then(|| (mu1 * terms.iter().map(|t| t.obstacle2).sum::<f64>()).sqrt()),
             lifted_membrane: None,
             contact_total: 0.0,
             lambda: 0.0,
@@ -291,7 +295,7 @@ impl Estimate {
         e.total = (eta_fr2 + e.boundary_total.powi(2) + 2.0 * e.contact_total)
             .max(0.0)
             .sqrt();
-        if lifting.above.is_some() {
+        if lifting.apart {
             let (total, lifted) = e.through_lifted(terms);
             if total < e.total {
                 (e.total, e.lifted_membrane) = (total, Some(lifted));
@@ -402,17 +406,18 @@ impl Estimate {
 /// The lifting z of §3 on every triangle: ‖∇z‖²_K and the pieces of (λ_h, ·)_K it adds to the
 /// contact term.
 struct Lifting {
-    /// An upper bound of ‖∇z‖²_K.
+    /// An upper bound of ‖∇ℓ‖²_K (above an obstacle the sweep adds the part ψ − u_h adds,
+    /// [`TriangleTerms::obstacle2`]).
     grad2: Vec<f64>,
     /// ∫_K λ_h ℓ, ℓ the lifting of g − g_h ([`boundary`]); the contact term adds (λ_h, w_h)_K.
     with_lambda: Vec<f64>,
     /// Above an obstacle, (λ_h, u_h + z − ψ)_K, the whole contact term ([`obstacle`]).
     contact: Option<Vec<f64>>,
-    /// Above an obstacle, Σ_K of the part of ‖∇z‖²_K that ψ − u_h adds.
-    obstacle: Option<f64>,
-    /// Above an obstacle, the cells of each triangle where it is above u_h (bits), when ℓ
-    /// vanishes on every triangle that has one (the bound through ũ = u_h + z of §14 holds).
+    /// Above an obstacle, the cells of each triangle where it is above u_h (bits).
     above: Option<Vec<u8>>,
+    /// Whether ℓ vanishes on every triangle where the obstacle is above u_h: the bound through
+    /// ũ = u_h + z of §14 (Theorem (O')) holds.
+    apart: bool,
 }
 
 impl Lifting {
@@ -434,8 +439,8 @@ impl Lifting {
                 grad2: l.iter().map(|l| l.grad_norm.powi(2)).collect(),
                 with_lambda: l.iter().map(|l| l.with_lambda).collect(),
                 contact: None,
-                obstacle: None,
                 above: None,
+                apart: false,
             };
         };
         let l = boundary::lifting(mesh, &patches.neighbour, &g, &action.lambda, None);
@@ -445,12 +450,10 @@ impl Lifting {
         let apart =
             (l.iter().zip(&o)).all(|(l, o)| o.above == 0 || (l.grad_norm == 0.0 && l.range == [0.0; 2]));
         Lifting {
-            above: apart.then(|| o.iter().map(|o| o.above).collect()),
-            grad2: (l.iter().zip(&o))
-                .map(|(l, o)| l.grad_norm.powi(2) + o.grad2)
-                .collect(),
+            above: Some(o.iter().map(|o| o.above).collect()),
+            apart,
+            grad2: l.iter().map(|l| l.grad_norm.powi(2)).collect(),
             with_lambda: l.iter().map(|l| l.with_lambda).collect(),
-            obstacle: Some(o.iter().map(|o| o.grad2).sum()),
             contact: Some(o.iter().map(|o| o.contact).collect()),
         }
     }
@@ -597,6 +600,9 @@ struct TriangleTerms {
     /// obstacle is above u_h (of u_h elsewhere), and Σ_κ (λ_ψ⁻, ψ − u_h)_κ there (§14).
     local2_lifted: f64,
     cross: f64,
+    /// Above an obstacle, Σ_κ ‖∇(ψ − u_h)‖²_κ over the cells where it is above u_h: the part of
+    /// ‖∇z‖²_K that ψ − u_h adds ([`obstacle`]).
+    obstacle2: f64,
 }
 
 /// What the terms of a triangle are computed from, besides its fluxes.
@@ -607,8 +613,9 @@ struct Terms<'a> {
     action: &'a Action,
     /// w_h (u1h − u2h), or u_h − ψ_h above an obstacle.
     gap: &'a [f64],
-    /// Above an obstacle: ψ, f and the cells of each triangle where ψ is above u_h (bits).
-    above: Option<(&'a Pieces<'a>, &'a Pieces<'a>, &'a [u8])>,
+    /// Above an obstacle: ψ with its derivatives, f and the cells of each triangle where ψ is
+    /// above u_h (bits).
+    above: Option<(&'a obstacle::WithDerivatives<'a>, &'a Pieces<'a>, &'a [u8])>,
 }
 
 impl Terms<'_> {
@@ -657,10 +664,12 @@ impl Terms<'_> {
             }
             if self.above.is_some() {
                 let mu = membranes[0].mu;
-                let (lifted, cross) = self.lifted_flux((t, c, p), norm(values[0]), grad[0], |x| at(0, x));
-                let oscillation = diameter / PI * cell_loads.oscillation[0].sqrt() / mu.sqrt();
-                terms.local2_lifted += (lifted + oscillation).powi(2);
-                terms.cross += cross;
+                let cell = self.above_cell((t, c, p), grad[0], |x| at(0, x));
+                let lifted = cell.map_or(norm(values[0]).powi(2), |cell| cell.flux2);
+                let oscillation = diameter / PI * cell_loads.oscillation[0].sqrt();
+                terms.local2_lifted += (lifted.sqrt() + oscillation).powi(2) / mu;
+                let cell = cell.unwrap_or_default();
+                (terms.cross, terms.obstacle2) = (terms.cross + cell.cross, terms.obstacle2 + cell.grad2);
             }
             // ζ = α(μ1∇u1h + τ1) − (1 − α)(μ2∇u2h + τ2), or μ∇u_h + τ above an obstacle.
             let [a, b] = values;
@@ -676,36 +685,32 @@ impl Terms<'_> {
 }
 
 impl Terms<'_> {
-    /// Above an obstacle, on the cell c of the triangle t (corners `p`), where ‖μ∇u_h + τ‖_κ =
-    /// `flux_norm`, μ∇u_h = `grad` and μ∇u_h + τ is `flux` at a point: μ^-½‖μ∇ũ + τ‖_κ, ũ = u_h + z,
-    /// and (λ_ψ⁻, ψ − u_h)_κ (Theorem (O') of §14; u_h's flux term and 0 where ψ is not above u_h).
-    fn lifted_flux(
+    /// Above an obstacle, on the cell c of the triangle t (corners `p`) if the obstacle is above
+    /// u_h there, where μ∇u_h = `grad` and μ∇u_h + τ is `flux` at a point: what the cell
+    /// contributes to the lifting and to the bound through ũ = u_h + z (§14).
+    fn above_cell(
         &self,
         (t, c, p): (usize, usize, [[f64; 2]; 3]),
-        flux_norm: f64,
         grad: [f64; 2],
         flux: impl Fn([f64; 2]) -> [f64; 2],
-    ) -> (f64, f64) {
+    ) -> Option<obstacle::AboveCell> {
         let (mesh, m) = (&self.problem.mesh, &self.membranes[0]);
-        let Some((psi, f, _)) = self.above.filter(|(_, _, above)| above[t] & (1 << c) != 0) else {
-            return (flux_norm / m.mu.sqrt(), 0.0);
-        };
+        let (psi, f, _) = self.above.filter(|(_, _, above)| above[t] & (1 << c) != 0)?;
         // u_h is affine on K: its value at a corner plus its gradient.
         let (tri, corner) = (mesh.triangle(t), mesh.corners(t)[0]);
         let u_at = |x: [f64; 2]| {
             let d = [0, 1].map(|k| grad[k] * (x[k] - corner[k]));
             m.u[tri[0]] + (d[0] + d[1]) / m.mu
         };
-        let cell = obstacle::AboveCell::compute(
+        Some(obstacle::AboveCell::compute(
             (psi.on_triangle(t), f.on_triangle(t)),
-            (p, mesh.diameter(t)),
+            p,
             m.mu,
             grad,
             u_at,
             flux,
             obstacle::rule(self.problem),
-        );
-        ((cell.flux2 / m.mu).sqrt(), cell.cross)
+        ))
     }
 }
 

@@ -13,25 +13,23 @@
 //! ‖∇z‖²_κ ≤ ‖∇ℓ‖²_κ + ‖∇(ψ − u_h)‖²_κ,     (λ_h, u_h + z − ψ)_κ ≤ (λ_h, max ℓ⁺)_κ + (λ_h, (u_h − ψ)⁺)_κ,
 //! ```
 //!
-//! and on every other cell z = ℓ: (λ_h, u_h + z − ψ)_κ = (λ_h, ℓ)_κ + (λ_h, u_h − ψ)_κ. ∇ψ is
-//! a difference quotient of the case's expression; the rule has degree max(q, 4) on each κ.
+//! and on every other cell z = ℓ: (λ_h, u_h + z − ψ)_κ = (λ_h, ℓ)_κ + (λ_h, u_h − ψ)_κ. ∇ψ and
+//! Δψ are the derivatives of the case's expression ([`crate::expr::Expr::with_derivatives`]);
+//! the rule has degree max(q, 4) on each κ. [`terms`] finds the cells where the obstacle is above
+//! u_h and the contact term; [`AboveCell`] the rest of what such a cell contributes, in the sweep
+//! over the patches.
 
 use super::boundary;
-use crate::assembly::{gradients, Quadrature};
+use crate::assembly::Quadrature;
 use crate::datum::{self, Pieces};
+use crate::expr::{Expr, Program};
 use crate::mesh::DualMesh;
 use crate::parallel::{self, PIECE};
 use crate::problem::DiscreteProblem;
 
-/// The step of the difference quotient for ∇ψ, relative to the diameter of the triangle (fourth
-/// order: error O(step⁴ ψ⁽⁵⁾)).
-const STEP: f64 = 1e-3;
-
 /// The obstacle's part of the lifting on one triangle K.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct OnTriangle {
-    /// Σ ‖∇(ψ − u_h)‖²_κ over the cells κ ⊂ K where the obstacle is above u_h.
-    pub grad2: f64,
     /// The bound of (λ_h, u_h + z − ψ)_K: the whole contact term of K.
     pub contact: f64,
     /// Bit c set where the obstacle is above u_h on the cell c of K.
@@ -53,7 +51,7 @@ pub fn terms(
     let mut out = vec![OnTriangle::default(); mesh.n_triangles()];
     parallel::map_mut(&mut out, PIECE, |base, out| {
         let cells = 6 * base..6 * (base + out.len());
-        // Per cell: whether the obstacle is above u_h, ‖∇(ψ − u_h)‖² there, and λ_h's pairings.
+        // Per cell: whether the obstacle is above u_h, and λ_h's pairings.
         let mut cell = |s: usize, points: &[crate::assembly::QuadraturePoint], [psi_at]: [&[f64]; 1]| {
             let t = s / 6;
             let tri = mesh.triangle(t);
@@ -71,7 +69,6 @@ pub fn terms(
             let o = &mut out[t - base];
             if above {
                 o.above |= 1 << (s % 6);
-                o.grad2 += grad2(mesh, t, psi, u, points);
                 o.contact += lambda_h * dip().map(|(w, d)| w * (-d).max(0.0)).sum::<f64>();
             } else {
                 o.contact -= lambda_h * dip().map(|(w, d)| w * d).sum::<f64>();
@@ -111,101 +108,34 @@ pub(super) fn rule(problem: &DiscreteProblem) -> Quadrature {
     }
 }
 
-/// ‖∇(ψ − u_h)‖²_κ by the rule's `points` on κ ⊂ K = triangle t, ∇ψ by a fourth-order central
-/// difference.
-fn grad2(
-    mesh: &crate::mesh::Mesh,
-    t: usize,
-    psi: &Pieces,
-    u: &[f64],
-    points: &[crate::assembly::QuadraturePoint],
-) -> f64 {
-    let tri = mesh.triangle(t);
-    let g = gradients(mesh.corners(t));
-    let grad_u = [0, 1].map(|k| (0..3).map(|j| g[j][k] * u[tri[j]]).sum::<f64>());
-    let psi = Differences::new(psi.on_triangle(t), mesh.diameter(t));
-    let x: Vec<[f64; 2]> = points.iter().map(|p| p.x).collect();
-    (points.iter().zip(psi.at(&x)))
-        .map(|(p, psi)| {
-            let d = [0, 1].map(|k| psi.gradient[k] - grad_u[k]);
-            p.weight * (d[0] * d[0] + d[1] * d[1])
-        })
-        .sum()
+/// ψ with ∂ψ/∂x, ∂ψ/∂y and Δψ, compiled per expression of the datum.
+pub struct WithDerivatives<'a> {
+    psi: &'a Pieces<'a>,
+    programs: Vec<Program>,
 }
 
-/// Derivatives of ψ on one triangle by fourth-order central differences of step [`STEP`] × its
-/// diameter.
-struct Differences<'e> {
-    psi: &'e crate::expr::Expr,
-    h: f64,
-}
-
-/// ψ, ∇ψ and Δψ at a point.
-struct Stencil {
-    value: f64,
-    gradient: [f64; 2],
-    laplacian: f64,
-}
-
-/// The offsets of the stencil from its centre, in steps h: the centre, then ±1 and ±2 along x
-/// and along y.
-const OFFSETS: [[f64; 2]; 9] = [
-    [0.0, 0.0],
-    [1.0, 0.0],
-    [-1.0, 0.0],
-    [2.0, 0.0],
-    [-2.0, 0.0],
-    [0.0, 1.0],
-    [0.0, -1.0],
-    [0.0, 2.0],
-    [0.0, -2.0],
-];
-
-impl<'e> Differences<'e> {
-    fn new(psi: &'e crate::expr::Expr, diameter: f64) -> Self {
-        Differences {
-            psi,
-            h: STEP * diameter,
-        }
+impl<'a> WithDerivatives<'a> {
+    /// Each expression of `psi` compiled with its derivatives.
+    pub fn new(psi: &'a Pieces<'a>) -> Self {
+        let programs = psi.exprs().iter().map(|e| e.with_derivatives()).collect();
+        WithDerivatives { psi, programs }
     }
 
-    /// ψ, ∇ψ and Δψ at each of `points`, ψ evaluated at all their stencils together.
-    fn at(&self, points: &[[f64; 2]]) -> Vec<Stencil> {
-        let h = self.h;
-        let stencils: Vec<[f64; 2]> = (points.iter())
-            .flat_map(|x| OFFSETS.map(|o| [x[0] + o[0] * h, x[1] + o[1] * h]))
-            .collect();
-        let mut values = vec![0.0; stencils.len()];
-        self.psi.eval_many(&stencils, &mut values);
-        (values.chunks_exact(OFFSETS.len()))
-            .map(|v| {
-                // Along axis k: ψ(x ± h e_k) = v[1 + 4k], v[2 + 4k]; ψ(x ± 2h e_k) = v[3 + 4k], v[4 + 4k].
-                let along = |k: usize| [v[1 + 4 * k], v[2 + 4 * k], v[3 + 4 * k], v[4 + 4 * k]];
-                let gradient = [0, 1].map(|k| {
-                    let [p1, m1, p2, m2] = along(k);
-                    (8.0 * (p1 - m1) - p2 + m2) / (12.0 * h)
-                });
-                let laplacian = (0..2)
-                    .map(|k| {
-                        let [p1, m1, p2, m2] = along(k);
-                        (16.0 * (p1 + m1) - p2 - m2 - 30.0 * v[0]) / (12.0 * h * h)
-                    })
-                    .sum();
-                Stencil {
-                    value: v[0],
-                    gradient,
-                    laplacian,
-                }
-            })
-            .collect()
+    /// The program on triangle t.
+    pub fn on_triangle(&self, t: usize) -> &Program {
+        &self.programs[self.psi.entry(t)]
     }
 }
 
-/// What the bound through ũ = u_h + z (§14, Theorem (O')) needs of one cell κ where the obstacle
-/// is above u_h: an upper bound of ‖μ∇ũ + τ‖²_κ (∇ũ = ∇ψ where ψ > u_h, ∇u_h elsewhere: at a
-/// cell where the rule's points disagree, the sum of the two squares), and (λ_ψ⁻, ψ − u_h)_κ with
-/// λ_ψ = −μΔψ − f, the action the obstacle would exert where it held the membrane.
+/// What a cell κ where the obstacle is above u_h contributes: to the lifting's ‖∇z‖²,
+/// ‖∇(ψ − u_h)‖²_κ; to the bound through ũ = u_h + z (§14, Theorem (O')), an upper bound of
+/// ‖μ∇ũ + τ‖²_κ (∇ũ = ∇ψ where ψ > u_h, ∇u_h elsewhere: at a cell where the rule's points
+/// disagree, the sum of the two squares), and (λ_ψ⁻, ψ − u_h)_κ with λ_ψ = −μΔψ − f, the action
+/// the obstacle would exert where it held the membrane.
+#[derive(Debug, Clone, Copy, Default)]
 pub struct AboveCell {
+    /// ‖∇(ψ − u_h)‖²_κ.
+    pub grad2: f64,
     /// The bound of ‖μ∇ũ + τ‖²_κ.
     pub flux2: f64,
     /// (λ_ψ⁻, ψ − u_h)_κ where ψ > u_h.
@@ -213,12 +143,12 @@ pub struct AboveCell {
 }
 
 impl AboveCell {
-    /// On the cell with corners `p` (in its triangle t of the obstacle's `psi`, diameter of t
-    /// `diameter`), for the tension `mu`, the load `f`, μ∇u_h = `grad_u`, u_h at a point `u_at`
-    /// and μ∇u_h + τ at a point `flux`, by the rule `rule`.
+    /// On the cell with corners `p`, for ψ with its derivatives `psi`
+    /// ([`Expr::with_derivatives`]), the load `f`, the tension `mu`, μ∇u_h = `grad_u`, u_h at a
+    /// point `u_at` and μ∇u_h + τ at a point `flux`, by the rule `rule`.
     pub fn compute(
-        (psi, f): (&crate::expr::Expr, &crate::expr::Expr),
-        (p, diameter): ([[f64; 2]; 3], f64),
+        (psi, f): (&Program, &Expr),
+        p: [[f64; 2]; 3],
         mu: f64,
         grad_u: [f64; 2],
         u_at: impl Fn([f64; 2]) -> f64,
@@ -229,25 +159,31 @@ impl AboveCell {
         let points: Vec<[f64; 2]> = (rule.barycentric())
             .map(|b| [0, 1].map(|k| b[0] * p[0][k] + b[1] * p[1][k] + b[2] * p[2][k]))
             .collect();
-        let (psi_at, f_at) = (Differences::new(psi, diameter).at(&points), f.values_at(&points));
-        let (mut on_u, mut on_psi, mut cross, mut everywhere) = (0.0, 0.0, 0.0, true);
-        for (((&[_, _, w], &x), psi), f) in rule.rule().iter().zip(&points).zip(&psi_at).zip(f_at) {
+        // ψ, ∂ψ/∂x, ∂ψ/∂y, Δψ and f at the points.
+        let mut values = vec![0.0; 5 * points.len()];
+        let mut at: Vec<&mut [f64]> = values.chunks_exact_mut(points.len()).collect();
+        let (psi_at, f_at) = at.split_at_mut(4);
+        psi.eval_many(&points, psi_at);
+        f.eval_many(&points, f_at[0]);
+        let at: Vec<&[f64]> = values.chunks_exact(points.len()).collect();
+        let (mut cell, mut on_u, mut on_psi, mut everywhere) = (AboveCell::default(), 0.0, 0.0, true);
+        for (k, (&[_, _, w], &x)) in rule.rule().iter().zip(&points).enumerate() {
             let w = 2.0 * area * w;
-            let v = flux(x);
-            let v_psi = [0, 1].map(|k| v[k] - grad_u[k] + mu * psi.gradient[k]);
+            let (v, grad_psi) = (flux(x), [at[1][k], at[2][k]]);
+            let v_psi = [0, 1].map(|i| v[i] - grad_u[i] + mu * grad_psi[i]);
+            let d = [0, 1].map(|i| grad_psi[i] - grad_u[i] / mu);
+            cell.grad2 += w * (d[0] * d[0] + d[1] * d[1]);
             on_u += w * (v[0] * v[0] + v[1] * v[1]);
             on_psi += w * (v_psi[0] * v_psi[0] + v_psi[1] * v_psi[1]);
-            let dip = psi.value - u_at(x);
+            let dip = at[0][k] - u_at(x);
             everywhere &= dip > 0.0;
             if dip > 0.0 {
-                let lambda_psi = -mu * psi.laplacian - f;
-                cross += w * (-lambda_psi).max(0.0) * dip;
+                let lambda_psi = -mu * at[3][k] - at[4][k];
+                cell.cross += w * (-lambda_psi).max(0.0) * dip;
             }
         }
-        AboveCell {
-            flux2: if everywhere { on_psi } else { on_u + on_psi },
-            cross,
-        }
+        cell.flux2 = if everywhere { on_psi } else { on_u + on_psi };
+        cell
     }
 }
 
@@ -256,14 +192,13 @@ mod tests {
     use super::*;
     use crate::assembly::Quadrature;
     use crate::datum::{Datum, On};
-    use crate::expr::Expr;
     use crate::mesh::{Edges, Mesh};
     use crate::problem::Data;
 
     /// K = (0,0), (1,0), (0,1) and ψ = −x² − y², whose interpolant is −x − y: ψ − ψ_h = x + y − x²
-    /// − y² ≥ 0 on K, and by hand ‖∇(ψ − ψ_h)‖²_K = ∫_K (1 − 2x)² + (1 − 2y)² = 1/3; with u_h one
-    /// above ψ_h the obstacle is nowhere above it and (λ_h, u_h − ψ)_K = 1/2 − 1/3 + 1/6 = 1/3 for
-    /// λ_h = 1.
+    /// − y² ≥ 0 on K, so with u_h = ψ_h the obstacle is above u_h on every cell and
+    /// (λ_h, (u_h − ψ)⁺)_K = 0; with u_h one above ψ_h it is nowhere above it and (λ_h, u_h − ψ)_K
+    /// = 1/2 − 1/3 + 1/6 = 1/3 for λ_h = 1.
     #[test]
     fn on_one_triangle_the_terms_have_their_closed_forms() {
         let mesh = Mesh::from_parts(
@@ -280,16 +215,17 @@ mod tests {
         let pieces = psi.pieces("psi", &mesh, On::Surfaces).unwrap();
         let none = [boundary::OnTriangle::default()];
         let on_psi_h = terms(&problem, &dual, &pieces, &[0.0, -1.0, -1.0], &[1.0; 3], &none);
-        assert!((on_psi_h[0].grad2 - 1.0 / 3.0).abs() < 1e-9, "{:?}", on_psi_h[0]);
+        assert_eq!(on_psi_h[0].above, 0b111111);
         assert!(on_psi_h[0].contact.abs() < 1e-15, "{:?}", on_psi_h[0]);
         let above = terms(&problem, &dual, &pieces, &[1.0, 0.0, 0.0], &[1.0; 3], &none);
-        assert_eq!(above[0].grad2, 0.0);
+        assert_eq!(above[0].above, 0);
         assert!((above[0].contact - 1.0 / 3.0).abs() < 1e-14, "{:?}", above[0]);
     }
 
     /// The same K and ψ with u_h = ψ_h = −x − y, μ = 1, f = 5 and τ = −μ∇u_h: λ_ψ = −Δψ − f = −1,
-    /// so Σ_κ (λ_ψ⁻, ψ − u_h)_κ = ∫_K x + y − x² − y² = 1/6, and ψ is above u_h inside K, so the
-    /// flux term of ũ = ψ is Σ_κ ‖μ∇ψ + τ‖²_κ = ∫_K |∇ψ − ∇ψ_h|² = 1/3.
+    /// so Σ_κ (λ_ψ⁻, ψ − u_h)_κ = ∫_K x + y − x² − y² = 1/6; by hand ‖∇(ψ − u_h)‖²_K = ∫_K (1 −
+    /// 2x)² + (1 − 2y)² = 1/3, and ψ is above u_h inside K, so the flux term of ũ = ψ is Σ_κ
+    /// ‖μ∇ψ + τ‖²_κ = ∫_K |∇ψ − ∇ψ_h|² = 1/3 too.
     #[test]
     fn above_the_obstacle_the_terms_through_the_lifted_solution_have_their_closed_forms() {
         let corners = [[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]];
@@ -297,21 +233,23 @@ mod tests {
         let edges = Edges::new(&mesh);
         let dual = DualMesh::new(&mesh, &edges);
         let (psi, f) = (Expr::parse("-x^2 - y^2").unwrap(), Expr::parse("5").unwrap());
+        let psi = psi.with_derivatives();
         let grad_u = [-1.0, -1.0];
-        let (mut flux2, mut cross) = (0.0, 0.0);
+        let (mut grad2, mut flux2, mut cross) = (0.0, 0.0, 0.0);
         for s in 0..6 {
             let cell = AboveCell::compute(
                 (&psi, &f),
-                (dual.corners(s), mesh.diameter(0)),
+                dual.corners(s),
                 1.0,
                 grad_u,
                 |x| -x[0] - x[1],
                 |_| [0.0; 2],
                 Quadrature { degree: 4 },
             );
-            (flux2, cross) = (flux2 + cell.flux2, cross + cell.cross);
+            (grad2, flux2, cross) = (grad2 + cell.grad2, flux2 + cell.flux2, cross + cell.cross);
         }
-        assert!((cross - 1.0 / 6.0).abs() < 1e-9, "{cross}");
-        assert!((flux2 - 1.0 / 3.0).abs() < 1e-9, "{flux2}");
+        assert!((grad2 - 1.0 / 3.0).abs() < 1e-14, "{grad2}");
+        assert!((cross - 1.0 / 6.0).abs() < 1e-14, "{cross}");
+        assert!((flux2 - 1.0 / 3.0).abs() < 1e-14, "{flux2}");
     }
 }
