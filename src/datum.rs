@@ -241,16 +241,21 @@ impl<'a> Pieces<'a> {
 
     /// The expression on the boundary edge (a, b) (either order).
     pub fn on_edge(&self, a: usize, b: usize) -> &'a Expr {
+        self.exprs[self.edge_entry(a, b)]
+    }
+
+    /// The entry of [`Pieces::exprs`] on the boundary edge (a, b) (either order).
+    pub fn edge_entry(&self, a: usize, b: usize) -> usize {
         debug_assert_eq!(self.on, On::Curves);
         if self.of_group.is_empty() {
-            return self.exprs[0];
+            return 0;
         }
         let groups = self
             .mesh
             .groups()
             .expect("a table is resolved on a mesh with groups");
         let i = groups.edge_index(a, b).expect("a boundary edge");
-        self.exprs[self.of_group[i] as usize]
+        self.of_group[i] as usize
     }
 
     /// The group name of entry e of a table (for messages), or "" for one expression.

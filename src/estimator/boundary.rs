@@ -21,13 +21,11 @@
 use super::equilibration::ON_BOUNDARY;
 use crate::assembly::gradients;
 use crate::datum::Pieces;
-use crate::expr::Expr;
+use crate::expr::Program;
 use crate::mesh::Mesh;
 
 /// Gauss–Legendre points per half of [0, 1].
 const POINTS: usize = 12;
-/// The step, in τ, of the difference quotient for δ'(τ) (fourth order: error O(step⁴ g⁽⁵⁾)).
-const STEP: f64 = 1e-3;
 /// Gauss–Legendre points per direction of the collapsed rules of [`cross_term`].
 const CROSS_POINTS: usize = 16;
 
@@ -54,12 +52,14 @@ pub fn lifting(
     gap: Option<&[f64]>,
 ) -> Vec<OnTriangle> {
     let rule = gauss_legendre_halves();
+    let with_derivatives: Vec<Program> = g.exprs().iter().map(|g| g.with_derivatives()).collect();
     (0..mesh.n_triangles())
         .map(|t| {
             let on_boundary: Vec<usize> = (0..3).filter(|&j| neighbour[t][j] == ON_BOUNDARY).collect();
             let tri = mesh.triangle(t);
             // g of the edge's physical curve (one expression without groups).
-            let edge = |j: usize| on_edge(mesh, t, j, g.on_edge(tri[j], tri[(j + 1) % 3]), lambda, &rule);
+            let g = |j: usize| &with_derivatives[g.edge_entry(tri[j], tri[(j + 1) % 3])];
+            let edge = |j: usize| on_edge(mesh, t, j, g(j), lambda, &rule);
             match on_boundary[..] {
                 [] => OnTriangle::default(),
                 [j] => edge(j).0,
@@ -77,7 +77,8 @@ struct EdgeLifting<'a> {
     j: usize,
     p: [f64; 2],
     q: [f64; 2],
-    g: &'a Expr,
+    /// g with its derivatives ([`crate::expr::Expr::with_derivatives`]).
+    g: &'a Program,
     /// g(p), g(q).
     ends: [f64; 2],
     /// ∇λ_q and ∇s = −∇λ_c.
@@ -88,17 +89,12 @@ struct EdgeLifting<'a> {
 }
 
 impl EdgeLifting<'_> {
-    /// δ(τ) and δ'(τ) (by the difference quotient of fourth order).
+    /// δ(τ) and δ'(τ), g(p + τ(q − p))' = ∇g · (q − p).
     fn delta(&self, tau: f64) -> (f64, f64) {
         let (p, q, [gp, gq]) = (self.p, self.q, self.ends);
-        let along = |tau: f64| {
-            self.g
-                .eval(p[0] + tau * (q[0] - p[0]), p[1] + tau * (q[1] - p[1]))
-        };
-        let derivative = (8.0 * (along(tau + STEP) - along(tau - STEP)) - along(tau + 2.0 * STEP)
-            + along(tau - 2.0 * STEP))
-            / (12.0 * STEP);
-        (along(tau) - ((1.0 - tau) * gp + tau * gq), derivative - (gq - gp))
+        let (g, grad) = value_and_gradient(self.g, [0, 1].map(|k| p[k] + tau * (q[k] - p[k])));
+        let derivative = grad[0] * (q[0] - p[0]) + grad[1] * (q[1] - p[1]);
+        (g - ((1.0 - tau) * gp + tau * gq), derivative - (gq - gp))
     }
 
     /// v = ∇λ_q − τ∇s.
@@ -116,12 +112,20 @@ impl EdgeLifting<'_> {
     }
 }
 
+/// g and ∇g at x, g with its derivatives.
+fn value_and_gradient(g: &Program, x: [f64; 2]) -> (f64, [f64; 2]) {
+    let mut at = [[0.0]; 5];
+    let [value, dx, dy, dxx, dyy] = &mut at;
+    g.eval_many(&[x], &mut [value, dx, dy, dxx, dyy]);
+    (at[0][0], [at[1][0], at[2][0]])
+}
+
 /// ψ_e on K for the boundary edge j of triangle t.
 fn on_edge<'a>(
     mesh: &Mesh,
     t: usize,
     j: usize,
-    g: &'a Expr,
+    g: &'a Program,
     lambda: &[f64],
     rule: &[(f64, f64)],
 ) -> (OnTriangle, EdgeLifting<'a>) {
@@ -135,7 +139,7 @@ fn on_edge<'a>(
         p,
         q,
         g,
-        ends: [g.eval(p[0], p[1]), g.eval(q[0], q[1])],
+        ends: [p, q].map(|x| value_and_gradient(g, x).0),
         grad_q: grads[(j + 1) % 3],
         grad_s: grads[(j + 2) % 3].map(|x| -x),
         k: 1.0,
@@ -267,6 +271,7 @@ fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::expr::Expr;
 
     /// The mesh of the one triangle (0,0), (1,0), (0,1).
     fn reference_triangle() -> Mesh {
