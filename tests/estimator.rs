@@ -571,3 +571,54 @@ fn a_load_the_rule_does_not_resolve_is_named() {
     let d = default.estimate.as_ref().unwrap();
     assert!(d.loads_resolved(), "{}", d.summary(None));
 }
+
+/// An `[exact]` that misses its equation, or whose ∇u is not u's gradient, is named as such (its
+/// Laplacian and gradient differentiated from the expression); every shipped exact solution
+/// solves its case's equations, the harmonic ones (Δu = 0 from terms that are not) included.
+#[test]
+fn an_exact_solution_that_misses_its_equation_is_named() {
+    use membrane_contact::norms::Missed;
+    let body = |f1: &str, dx: &str| {
+        format!(
+            "mu1 = 2.0\nmu2 = 1.0\nf1 = \"{f1}\"\nf2 = 0\ng = 0\n[exact]\nu1 = \"sin(pi*x)*sin(pi*y)\"\n\
+             u2 = \"0\"\nlambda = \"0\"\ngrad_u1 = [\"{dx}\", \"pi*sin(pi*x)*cos(pi*y)\"]"
+        )
+    };
+    let unsolved = |f1: &str, dx: &str| {
+        let case = square(&body(f1, dx), 8, "right");
+        let r = run::run(&case, &run::Options::default()).unwrap();
+        r.errors.unwrap().unsolved.map(|u| u.missed)
+    };
+    // −μ1Δu1 = 4π² sin πx sin πy: solved; with 1 % more load, or a gradient without its π, not.
+    assert_eq!(
+        unsolved("4*pi^2*sin(pi*x)*sin(pi*y)", "pi*cos(pi*x)*sin(pi*y)"),
+        None
+    );
+    assert_eq!(
+        unsolved("4.04*pi^2*sin(pi*x)*sin(pi*y)", "pi*cos(pi*x)*sin(pi*y)"),
+        Some(Missed::Equation(1))
+    );
+    assert_eq!(
+        unsolved("4*pi^2*sin(pi*x)*sin(pi*y)", "cos(pi*x)*sin(pi*y)"),
+        Some(Missed::Gradient(1))
+    );
+    for entry in std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let mut case = Case::read(&path).unwrap();
+        if case.set_cells(8).is_err() {
+            continue;
+        }
+        let r = run::run(&case, &run::Options::default()).unwrap();
+        if let Some(errors) = r.errors {
+            assert!(
+                errors.unsolved.is_none(),
+                "{}: {:?}",
+                path.display(),
+                errors.unsolved
+            );
+        }
+    }
+}

@@ -108,7 +108,7 @@ pub(super) fn rule(problem: &DiscreteProblem) -> Quadrature {
     }
 }
 
-/// ψ with ∂ψ/∂x, ∂ψ/∂y and Δψ, compiled per expression of the datum.
+/// ψ with its first and second derivatives, compiled per expression of the datum.
 pub struct WithDerivatives<'a> {
     psi: &'a Pieces<'a>,
     programs: Vec<Program>,
@@ -159,10 +159,10 @@ impl AboveCell {
         let points: Vec<[f64; 2]> = (rule.barycentric())
             .map(|b| [0, 1].map(|k| b[0] * p[0][k] + b[1] * p[1][k] + b[2] * p[2][k]))
             .collect();
-        // ψ, ∂ψ/∂x, ∂ψ/∂y, Δψ and f at the points.
-        let mut values = vec![0.0; 5 * points.len()];
+        // ψ, ∂ψ/∂x, ∂ψ/∂y, ∂²ψ/∂x², ∂²ψ/∂y² and f at the points.
+        let mut values = vec![0.0; 6 * points.len()];
         let mut at: Vec<&mut [f64]> = values.chunks_exact_mut(points.len()).collect();
-        let (psi_at, f_at) = at.split_at_mut(4);
+        let (psi_at, f_at) = at.split_at_mut(5);
         psi.eval_many(&points, psi_at);
         f.eval_many(&points, f_at[0]);
         let at: Vec<&[f64]> = values.chunks_exact(points.len()).collect();
@@ -178,7 +178,7 @@ impl AboveCell {
             let dip = at[0][k] - u_at(x);
             everywhere &= dip > 0.0;
             if dip > 0.0 {
-                let lambda_psi = -mu * at[3][k] - at[4][k];
+                let lambda_psi = -mu * (at[3][k] + at[4][k]) - at[5][k];
                 cell.cross += w * (-lambda_psi).max(0.0) * dip;
             }
         }

@@ -12,8 +12,8 @@ use super::{Binary, Compare, Compiler, Expr, Program, Step, Unary};
 type D = Option<u32>;
 
 impl Expr {
-    /// ψ, ∂ψ/∂x, ∂ψ/∂y and Δψ of this expression ψ, compiled together (the outputs in that
-    /// order).
+    /// ψ, ∂ψ/∂x, ∂ψ/∂y, ∂²ψ/∂x² and ∂²ψ/∂y² of this expression ψ, compiled together (the
+    /// outputs in that order).
     pub fn with_derivatives(&self) -> Program {
         let mut c = Compiler::default();
         let at: Vec<u32> = self.program.steps.iter().fold(Vec::new(), |mut at, step| {
@@ -28,9 +28,8 @@ impl Expr {
         };
         let (dx, dxx) = second(&mut c, Step::X);
         let (dy, dyy) = second(&mut c, Step::Y);
-        let laplacian = c.sum(dxx, dyy);
-        let laplacian = c.zero_or(laplacian);
-        Program::of(c.steps, vec![value, dx, dy, laplacian])
+        let (dxx, dyy) = (c.zero_or(dxx), c.zero_or(dyy));
+        Program::of(c.steps, vec![value, dx, dy, dxx, dyy])
     }
 }
 
@@ -230,10 +229,11 @@ mod tests {
     /// ψ, ∂ψ/∂x, ∂ψ/∂y, Δψ of `source` at (x, y).
     fn derivatives(source: &str, x: f64, y: f64) -> [f64; 4] {
         let program = Expr::parse(source).unwrap().with_derivatives();
-        let mut out = [[0.0]; 4];
-        let [a, b, c, d] = &mut out;
-        program.eval_many(&[[x, y]], &mut [a, b, c, d]);
-        out.map(|[v]| v)
+        let mut out = [[0.0]; 5];
+        let [a, b, c, d, e] = &mut out;
+        program.eval_many(&[[x, y]], &mut [a, b, c, d, e]);
+        let [[v], [dx], [dy], [dxx], [dyy]] = out;
+        [v, dx, dy, dxx + dyy]
     }
 
     fn close(a: [f64; 4], b: [f64; 4], source: &str) {
