@@ -9,7 +9,8 @@ nesting beyond the limits) and are marked with why. Before writing, the Python r
 
 Output (JSON): {"points": [[repr of x, repr of y], ...], "cases": [{"lets": [[name, text], ...], "text": ...,
 "values": [repr of the value at each point, or null where it is ill-conditioned (see `oracle`),
-...] or null, "reject": why or null}, ...]}; numbers are `repr` strings so that nan and inf
+...] or null, "derivatives": [[∂x, ∂y, ∂²/∂x², ∂²/∂y²] at each point, or null where they are not
+well-conditioned (see `derivatives`), ...] or null, "reject": why or null}, ...]}; numbers are `repr` strings so that nan and inf
 survive JSON, and so that they are read back exactly (serde_json's default float parsing may be
 off by a unit in the last place).
 
@@ -134,12 +135,13 @@ def text(node, rng, need=0):
     return out
 
 
-def evaluate(node, x, y, lets, noise=None, flags=None):
+def evaluate(node, x, y, lets, noise=None, flags=None, kinks=None):
     """The oracle: the tree evaluated with NumPy (`lets` maps names to trees). With `noise` (a
     random generator), x and y have rows (runs): row 0 is computed as is, the others with every
     computed number perturbed by a relative NOISE; `flags` (one per point) is then set where a
-    discontinuity is within the spread of the runs (see `oracle`)."""
-    ev = lambda n: evaluate(n, x, y, lets, noise, flags)  # noqa: E731
+    discontinuity is within the spread of the runs (see `oracle`), and `kinks` where a jump of a
+    derivative is within it or met exactly (`near_kink`)."""
+    ev = lambda n: evaluate(n, x, y, lets, noise, flags, kinks)  # noqa: E731
     k = node[0]
     if k == "num":
         return np.full(x.shape, node[2])
@@ -152,6 +154,7 @@ def evaluate(node, x, y, lets, noise=None, flags=None):
     args = [ev(a) for a in node[1:] if isinstance(a, tuple)]
     if noise is not None:
         near_discontinuity(k, node, args, flags)
+        near_kink(k, node, args, kinks)
     if k == "cmp":
         return COMPARE[node[1]](*args)
     if k in ("and", "or"):
@@ -200,20 +203,83 @@ def near_discontinuity(k, node, args, flags):
         flags |= near(args[0][0], args[0]) | near(args[1][0], args[1])  # 0 * inf, 0 / 0, 1 / ±0
 
 
-def oracle(tree, x, y, lets, rng):
+def near_kink(k, node, args, kinks):
+    """kinks |= points where a derivative may jump within SAFETY spreads of the runs, or exactly
+    there: abs and sign at 0, a tie of min or max, a comparison's equality, floor at an integer, a
+    power's base at 0 (and every discontinuity of the value, `near_discontinuity`). At such a point
+    the derivative of the branch taken is not the derivative of the function (|y²| at y = 0)."""
+    def near(distance, a):
+        return np.abs(distance) <= SAFETY * np.abs(a - a[0]).max(axis=0)
+
+    if k == "cmp" or (k == "fn" and node[1] in ("min", "max")):
+        a, b = args
+        kinks |= near(a[0] - b[0], a - b)
+    elif k == "fn" and node[1] in ("abs", "sign", "sqrt", "log"):
+        kinks |= near(args[0][0], args[0])
+    elif k == "fn" and node[1] == "floor":
+        kinks |= near(args[0][0] - np.round(args[0][0]), args[0])
+    elif k == "^":
+        kinks |= near(args[0][0], args[0])
+
+
+def oracle(tree, x, y, lets, rng, kinks=None):
     """The values of a tree at the points, None where they are ill-conditioned: where RUNS - 1
     evaluations with every computed number perturbed by a relative NOISE / 4 to NOISE (5 to 20
     units in the last place) move the value by more than RTOL / 10, or put a jump (`near_discontinuity`) within
     reach. There the last bits of the functions (NumPy's vectorised exp, log, ... against the C
     library's that Rust calls) decide the value, which is then no reference. Five perturbed runs:
     perturbations are rounded to whole units in the last place, so that two perturbed terms of a
-    cancelling sum can cancel exactly in one run by chance."""
+    cancelling sum can cancel exactly in one run by chance. `kinks`, if given, is set where a
+    derivative may jump (`near_kink`)."""
     flags = np.zeros(x.shape, bool)
+    kinks = np.zeros(x.shape, bool) if kinks is None else kinks
     runs = [np.broadcast_to(c, (RUNS, len(c))) for c in (x, y)]
     with np.errstate(all="ignore"):
-        v = evaluate(tree, *runs, lets, rng, flags)
+        v = evaluate(tree, *runs, lets, rng, flags, kinks)
     stable = np.logical_and.reduce([close(v[0], w, RTOL / 10) for w in v[1:]]) & ~flags
     return [repr(float(a)) if ok else None for a, ok in zip(v[0], stable)]
+
+
+def derivatives(case, pts, values, kinks):
+    """∂x, ∂y (forward differentiation of the reference parser's tree, expr.to_numpy_gradient) and
+    ∂²/∂x², ∂²/∂y² (central differences of those) at each point where they are well-conditioned:
+    the value is finite and well-conditioned, no derivative may jump there (`kinks`, from
+    `near_kink`), the value is the mean of its neighbours' at ±1e-5 (to 1e-8), the gradient agrees with central differences of the value at two steps, and the
+    second differences at two steps agree; None elsewhere (where the differences lose their
+    digits). A first derivative is then known to
+    about 1e-12, a second to about 1e-6 (the differences' error)."""
+    tree = expr.parse(case["text"], expr.parse_names(dict(case["lets"])))
+    n = len(pts)
+    # The points, then each shifted by ±h along x and along y for h = 1e-5, 1e-4: one evaluation.
+    shifts = [(k, h, sign) for k in (0, 1) for h in (1e-5, 1e-4) for sign in (1, -1)]
+    at = np.concatenate([pts] + [pts + sign * h * np.eye(2)[k] for k, h, sign in shifts])
+    with np.errstate(all="ignore"):
+        values_at = expr.to_numpy(tree, at[:, 0], at[:, 1])
+        gradients_at = expr.to_numpy_gradient(tree, at[:, 0], at[:, 1])[1:]
+        block = lambda f, j: f[n * j:n * (j + 1)]  # noqa: E731
+        value, gx, gy = block(values_at, 0), block(gradients_at[0], 0), block(gradients_at[1], 0)
+
+        def along(k, h, f):
+            j = 1 + shifts.index((k, h, 1))
+            return (block(f, j) - block(f, j + 1)) / (2 * h)
+
+        scale = np.abs(value) + np.abs(gx) + np.abs(gy) + 1.0
+        ok = np.isfinite(scale) & np.array([v is not None for v in values]) & ~kinks
+        second = []
+        for k, g in ((0, gx), (1, gy)):
+            # Continuous there (not a branch the points beside it do not take), and the gradient
+            # that of the differences.
+            j = 1 + shifts.index((k, 1e-5, 1))
+            ok &= np.abs(value - (block(values_at, j) + block(values_at, j + 1)) / 2) <= 1e-8 * scale
+            ok &= np.abs(along(k, 1e-5, values_at) - g) <= 1e-6 * scale
+            ok &= np.abs(along(k, 1e-4, values_at) - g) <= 1e-4 * scale
+            fine, coarse = along(k, 1e-5, gradients_at[k]), along(k, 1e-4, gradients_at[k])
+            ok &= np.isfinite(fine) & (np.abs(fine - coarse) <= 1e-6 * (scale + np.abs(fine)))
+            second.append(fine)
+    out = [None] * n
+    for i in np.flatnonzero(ok):
+        out[i] = [repr(float(v[i])) for v in (gx, gy, second[0], second[1])]
+    return out
 
 
 def valid(gen, rng):
@@ -312,8 +378,11 @@ def generate(seed, count):
             cases.append({"lets": lets, "text": source, "values": None, "reject": why})
             continue
         lets, tree = valid(gen, rng)
-        cases.append({"lets": [[k, text(v, rng)] for k, v in lets], "text": text(tree, rng), "reject": None,
-                      "values": oracle(tree, pts[:, 0], pts[:, 1], dict(lets), rng)})
+        kinks = np.zeros(len(pts), bool)
+        case = {"lets": [[k, text(v, rng)] for k, v in lets], "text": text(tree, rng), "reject": None,
+                "values": oracle(tree, pts[:, 0], pts[:, 1], dict(lets), rng, kinks)}
+        case["derivatives"] = derivatives(case, pts, case["values"], kinks)
+        cases.append(case)
     return {"points": [[repr(float(c)) for c in p] for p in pts], "cases": cases}
 
 
@@ -332,9 +401,12 @@ def main(argv=None):
         json.dump(data, f)
     rejected_count = sum(1 for c in data["cases"] if c["reject"])
     values = [v for c in data["cases"] if c["values"] for v in c["values"]]
-    print("%d expressions (%d to reject), seed %d, %d of %d values well-conditioned; reference/expr.py "
-          "disagrees on %d" % (len(data["cases"]), rejected_count, args.seed, sum(v is not None for v in values),
-                               len(values), len(failures)), file=sys.stderr)
+    gradients = [d for c in data["cases"] if c.get("derivatives") for d in c["derivatives"]]
+    print("%d expressions (%d to reject), seed %d, %d of %d values and %d derivatives well-conditioned; "
+          "reference/expr.py disagrees on %d" % (len(data["cases"]), rejected_count, args.seed,
+                                                 sum(v is not None for v in values), len(values),
+                                                 sum(d is not None for d in gradients), len(failures)),
+          file=sys.stderr)
     return 1 if failures else 0
 
 

@@ -2,7 +2,10 @@
 //! `reference/random_expressions.py`, each with its values computed by NumPy from its syntax tree
 //! (never from the text), or marked as one to reject. Here each is parsed (with its `[let]` names)
 //! and evaluated with `eval` and `eval_many`; the generator has checked the Python reference's
-//! parser on the same set. `EXPR_CASES` and `EXPR_SEED` set the count (10 000) and the seed (1).
+//! parser on the same set. The derivatives `Expr::with_derivatives` compiles are checked against
+//! the reference's forward differentiation (first) and its differences (second), where those
+//! agree with differences of the values. `EXPR_CASES` and `EXPR_SEED` set the count (10 000) and
+//! the seed (1).
 
 use membrane_contact::case::Case;
 use membrane_contact::expr::{Expr, ExprError, Names};
@@ -67,7 +70,46 @@ fn disagreement(case: &Value, points: &[[f64; 2]], compared: &mut usize) -> Opti
     expr.eval_many(points, &mut many);
     let one: Vec<f64> = points.iter().map(|p| expr.eval(p[0], p[1])).collect();
     let ok = |got: &[f64]| (got.iter().zip(&expected)).all(|(a, b)| b.is_none_or(|b| agree(*a, b)));
-    (!ok(&one) || !ok(&many)).then(|| format!("eval {one:?}, eval_many {many:?}, expected {expected:?}"))
+    if !ok(&one) || !ok(&many) {
+        return Some(format!("eval {one:?}, eval_many {many:?}, expected {expected:?}"));
+    }
+    derivatives_disagree(&expr, case, points, &many, compared)
+}
+
+/// `Expr::with_derivatives` against the generator's derivatives where they are well-conditioned:
+/// ∂x, ∂y to 1e-9 and ∂²/∂x², ∂²/∂y² (differences there) to 1e-5 of the size of the value and
+/// gradient.
+fn derivatives_disagree(
+    expr: &Expr,
+    case: &Value,
+    points: &[[f64; 2]],
+    values: &[f64],
+    compared: &mut usize,
+) -> Option<String> {
+    let program = expr.with_derivatives();
+    let mut out = [(); 5].map(|_| vec![0.0; points.len()]);
+    let [v, dx, dy, dxx, dyy] = &mut out;
+    program.eval_many(points, &mut [v, dx, dy, dxx, dyy]);
+    let expected = case["derivatives"].as_array()?;
+    for (k, d) in expected.iter().enumerate() {
+        let Some(d) = d.as_array() else { continue };
+        let d: Vec<f64> = d.iter().map(|v| v.as_str().unwrap().parse().unwrap()).collect();
+        *compared += 1;
+        let got = [out[1][k], out[2][k], out[3][k], out[4][k]];
+        let scale = values[k].abs() + d[0].abs() + d[1].abs() + 1.0;
+        let tolerance = [
+            1e-9 * scale,
+            1e-9 * scale,
+            1e-5 * (scale + d[2].abs()),
+            1e-5 * (scale + d[3].abs()),
+        ];
+        // Within the tolerance; NaN is not.
+        let within = |j: usize| (got[j] - d[j]).abs() <= tolerance[j];
+        if !(0..4).all(within) {
+            return Some(format!("derivatives at {:?}: {got:?}, expected {d:?}", points[k]));
+        }
+    }
+    None
 }
 
 #[test]
@@ -95,11 +137,12 @@ fn random_expressions_agree_with_the_oracle() {
         failures.len(),
         cases.len()
     );
-    // Most values are compared: 8 in 10 expressions are valid, and few values ill-conditioned.
+    // Most values are compared: 8 in 10 expressions are valid, and few values ill-conditioned;
+    // and the derivatives at most of those points.
     let values = cases.len() * points.len();
     assert!(
-        compared * 10 > values * 7,
-        "only {compared} of {values} values compared"
+        compared * 10 > values * 12,
+        "only {compared} of {values} values and as many derivatives compared"
     );
     eprintln!("{} expressions agree; {compared} values compared", cases.len());
 }

@@ -54,6 +54,7 @@ fn differentiate(c: &mut Compiler, var: Step, target: u32) -> D {
             Step::X | Step::Y => (step == var).then(|| c.constant(1.0)),
             Step::Const(_) | Step::Compare(..) | Step::And(..) | Step::Or(..) => None,
             Step::Unary(f, a) => d[a as usize].and_then(|da| c.unary(f, k as u32, a, da)),
+            Step::PowI(0, _) => None,
             Step::PowI(n, a) => d[a as usize].map(|da| {
                 // (aⁿ)' = n aⁿ⁻¹ a'.
                 let power = match n - 1 {
@@ -172,14 +173,12 @@ impl Compiler {
                 Some(self.div(numerator, b))
             }
             Binary::Pow => self.power(k, (a, da), (b, db)),
-            // min and max take one operand (or the other, at a tie): its derivative.
+            // min and max take one operand: its derivative. The one taken is the one the value
+            // equals (k ≤ a and k ≥ a), which follows the value's own rule where the other is NaN.
             Binary::Min | Binary::Max => {
-                let compare = if f == Binary::Min {
-                    Compare::Le
-                } else {
-                    Compare::Ge
-                };
-                let first = self.add(Step::Compare(compare, a, b));
+                let below = self.add(Step::Compare(Compare::Le, k, a));
+                let above = self.add(Step::Compare(Compare::Ge, k, a));
+                let first = self.add(Step::And(below, above));
                 self.select(first, da, db)
             }
             // atan2(a, b)' = (b a' − a b') / (a² + b²).
