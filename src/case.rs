@@ -959,17 +959,17 @@ fn exact_solution(
     expr: &dyn Fn(&str, &Expression) -> Result<Expr, String>,
 ) -> Result<Exact, String> {
     let one = |key: &str, v: &Option<Expression>| v.as_ref().map(|v| expr(key, v)).transpose();
-    let grad = |key: &str, g: &Option<Vec<Expression>>| -> Result<Option<[Expr; 2]>, String> {
+    // ∇u as given, or u's derivatives where it is not.
+    let grad = |key: &str, g: &Option<Vec<Expression>>, u: &Expr| -> Result<[Expr; 2], String> {
         let parse = |v| expr(key, v);
-        (g.as_deref())
-            .map(|g| match g {
-                [gx, gy] => Ok([parse(gx)?, parse(gy)?]),
-                _ => Err(format!(
-                    "key '{key}' has {} entries: a gradient has two, [∂/∂x, ∂/∂y]",
-                    g.len()
-                )),
-            })
-            .transpose()
+        match g.as_deref() {
+            None => Ok(u.gradient()),
+            Some([gx, gy]) => Ok([parse(gx)?, parse(gy)?]),
+            Some(g) => Err(format!(
+                "key '{key}' has {} entries: a gradient has two, [∂/∂x, ∂/∂y]",
+                g.len()
+            )),
+        }
     };
     let (keys, other): (&[&str], &[&str]) = match data.lower {
         Lower::Rigid { .. } => (&["u", "grad_u"], &["u1", "u2", "grad_u1", "grad_u2"]),
@@ -995,26 +995,34 @@ fn exact_solution(
     let missing = |key: &str| format!("key 'exact.{key}' is missing");
     let lambda = expr("exact.lambda", &e.lambda)?;
     Ok(match &data.lower {
-        Lower::Rigid { psi } => Exact {
-            u1: one("exact.u", &e.u)?.ok_or_else(|| missing("u"))?,
-            u2: (psi.expr().cloned()).ok_or(
+        Lower::Rigid { psi } => {
+            let u = one("exact.u", &e.u)?.ok_or_else(|| missing("u"))?;
+            let psi = (psi.expr().cloned()).ok_or(
                 "key 'psi' is a table per physical group: with an [exact] \
                  solution, give ψ as one expression (the errors take it as the obstacle's exact \
                  height)",
-            )?,
-            lambda,
-            grad_u1: grad("exact.grad_u", &e.grad_u)?,
-            grad_u2: None,
-            rigid: true,
-        },
-        Lower::Membrane { .. } => Exact {
-            u1: one("exact.u1", &e.u1)?.ok_or_else(|| missing("u1"))?,
-            u2: one("exact.u2", &e.u2)?.ok_or_else(|| missing("u2"))?,
-            lambda,
-            grad_u1: grad("exact.grad_u1", &e.grad_u1)?,
-            grad_u2: grad("exact.grad_u2", &e.grad_u2)?,
-            rigid: false,
-        },
+            )?;
+            Exact {
+                grad_u1: grad("exact.grad_u", &e.grad_u, &u)?,
+                grad_u2: psi.gradient(),
+                u1: u,
+                u2: psi,
+                lambda,
+                rigid: true,
+            }
+        }
+        Lower::Membrane { .. } => {
+            let u1 = one("exact.u1", &e.u1)?.ok_or_else(|| missing("u1"))?;
+            let u2 = one("exact.u2", &e.u2)?.ok_or_else(|| missing("u2"))?;
+            Exact {
+                grad_u1: grad("exact.grad_u1", &e.grad_u1, &u1)?,
+                grad_u2: grad("exact.grad_u2", &e.grad_u2, &u2)?,
+                u1,
+                u2,
+                lambda,
+                rigid: false,
+            }
+        }
     })
 }
 

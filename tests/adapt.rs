@@ -170,7 +170,7 @@ fn adaptivity_follows_the_true_error_in_and_out_of_contact() {
     let mesh = &r.problem.mesh;
     // The true local error Σ_i μ_i ‖∇(u_i − u_ih)‖²_K, from the exact gradients.
     let exact = case.exact.as_ref().unwrap();
-    let [g1, g2] = [exact.grad_u1.as_ref().unwrap(), exact.grad_u2.as_ref().unwrap()];
+    let [g1, g2] = [&exact.grad_u1, &exact.grad_u2];
     let mut error = vec![0.0; mesh.n_triangles()];
     let rule = Quadrature { degree: 10 };
     rule.visit(

@@ -416,7 +416,7 @@ fn flux_reconstruction_is_conservative_and_converges() {
     // approximation of −μ1 ∇u1 (area-weighted mean deviation at the cell centroids).
     let mut c = Case::default_case();
     let exact = c.exact.clone().unwrap();
-    let [gx, gy] = exact.grad_u1.unwrap();
+    let [gx, gy] = exact.grad_u1;
     let mut deviation = Vec::new();
     for n in [16, 32] {
         c.set_cells(n).unwrap();

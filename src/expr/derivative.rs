@@ -15,12 +15,7 @@ impl Expr {
     /// ψ, ∂ψ/∂x, ∂ψ/∂y, ∂²ψ/∂x² and ∂²ψ/∂y² of this expression ψ, compiled together (the
     /// outputs in that order).
     pub fn with_derivatives(&self) -> Program {
-        let mut c = Compiler::default();
-        let at: Vec<u32> = self.program.steps.iter().fold(Vec::new(), |mut at, step| {
-            at.push(c.add(step.map(|i| at[i as usize])));
-            at
-        });
-        let value = at[self.program.outputs[0] as usize];
+        let (mut c, value) = self.compiler();
         let second = |c: &mut Compiler, var: Step| {
             let first = differentiate(c, var, value);
             let second = first.and_then(|d| differentiate(c, var, d));
@@ -31,22 +26,35 @@ impl Expr {
         let (dxx, dyy) = (c.zero_or(dxx), c.zero_or(dyy));
         Program::of(c.steps, vec![value, dx, dy, dxx, dyy])
     }
+
+    /// ∂ψ/∂x and ∂ψ/∂y of this expression ψ, each an expression of its own.
+    pub fn gradient(&self) -> [Expr; 2] {
+        [Step::X, Step::Y].map(|var| {
+            let (mut c, value) = self.compiler();
+            let d = differentiate(&mut c, var, value);
+            let d = c.zero_or(d);
+            Expr {
+                program: c.program_of(d),
+            }
+        })
+    }
+
+    /// A compiler holding this expression's steps, and the step of its value.
+    fn compiler(&self) -> (Compiler, u32) {
+        let mut c = Compiler::default();
+        let at: Vec<u32> = self.program.steps.iter().fold(Vec::new(), |mut at, step| {
+            at.push(c.add(step.map(|i| at[i as usize])));
+            at
+        });
+        (c, at[self.program.outputs[0] as usize])
+    }
 }
 
 /// The derivative along `var` (x or y) of the step `target`: the steps it depends on are
 /// differentiated in order (operands come before the steps that use them), the others not.
 fn differentiate(c: &mut Compiler, var: Step, target: u32) -> D {
     let n = target as usize + 1;
-    let mut needed = vec![false; n];
-    needed[target as usize] = true;
-    for k in (0..n).rev() {
-        if needed[k] {
-            c.steps[k].map(|i| {
-                needed[i as usize] = true;
-                i
-            });
-        }
-    }
+    let needed = c.cone(target);
     let mut d: Vec<D> = vec![None; n];
     for k in (0..n).filter(|&k| needed[k]) {
         let step = c.steps[k];
@@ -74,6 +82,33 @@ fn differentiate(c: &mut Compiler, var: Step, target: u32) -> D {
 }
 
 impl Compiler {
+    /// Whether each step up to `target` is one `target` depends on (itself included).
+    fn cone(&self, target: u32) -> Vec<bool> {
+        let n = target as usize + 1;
+        let mut needed = vec![false; n];
+        needed[target as usize] = true;
+        for k in (0..n).rev() {
+            if needed[k] {
+                self.steps[k].map(|i| {
+                    needed[i as usize] = true;
+                    i
+                });
+            }
+        }
+        needed
+    }
+
+    /// The program of the one output `output`, with only the steps it depends on.
+    fn program_of(&self, output: u32) -> Program {
+        let needed = self.cone(output);
+        let mut kept = Compiler::default();
+        let mut at = vec![0; needed.len()];
+        for (k, _) in needed.iter().enumerate().filter(|(_, &n)| n) {
+            at[k] = kept.add(self.steps[k].map(|i| at[i as usize]));
+        }
+        Program::of(kept.steps, vec![at[output as usize]])
+    }
+
     fn constant(&mut self, v: f64) -> u32 {
         self.add(Step::Const(v.to_bits()))
     }
@@ -328,6 +363,24 @@ mod tests {
         for (source, expected) in cases {
             close(derivatives(source, x, y), expected, source);
         }
+    }
+
+    /// The gradient as expressions of their own: the same values as `with_derivatives`', and only
+    /// the steps each needs (∂/∂x of sin(πx) sin(πy) takes cos(πx), not sin(πx)).
+    #[test]
+    fn the_gradient_is_two_expressions_of_their_own() {
+        let source = "sin(pi*x)*sin(pi*y) + x^3*y";
+        let [dx, dy] = Expr::parse(source).unwrap().gradient();
+        let (x, y) = (0.3, 0.7);
+        let d = derivatives(source, x, y);
+        assert_eq!([dx.eval(x, y), dy.eval(x, y)], [d[1], d[2]]);
+        let sines = |e: &Expr| {
+            let steps = e.program.steps.iter();
+            steps
+                .filter(|s| matches!(s, Step::Unary(Unary::Sin | Unary::Cos, _)))
+                .count()
+        };
+        assert_eq!((sines(&dx), sines(&dy)), (2, 2));
     }
 
     /// An `if` differentiates branch by branch; a constant has no derivative steps.

@@ -27,10 +27,11 @@ pub struct Exact {
     pub u2: Expr,
     /// λ.
     pub lambda: Expr,
-    /// ∇u1 as [∂x, ∂y], for the H¹ error.
-    pub grad_u1: Option<[Expr; 2]>,
+    /// ∇u1 as [∂x, ∂y], for the H¹ error: as the case gives it, or u1's derivatives
+    /// ([`Expr::gradient`]).
+    pub grad_u1: [Expr; 2],
     /// ∇u2 as [∂x, ∂y].
-    pub grad_u2: Option<[Expr; 2]>,
+    pub grad_u2: [Expr; 2],
     /// Whether u2 is a rigid obstacle ψ (the classical obstacle problem, whose exact u is u1):
     /// then only u1's errors are reported, as u's.
     pub rigid: bool,
@@ -168,12 +169,11 @@ impl Errors {
         let mesh = &problem.mesh;
         let u = p1_errors(mesh, [&solution.u1, &solution.u2], exact);
         let lambda = lambda_error(dual, |s| action.lambda[dual.owner(s)], &exact.lambda);
-        let given = [exact.grad_u1.is_some(), exact.grad_u2.is_some() && !exact.rigid];
         let [l2_u1, l2_u2, h1_u1, h1_u2] = u.value.map(f64::sqrt);
-        let [h1_u1, h1_u2] = [(h1_u1, given[0]), (h1_u2, given[1])].map(|(e, g)| g.then_some(e));
+        let (h1_u1, h1_u2) = (Some(h1_u1), (!exact.rigid).then_some(h1_u2));
         // The relative error of a norm √S is about half that of S; above a rigid obstacle, u2's
         // (ψ's) norms are not reported.
-        let reported = [true, !exact.rigid, given[0], given[1], true];
+        let reported = [true, !exact.rigid, true, !exact.rigid, true];
         let value = [&u.value[..], &lambda.value].concat();
         let error = [&u.error[..], &lambda.error].concat();
         let quadrature = (0..5)
@@ -353,7 +353,7 @@ fn unsolved(problem: &DiscreteProblem, exact: &Exact) -> Option<Unsolved> {
             let (((a, size, noise), differences), f) = (operator(mu, u, x), f.eval(x[0], x[1]));
             let terms = (size + lambda.abs() + f.abs()).max(f64::MIN_POSITIVE);
             let relative = ((a + lambda - f).abs() - noise).max(0.0) / terms;
-            let gradient = grad.as_ref().map_or(0.0, |g| gradient_miss(g, differences, x));
+            let gradient = gradient_miss(grad, differences, x);
             for (relative, missed) in [(relative, Missed::Equation(i)), (gradient, Missed::Gradient(i))] {
                 miss |= relative > UNSOLVED;
                 if relative > worst.0 {
@@ -445,15 +445,12 @@ const ON_DUAL_CELLS: Rules = Rules {
     hi: Quadrature { degree: 5 },
 };
 
-/// (‖u_i − u_ih‖²_L², |u_i − u_ih|²_H¹) of both membranes' P1 fields (the H¹ term where ∇u_i is
-/// given), the exact fields evaluated together (they share most of their terms).
+/// (‖u_i − u_ih‖²_L², |u_i − u_ih|²_H¹) of both membranes' P1 fields, the exact fields evaluated
+/// together (they share most of their terms).
 fn p1_errors<'a>(mesh: &Mesh, uh: [&[f64]; 2], exact: &'a Exact) -> Integral<4> {
     // Above a rigid obstacle u2 = ψ, whose errors are not reported, is left out.
     let exact_u = [Some(&exact.u1), (!exact.rigid).then_some(&exact.u2)];
-    let exact_grad = [
-        exact.grad_u1.as_ref(),
-        exact.grad_u2.as_ref().filter(|_| !exact.rigid),
-    ];
+    let exact_grad = [Some(&exact.grad_u1), (!exact.rigid).then_some(&exact.grad_u2)];
     let mut fields: Vec<&Expr> = Vec::new();
     let mut at = |e: &[&'a Expr]| {
         fields.extend(e);
@@ -689,8 +686,8 @@ mod tests {
             u1: Expr::parse(u).unwrap(),
             u2: Expr::parse("0").unwrap(),
             lambda: Expr::parse("0").unwrap(),
-            grad_u1: Some(grad.map(|g| Expr::parse(g).unwrap())),
-            grad_u2: None,
+            grad_u1: grad.map(|g| Expr::parse(g).unwrap()),
+            grad_u2: [(); 2].map(|_| Expr::parse("0").unwrap()),
             rigid: false,
         };
         p1_errors(&mesh, [&zero, &zero], &exact)
