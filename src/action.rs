@@ -69,7 +69,7 @@ pub struct Checks {
     /// made of the |μ_i K_ab u_ib|.
     pub own_noise: f64,
     /// The size of each membrane, max(the displacement its own data give, max_b |u_ib|)
-    /// ([`own_size`]), against which the round-off of its values is measured; 0 where its data are
+    /// (`own_size`), against which the round-off of its values is measured; 0 where its data are
     /// all 0 (it moves only where it touches the other) and above a rigid obstacle (not checked).
     pub sizes: [f64; 2],
     /// The round-off of each membrane's values, computed as u1 = v + μ2/(μ1+μ2) w and
@@ -88,7 +88,7 @@ pub enum CheckError {
         which: usize,
         /// The round-off of its values.
         noise: f64,
-        /// Its size ([`own_size`]).
+        /// Its size (`own_size`).
         size: f64,
     },
     /// λ_h is below the round-off of (4.5).

@@ -223,13 +223,13 @@ impl<'a> Pieces<'a> {
     }
 
     /// The distinct expressions, in the order of [`Pieces::entry`].
-    pub fn exprs(&self) -> &[&'a Expr] {
+    pub(crate) fn exprs(&self) -> &[&'a Expr] {
         &self.exprs
     }
 
     /// The entry of [`Pieces::exprs`] on triangle t (surfaces).
     #[inline]
-    pub fn entry(&self, t: usize) -> usize {
+    pub(crate) fn entry(&self, t: usize) -> usize {
         self.of_group.get(t).map_or(0, |&e| e as usize)
     }
 
@@ -245,7 +245,7 @@ impl<'a> Pieces<'a> {
     }
 
     /// The entry of [`Pieces::exprs`] on the boundary edge (a, b) (either order).
-    pub fn edge_entry(&self, a: usize, b: usize) -> usize {
+    pub(crate) fn edge_entry(&self, a: usize, b: usize) -> usize {
         debug_assert_eq!(self.on, On::Curves);
         if self.of_group.is_empty() {
             return 0;

@@ -21,7 +21,7 @@
 //! The system depends on the geometry only: one factorization serves both membranes.
 //!
 //! The fluxes are never held on the whole of S_h: the patches are solved block by block along a
-//! Z-order curve of the vertices ([`Sweep`]), each patch's share of a triangle's cells is added
+//! Z-order curve of the vertices (`Sweep`), each patch's share of a triangle's cells is added
 //! to the triangle's τ_i (block after block, in a block in the order of the triangle's corners,
 //! so that it does not depend on the threads), and once the patches of its three vertices are
 //! solved, τ_i is handed to the caller and dropped.

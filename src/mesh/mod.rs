@@ -951,6 +951,12 @@ mod tests {
             Mesh::new(sq.clone(), bad_index),
             Err(MeshError::VertexIndex { .. })
         ));
+    }
+
+    #[test]
+    fn checks_reject_disconnected_and_hanging_meshes() {
+        let sq = vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5]];
+        let fan = vec![[0, 1, 4], [1, 2, 4], [2, 3, 4], [3, 0, 4]];
         // Two fans side by side sharing no edge: disconnected.
         let mut two = sq.clone();
         two.extend(sq.iter().map(|p| [p[0] + 3.0, p[1]]));

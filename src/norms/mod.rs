@@ -86,7 +86,7 @@ pub struct Errors {
     /// (a curved ω, or a mesh of another domain): the errors are then against the solution of
     /// another problem than the one on ω_h, which the estimator's η bounds the error against.
     pub boundary: Option<Mismatch>,
-    /// Where the exact solution does not solve the equations ([`unsolved`]).
+    /// Where the exact solution does not solve the equations (`unsolved`).
     pub unsolved: Option<Unsolved>,
 }
 
@@ -249,7 +249,7 @@ fn boundary_mismatch(problem: &DiscreteProblem, exact: &Exact, uh: [&[f64]; 2]) 
 /// on a share of sample points too large for a few points near a kink or a jump of the data.
 #[derive(Debug, Clone, Copy)]
 pub struct Unsolved {
-    /// The share of the sample points where a residual exceeds [`UNSOLVED`] of its terms.
+    /// The share of the sample points where a residual exceeds `UNSOLVED` (1e-3) of its terms.
     pub share: f64,
     /// The point of the largest relative residual.
     pub at: [f64; 2],
