@@ -12,10 +12,11 @@
 //! pairing (4.3) — and at a boundary vertex the flux through ∂ω is free. Since Σ_a φ_a = 1,
 //! τ_i = Σ_a τ_{i,a} lies in H(div, ω) with div τ_i = Π f_i ± λ_h − c_i on every cell.
 //!
-//! Each local problem is solved in two steps: a particular solution by a sweep over a spanning
-//! tree of the patch's cells (the flux through each tree link is what the cells beyond it need),
-//! then the divergence-free correction curl ψ, ψ a P1 function on S_h|ω_a vanishing on the closed
-//! part of ∂ω_a. Curls of P1 functions are constant on each cell and ‖curl ψ‖ = ‖∇ψ‖, so the
+//! Each local problem is solved in two steps: a particular solution along a path through all the
+//! cells of the patch, round each triangle's barycentre and on across the edges at a to the next
+//! triangle (the flux from a cell into the next is what the cells before it leave), then the
+//! divergence-free correction curl ψ, ψ a P1 function on S_h|ω_a vanishing on the closed part of
+//! ∂ω_a. Curls of P1 functions are constant on each cell and ‖curl ψ‖ = ‖∇ψ‖, so the
 //! correction solves the P1 stiffness system of S_h|ω_a: 2k + 1 unknowns at an interior vertex
 //! with k triangles (a, the k midpoints of its edges, the k barycentres), 2k + 2 at a boundary one.
 //! The system depends on the geometry only: one factorization serves both membranes.
@@ -30,9 +31,6 @@ use crate::assembly::gradients;
 use crate::mesh::{orient, DualMesh, Mesh, Stars};
 use crate::parallel;
 use std::ops::Range;
-
-/// No stream-function unknown (a vertex of S_h where ψ = 0), or no parent in the spanning tree.
-const NONE: usize = usize::MAX;
 
 /// No neighbour across an edge: the edge lies on ∂ω.
 pub const ON_BOUNDARY: u32 = u32::MAX;
@@ -184,7 +182,11 @@ pub fn equilibrate<L: CellPairings + Send + Sync, R: Default + Send>(
         // Each piece's patches' shares, star after star, and where each vertex's star begins.
         let shares: Vec<(Vec<TriangleFlux>, Vec<usize>)> =
             parallel::map_with(block.len(), PATCHES, Patch::default, |work, range| {
-                let (mut out, mut starts) = (Vec::new(), Vec::with_capacity(range.len()));
+                let triangles = block[range.clone()]
+                    .iter()
+                    .map(|&a| patches.stars.len(a as usize))
+                    .sum();
+                let (mut out, mut starts) = (Vec::with_capacity(triangles), Vec::with_capacity(range.len()));
                 for &a in &block[range] {
                     starts.push(out.len());
                     work.build(mesh, dual, patches, a as usize);
@@ -324,10 +326,9 @@ fn runs(t: &[u32]) -> Vec<Range<usize>> {
 /// One cell of S_h in a patch, with what its local problems need of its geometry.
 #[derive(Clone, Copy, Default)]
 struct Cell {
-    /// The position of a in its triangle.
-    position: usize,
     area: f64,
-    /// The stream-function unknown at each corner, or NONE.
+    /// The stream-function unknown at each corner; where ψ is held at 0, the extra row
+    /// [`Patch::unknowns`] of the stream system, which is assembled but never solved.
     stream: [usize; 3],
     /// The gradients of the cell's three P1 hat functions (one per corner).
     hat: [[f64; 2]; 3],
@@ -342,10 +343,6 @@ struct Cell {
     grad_phi: [f64; 2],
 }
 
-/// A link of the patch's cell graph: two (node, edge) sides; node `ground` stands for ∂ω.
-#[derive(Clone, Copy)]
-struct Link([(usize, usize); 2]);
-
 /// The workspace of one patch, reused from vertex to vertex.
 #[derive(Default)]
 struct Patch {
@@ -353,20 +350,20 @@ struct Patch {
     star: Vec<(usize, usize)>,
     others: Vec<usize>,
     cells: Vec<Cell>,
-    links: Vec<Link>,
-    /// Node = cell index in the patch, or `cells.len()` for the ground (∂ω).
-    ground: bool,
-    /// Spanning tree: BFS order and the link to the parent of each node.
-    order: Vec<usize>,
-    parent: Vec<usize>,
-    adjacency: Vec<Vec<usize>>,
-    seen: Vec<bool>,
+    /// The triangles of the star (positions in `star`) along the chain ([`Patch::chain`]), and
+    /// where each of its pieces begins and ends.
+    chain: Vec<usize>,
+    pieces: Vec<Range<usize>>,
+    /// Whether the patch touches ∂ω, where the chain's pieces begin.
+    grounded: bool,
     unknowns: usize,
-    /// The P1 stiffness matrix of S_h|ω_a on the stream unknowns, factorized (LLᵀ).
+    /// The P1 stiffness matrix of S_h|ω_a on the stream unknowns and the extra row of the held
+    /// corners (row length `unknowns + 1`), its leading block factorized (LLᵀ).
     factor: Vec<f64>,
     flux: Vec<[f64; 3]>,
-    accumulated: Vec<f64>,
-    /// The stream system's right-hand sides, one column of `unknowns` per membrane.
+    /// The divergence of τ_{i,a} integrated over each cell.
+    divergence: Vec<f64>,
+    /// The stream system's right-hand sides, one column of `unknowns + 1` per membrane.
     rhs: Vec<f64>,
     /// The gradients of the hat functions of each triangle of the star.
     hats: Vec<[[f64; 2]; 3]>,
@@ -375,7 +372,7 @@ struct Patch {
 }
 
 impl Patch {
-    /// The cells, links, spanning tree and stream-function system of the patch of `a`.
+    /// The cells, chain and stream-function system of the patch of `a`.
     fn build(&mut self, mesh: &Mesh, dual: &DualMesh, patches: &Patches, a: usize) {
         let (mut star, mut others) = (std::mem::take(&mut self.star), std::mem::take(&mut self.others));
         star.clear();
@@ -384,10 +381,9 @@ impl Patch {
         others.extend((star.iter()).flat_map(|&(t, k)| [1, 2].map(|d| mesh.triangle(t)[(k + d) % 3])));
         others.sort_unstable();
         others.dedup();
-        self.cells(mesh, dual, a, &star, &others);
-        self.links(patches, &star);
-        self.spanning_tree();
         self.unknowns = 1 + others.len() + star.len();
+        self.cells(mesh, dual, a, &star, &others);
+        self.chain(patches, &star);
         self.factorize();
         (self.star, self.others) = (star, others);
     }
@@ -397,6 +393,7 @@ impl Patch {
     /// the centroids).
     fn cells(&mut self, mesh: &Mesh, dual: &DualMesh, a: usize, star: &[(usize, usize)], others: &[usize]) {
         let midpoint_unknown = |v: usize| 1 + others.binary_search(&v).expect("a neighbour of a");
+        let held = self.unknowns;
         self.cells.clear();
         self.hats.clear();
         for (i, &(t, k)) in star.iter().enumerate() {
@@ -412,13 +409,13 @@ impl Patch {
                     (tri[j], tri[(j + 2) % 3])
                 };
                 // The corners of cell c: [v, m_vw, g] or [v, g, m_wv] (DualMesh).
-                let vertex = (usize::from(v != a) * NONE, f64::from(u8::from(v == a)));
+                let vertex = if v == a { (0, 1.0) } else { (held, 0.0) };
                 let mid = if v == a {
                     (midpoint_unknown(w), 0.5)
                 } else if w == a {
                     (midpoint_unknown(v), 0.5)
                 } else {
-                    (NONE, 0.0)
+                    (held, 0.0)
                 };
                 let centroid = (centre, 1.0 / 3.0);
                 let corners3 = if c % 2 == 0 {
@@ -430,7 +427,6 @@ impl Patch {
                 let phi = corners3.map(|x| x.1);
                 let centroid = [0, 1].map(|k| (p[0][k] + p[1][k] + p[2][k]) / 3.0);
                 self.cells.push(Cell {
-                    position: k,
                     area,
                     stream: corners3.map(|x| x.0),
                     hat: gradients(p),
@@ -448,97 +444,59 @@ impl Patch {
         }
     }
 
-    /// The links of the cells across their edges, between the triangles of the `star` and to the
-    /// ground (∂ω) where the patch touches the boundary.
-    fn links(&mut self, patches: &Patches, star: &[(usize, usize)]) {
-        self.links.clear();
-        self.ground = false;
-        let ground = self.cells.len();
-        let local = |t: usize| star.iter().position(|&(s, _)| s == t).expect("in the patch");
-        for (i, &(t, k)) in star.iter().enumerate() {
-            let n = |c: usize| 6 * i + c;
-            for j in 0..3 {
-                self.links.push(Link([(n(2 * j), 2), (n(2 * j + 1), 0)]));
-                self.links
-                    .push(Link([(n(2 * j), 1), (n(2 * ((j + 1) % 3) + 1), 1)]));
+    /// The triangles of the `star` in the order of a path through all the cells of the patch:
+    /// each triangle followed by its neighbour across its edge ab at a (b the next corner after
+    /// a), the cells of each along [`chain_cells`]. Around an interior vertex one piece, from the
+    /// first triangle round to the last; at a boundary vertex one piece per fan, from a triangle
+    /// whose edge ca at a lies on ∂ω to one whose edge ab does.
+    fn chain(&mut self, patches: &Patches, star: &[(usize, usize)]) {
+        let next = |i: usize| {
+            let (t, k) = star[i];
+            let s = patches.neighbour[t][k];
+            (s != ON_BOUNDARY).then(|| {
+                star.iter()
+                    .position(|&(r, _)| r == s as usize)
+                    .expect("in the patch")
+            })
+        };
+        let on_boundary = |&(t, k): &(usize, usize)| patches.neighbour[t][(k + 2) % 3] == ON_BOUNDARY;
+        self.chain.clear();
+        self.pieces.clear();
+        self.grounded = star.iter().any(on_boundary);
+        let starts = star
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| !self.grounded || on_boundary(c));
+        for (first, _) in starts.take(if self.grounded { star.len() } else { 1 }) {
+            let begin = self.chain.len();
+            let mut i = Some(first);
+            while let Some(j) = i.filter(|&j| j != first || self.chain.len() == begin) {
+                self.chain.push(j);
+                i = next(j);
             }
-            // The halves of the edge ab (next after a) at a and at b; of ca at a and at c.
-            let (at_a_ab, at_b_ab) = ((n(2 * k), 0), (n(2 * ((k + 1) % 3) + 1), 2));
-            let (at_a_ca, at_c_ca) = ((n(2 * k + 1), 2), (n(2 * ((k + 2) % 3)), 0));
-            match patches.neighbour[t][k] {
-                ON_BOUNDARY => {
-                    self.links.push(Link([at_a_ab, (ground, 0)]));
-                    self.links.push(Link([at_b_ab, (ground, 0)]));
-                    self.ground = true;
-                }
-                s => {
-                    let s = s as usize;
-                    let (ii, kk) = (local(s), star[local(s)].1);
-                    self.links.push(Link([at_a_ab, (6 * ii + 2 * kk + 1, 2)]));
-                    self.links.push(Link([at_b_ab, (6 * ii + 2 * ((kk + 2) % 3), 0)]));
-                }
-            }
-            if patches.neighbour[t][(k + 2) % 3] == ON_BOUNDARY {
-                self.links.push(Link([at_a_ca, (ground, 0)]));
-                self.links.push(Link([at_c_ca, (ground, 0)]));
-                self.ground = true;
-            }
+            self.pieces.push(begin..self.chain.len());
         }
-    }
-
-    /// A breadth-first spanning tree of the cell graph, rooted at the ground when there is one.
-    fn spanning_tree(&mut self) {
-        let nodes = self.cells.len() + 1;
-        self.adjacency.resize_with(nodes, Vec::new);
-        for adj in &mut self.adjacency {
-            adj.clear();
-        }
-        for (l, link) in self.links.iter().enumerate() {
-            self.adjacency[link.0[0].0].push(l);
-            self.adjacency[link.0[1].0].push(l);
-        }
-        let root = if self.ground { self.cells.len() } else { 0 };
-        self.parent.clear();
-        self.parent.resize(nodes, NONE);
-        self.order.clear();
-        self.order.push(root);
-        let seen = &mut self.seen;
-        seen.clear();
-        seen.resize(nodes, false);
-        seen[root] = true;
-        let mut next = 0;
-        while next < self.order.len() {
-            let node = self.order[next];
-            next += 1;
-            for &l in &self.adjacency[node] {
-                let other = self.links[l].other(node).0;
-                if !seen[other] {
-                    seen[other] = true;
-                    self.parent[other] = l;
-                    self.order.push(other);
-                }
-            }
-        }
-        debug_assert_eq!(self.order.len(), nodes - usize::from(!self.ground));
+        debug_assert_eq!(
+            self.chain.len(),
+            star.len(),
+            "the star of a vertex is one cycle or fans"
+        );
     }
 
     /// Assembles and factorizes the P1 stiffness matrix of S_h|ω_a on the stream unknowns.
     fn factorize(&mut self) {
-        let n = self.unknowns;
+        let row = self.unknowns + 1;
         self.factor.clear();
-        self.factor.resize(n * n, 0.0);
+        self.factor.resize(row * row, 0.0);
         for cell in &self.cells {
-            let g = cell.hat;
+            let (g, k) = (cell.hat, cell.stream);
             for p in 0..3 {
                 for q in 0..3 {
-                    let (i, j) = (cell.stream[p], cell.stream[q]);
-                    if i != NONE && j != NONE {
-                        self.factor[i * n + j] += cell.area * (g[p][0] * g[q][0] + g[p][1] * g[q][1]);
-                    }
+                    self.factor[k[p] * row + k[q]] += cell.area * (g[p][0] * g[q][0] + g[p][1] * g[q][1]);
                 }
             }
         }
-        cholesky(&mut self.factor, n);
+        cholesky(&mut self.factor, self.unknowns, row);
     }
 
     /// τ_{i,a} for each membrane i on the cells of each triangle of the star, in the star's order,
@@ -554,7 +512,7 @@ impl Patch {
         self.flux.clear();
         self.flux.resize(m * cells, [0.0; 3]);
         self.rhs.clear();
-        self.rhs.resize(n * m, 0.0);
+        self.rhs.resize((n + 1) * m, 0.0);
         self.grad_u.clear();
         self.grad_u
             .extend(self.star.iter().zip(&self.hats).map(|(&(t, _), g)| {
@@ -567,15 +525,19 @@ impl Patch {
         for (i, membrane) in membranes.iter().enumerate() {
             self.particular(a, membrane, i, &loads);
         }
-        for column in self.rhs.chunks_exact_mut(n) {
-            cholesky_solve(&self.factor, n, column);
+        for column in self.rhs.chunks_exact_mut(n + 1) {
+            cholesky_solve(&self.factor, n + 1, &mut column[..n]);
+            column[n] = 0.0;
         }
-        let (fluxes, psis) = (self.flux.chunks_exact(cells), self.rhs.chunks_exact(n));
+        let (fluxes, psis) = (self.flux.chunks_exact(cells), self.rhs.chunks_exact(n + 1));
         for (i, (flux, psi)) in fluxes.zip(psis).enumerate() {
-            for (node, (cell, flux)) in self.cells.iter().zip(flux).enumerate() {
-                let psi = (cell.stream).map(|k| if k == NONE { 0.0 } else { psi[k] });
-                // The flux of curl ψ through the edge from corner e to e + 1.
-                out[node / 6][i][node % 6] = std::array::from_fn(|e| flux[e] + psi[(e + 1) % 3] - psi[e]);
+            let triangles = self.cells.chunks_exact(6).zip(flux.chunks_exact(6));
+            for (out, (cells, flux)) in out.iter_mut().zip(triangles) {
+                for (out, (cell, flux)) in out[i].iter_mut().zip(cells.iter().zip(flux)) {
+                    let psi = cell.stream.map(|k| psi[k]);
+                    // The flux of curl ψ through the edge from corner e to e + 1.
+                    *out = std::array::from_fn(|e| flux[e] + psi[(e + 1) % 3] - psi[e]);
+                }
             }
         }
     }
@@ -590,85 +552,107 @@ impl Patch {
         i: usize,
         loads: impl Fn(usize) -> &'l L,
     ) {
-        let (cells, n) = (self.cells.len(), self.unknowns);
-        let nodes = cells + usize::from(self.ground);
+        let (cells, row) = (self.cells.len(), self.unknowns + 1);
         let flux = &mut self.flux[i * cells..(i + 1) * cells];
-        self.accumulated.clear();
-        self.accumulated.resize(nodes, 0.0);
+        self.divergence.clear();
+        self.divergence.resize(cells, 0.0);
         // The divergence, integrated over each cell.
-        for (node, cell) in self.cells.iter().enumerate() {
-            let (du, g) = (self.grad_u[node / 6][i], cell.grad_phi);
-            let f_phi = loads(self.star[node / 6].0).f_phi(node % 6, i)[cell.position];
-            let mut d = f_phi - cell.area * (du[0] * g[0] + du[1] * g[1]);
-            if cell.own {
-                d += cell.area * m.on_dual_cell[a];
-            }
-            self.accumulated[node] = d;
-        }
-        // Leaves first, each node's net outflow through its parent link.
-        for &node in self.order.iter().skip(1).rev() {
-            let link = self.links[self.parent[node]];
-            let (mine, theirs) = link.sides(node);
-            let out = self.accumulated[node];
-            flux[node][mine.1] += out;
-            if theirs.0 < cells {
-                flux[theirs.0][theirs.1] -= out;
-                self.accumulated[theirs.0] += out;
+        let (on_dual_cell, triangles) = (m.on_dual_cell[a], self.cells.chunks_exact(6));
+        for ((&(t, position), du), (cells, d)) in
+            (self.star.iter().zip(&self.grad_u)).zip(triangles.zip(self.divergence.chunks_exact_mut(6)))
+        {
+            let (loads, du) = (loads(t), du[i]);
+            for (c, (cell, d)) in cells.iter().zip(d).enumerate() {
+                let g = cell.grad_phi;
+                *d = loads.f_phi(c, i)[position] - cell.area * (du[0] * g[0] + du[1] * g[1]);
+                if cell.own {
+                    *d += cell.area * on_dual_cell;
+                }
             }
         }
-        for (node, (cell, flux)) in self.cells.iter().zip(flux.iter()).enumerate() {
-            let du = self.grad_u[node / 6][i];
-            let q = cell.phi_edge.map(|e| du[0] * e[1] - du[1] * e[0]);
-            let total: [f64; 3] = std::array::from_fn(|e| q[e] + flux[e]);
-            let v = [0, 1].map(|k| (0..3).map(|e| total[e] * cell.at_centroid[e][k]).sum::<f64>());
-            for (g, &k) in cell.hat.iter().zip(&cell.stream) {
-                if k != NONE {
+        // Along each piece of the chain, the flux out of a cell into the next is what the cells
+        // so far leave: from ∂ω at a boundary vertex (which takes in the piece's whole
+        // divergence), from nothing around an interior vertex, where the last cell's flux would
+        // close the cycle with the round-off of a zero sum, and is left out.
+        for piece in &self.pieces {
+            let cells_of =
+                |&j: &usize| chain_cells(self.star[j].1).map(|(c, entry, exit)| (6 * j + c, entry, exit));
+            let along = || self.chain[piece.clone()].iter().flat_map(cells_of);
+            let mut s = match self.grounded {
+                true => -along().map(|(node, _, _)| self.divergence[node]).sum::<f64>(),
+                false => 0.0,
+            };
+            for (node, entry, exit) in along() {
+                flux[node][entry] = -s;
+                s += self.divergence[node];
+                flux[node][exit] = s;
+            }
+            if !self.grounded {
+                let (last, _, exit) = along().last().expect("a cell");
+                flux[last][exit] = 0.0;
+            }
+        }
+        let rhs = &mut self.rhs[i * row..(i + 1) * row];
+        let triangles = self.cells.chunks_exact(6).zip(flux.chunks_exact(6));
+        for (du, (cells, flux)) in self.grad_u.iter().zip(triangles) {
+            let du = du[i];
+            for (cell, flux) in cells.iter().zip(flux) {
+                let q = cell.phi_edge.map(|e| du[0] * e[1] - du[1] * e[0]);
+                let total: [f64; 3] = std::array::from_fn(|e| q[e] + flux[e]);
+                let v = [0, 1].map(|k| (0..3).map(|e| total[e] * cell.at_centroid[e][k]).sum::<f64>());
+                for (g, &k) in cell.hat.iter().zip(&cell.stream) {
                     // curl φ = (∂_y φ, −∂_x φ), constant on the cell.
-                    self.rhs[i * n + k] -= cell.area * (g[1] * v[0] - g[0] * v[1]);
+                    rhs[k] -= cell.area * (g[1] * v[0] - g[0] * v[1]);
                 }
             }
         }
     }
 }
 
-impl Link {
-    /// The far side of the link from `node`.
-    fn other(&self, node: usize) -> (usize, usize) {
-        self.sides(node).1
-    }
-
-    /// (the side at `node`, the other side).
-    fn sides(&self, node: usize) -> ((usize, usize), (usize, usize)) {
-        if self.0[0].0 == node {
-            (self.0[0], self.0[1])
-        } else {
-            (self.0[1], self.0[0])
-        }
-    }
+/// The six cells of a triangle along the chain through the patch of its corner k, each with the
+/// edge the chain enters it by and the edge it leaves by: from the cell at a on edge ca round the
+/// barycentre to the cell at a on edge ab ([`DualMesh`]: cell 2j is [v_j, m_{j,j+1}, g], cell
+/// 2j + 1 is [v_j, g, m_{j+2,j}], edge e from corner e to e + 1).
+fn chain_cells(k: usize) -> [(usize, usize, usize); 6] {
+    let (b, c) = ((k + 1) % 3, (k + 2) % 3);
+    [
+        (2 * k + 1, 2, 1),
+        (2 * c, 1, 2),
+        (2 * c + 1, 0, 1),
+        (2 * b, 1, 2),
+        (2 * b + 1, 0, 1),
+        (2 * k, 1, 0),
+    ]
 }
 
-/// In-place Cholesky factorization LLᵀ of the SPD n×n row-major matrix `m` (lower triangle).
-fn cholesky(m: &mut [f64], n: usize) {
+/// In-place Cholesky factorization LLᵀ of the leading n×n block of the SPD row-major matrix `m`
+/// with rows of length `row` (its lower triangle).
+fn cholesky(m: &mut [f64], n: usize, row: usize) {
     for j in 0..n {
-        let (row_j, below) = m[j * n..].split_at_mut(n);
+        let (row_j, below) = m[j * row..].split_at_mut(row);
         let d = row_j[j] - dot(&row_j[..j], &row_j[..j]);
         debug_assert!(d > 0.0, "the stream-function system is positive definite");
         let d = d.sqrt();
         row_j[j] = d;
-        for row_i in below.chunks_exact_mut(n) {
+        for row_i in below.chunks_exact_mut(row).take(n - 1 - j) {
             row_i[j] = (row_i[j] - dot(&row_i[..j], &row_j[..j])) / d;
         }
     }
 }
 
-/// Solves LLᵀx = b in place with the factor of [`cholesky`].
-fn cholesky_solve(l: &[f64], n: usize, b: &mut [f64]) {
-    for (i, row) in l.chunks_exact(n).enumerate() {
-        b[i] = (b[i] - dot(&row[..i], &b[..i])) / row[i];
+/// Solves LLᵀx = b in place with the factor of [`cholesky`] (rows of length `row`), n = b.len().
+fn cholesky_solve(l: &[f64], row: usize, b: &mut [f64]) {
+    let n = b.len();
+    for (i, r) in l.chunks_exact(row).take(n).enumerate() {
+        b[i] = (b[i] - dot(&r[..i], &b[..i])) / r[i];
     }
-    for i in (0..n).rev() {
-        let s: f64 = (i + 1..n).map(|k| l[k * n + i] * b[k]).sum();
-        b[i] = (b[i] - s) / l[i * n + i];
+    // Lᵀ by rows of L: x_i once known leaves the equations above it.
+    for (i, r) in l.chunks_exact(row).take(n).enumerate().rev() {
+        b[i] /= r[i];
+        let x = b[i];
+        for (b, l) in b[..i].iter_mut().zip(&r[..i]) {
+            *b -= l * x;
+        }
     }
 }
 

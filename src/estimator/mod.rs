@@ -634,26 +634,28 @@ impl Terms<'_> {
         for (c, (s, cell_loads)) in (6 * t..).zip(loads).enumerate() {
             let p = cells[c];
             let area = 0.5 * crate::mesh::orient(p[0], p[1], p[2]);
-            let diameter = (0..3)
-                .map(|e| crate::mesh::dist(p[e], p[(e + 1) % 3]))
-                .fold(0.0, f64::max);
-            // μ_i ∇u_ih + τ_i at the edge midpoints: ‖·‖²_κ = |κ|/3 Σ_m |·(m)|², exact for
-            // affine fields.
+            let squares: [f64; 3] =
+                std::array::from_fn(|e| (0..2).map(|k| (p[(e + 1) % 3][k] - p[e][k]).powi(2)).sum());
+            // The longest edge, from the squares (which overflow no sooner than the area).
+            let diameter = squares.iter().fold(0.0_f64, |d, &s| d.max(s)).sqrt();
+            // μ_i ∇u_ih + τ_i at a point: an RT0 field on κ.
             let at = |i: usize, m: [f64; 2]| {
                 let f = &tau[i][c];
                 [0, 1].map(|k| {
                     grad[i][k] + (0..3).map(|e| f[e] * (m[k] - p[(e + 2) % 3][k])).sum::<f64>() / (2.0 * area)
                 })
             };
-            let mids: [[f64; 2]; 3] =
-                std::array::from_fn(|e| [0, 1].map(|k| 0.5 * (p[e][k] + p[(e + 1) % 3][k])));
-            let norm = |v: [[f64; 2]; 3]| {
-                let squares = v.iter().map(|v| v[0] * v[0] + v[1] * v[1]);
-                (area / 3.0 * squares.sum::<f64>()).sqrt()
+            // An RT0 field σ(x) = σ(g) + (div σ / 2)(x − g), g the centroid, has
+            // ‖σ‖²_κ = |κ| |σ(g)|² + (div σ / 2)² ∫_κ |x − g|², ∫_κ |x − g|² = |κ| Σ_e |e|² / 36.
+            let centroid = [0, 1].map(|k| (p[0][k] + p[1][k] + p[2][k]) / 3.0);
+            let spread = area * (squares[0] + squares[1] + squares[2]) / 36.0;
+            let norm = |(v, outflow): ([f64; 2], f64)| {
+                let half_div = outflow / (2.0 * area);
+                (area * (v[0] * v[0] + v[1] * v[1]) + half_div * half_div * spread).sqrt()
             };
-            let values: [[[f64; 2]; 3]; 2] = std::array::from_fn(|i| match i < membranes.len() {
-                true => mids.map(|m| at(i, m)),
-                false => [[0.0; 2]; 3],
+            let values: [([f64; 2], f64); 2] = std::array::from_fn(|i| match i < membranes.len() {
+                true => (at(i, centroid), tau[i][c].iter().sum()),
+                false => ([0.0; 2], 0.0),
             });
             for (i, m) in membranes.iter().enumerate() {
                 let flux = norm(values[i]) / m.mu.sqrt();
@@ -672,10 +674,11 @@ impl Terms<'_> {
                 (terms.cross, terms.obstacle2) = (terms.cross + cell.cross, terms.obstacle2 + cell.grad2);
             }
             // ζ = α(μ1∇u1h + τ1) − (1 − α)(μ2∇u2h + τ2), or μ∇u_h + τ above an obstacle.
-            let [a, b] = values;
-            let zeta = norm(std::array::from_fn(|m| {
-                [0, 1].map(|k| alpha * a[m][k] - (1.0 - alpha) * b[m][k])
-            }));
+            let [(a, div_a), (b, div_b)] = values;
+            let zeta = norm((
+                [0, 1].map(|k| alpha * a[k] - (1.0 - alpha) * b[k]),
+                alpha * div_a - (1.0 - alpha) * div_b,
+            ));
             terms.lambda2 += (zeta + diameter / PI * cell_loads.oscillation[2].sqrt()).powi(2);
             let lambda_h = self.action.lambda[dual.owner(s)];
             terms.contact += lambda_h * area * cell_mean(mesh, s, self.gap);

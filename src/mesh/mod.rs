@@ -345,6 +345,11 @@ impl Stars {
         Stars { start, corner }
     }
 
+    /// The number of triangles around vertex a.
+    pub fn len(&self, a: usize) -> usize {
+        (self.start[a + 1] - self.start[a]) as usize
+    }
+
     /// The triangles t around vertex a, in increasing order, with a's corner k in each.
     #[inline]
     pub fn around(&self, a: usize) -> impl Iterator<Item = (usize, usize)> + '_ {
