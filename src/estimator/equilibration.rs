@@ -476,7 +476,7 @@ impl Patch {
             }
             self.pieces.push(begin..self.chain.len());
         }
-        debug_assert_eq!(
+        assert_eq!(
             self.chain.len(),
             star.len(),
             "the star of a vertex is one cycle or fans"
