@@ -1005,6 +1005,7 @@ fn exact_solution(
             Exact {
                 grad_u1: grad("exact.grad_u", &e.grad_u, &u)?,
                 grad_u2: psi.gradient(),
+                gradients_given: [e.grad_u.is_some(), false],
                 u1: u,
                 u2: psi,
                 lambda,
@@ -1017,6 +1018,7 @@ fn exact_solution(
             Exact {
                 grad_u1: grad("exact.grad_u1", &e.grad_u1, &u1)?,
                 grad_u2: grad("exact.grad_u2", &e.grad_u2, &u2)?,
+                gradients_given: [e.grad_u1.is_some(), e.grad_u2.is_some()],
                 u1,
                 u2,
                 lambda,

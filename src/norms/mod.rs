@@ -32,6 +32,8 @@ pub struct Exact {
     pub grad_u1: [Expr; 2],
     /// ∇u2 as [∂x, ∂y].
     pub grad_u2: [Expr; 2],
+    /// Whether the case gave ∇u1 and ∇u2 (else they are u1's and u2's derivatives).
+    pub gradients_given: [bool; 2],
     /// Whether u2 is a rigid obstacle ψ (the classical obstacle problem, whose exact u is u1):
     /// then only u1's errors are reported, as u's.
     pub rigid: bool,
@@ -82,6 +84,8 @@ pub struct Errors {
     /// Whether u2 is a rigid obstacle ([`Exact::rigid`]): u1's errors are then u's, and u2's
     /// (ψ's interpolation error) are not reported.
     pub rigid: bool,
+    /// [`Exact::gradients_given`], to name what a norm that is not finite comes from.
+    pub gradients_given: [bool; 2],
     /// Where the exact solution does not take the boundary data on ∂ω_h, the polygon of the mesh
     /// (a curved ω, or a mesh of another domain): the errors are then against the solution of
     /// another problem than the one on ω_h, which the estimator's η bounds the error against.
@@ -197,6 +201,7 @@ impl Errors {
             hminus1_lambda: hminus1.then(|| hminus1_lambda(dual, &action.lambda, &exact.lambda)),
             quadrature,
             rigid: exact.rigid,
+            gradients_given: exact.gradients_given,
             boundary: boundary_mismatch(problem, exact, [&solution.u1, &solution.u2]),
             unsolved: unsolved(problem, exact),
         }
@@ -375,16 +380,21 @@ impl Errors {
     /// The key of `[exact]` whose error norm is not a finite number, if one is not.
     pub fn not_finite(&self) -> Option<&'static str> {
         let u = if self.rigid { "exact.u" } else { "exact.u1" };
-        let grad_u = if self.rigid {
-            "exact.grad_u"
-        } else {
-            "exact.grad_u1"
+        let grad_u = match (self.rigid, self.gradients_given[0]) {
+            (true, true) => "exact.grad_u",
+            (true, false) => "the derivatives of exact.u (no grad_u given)",
+            (false, true) => "exact.grad_u1",
+            (false, false) => "the derivatives of exact.u1 (no grad_u1 given)",
+        };
+        let grad_u2 = match self.gradients_given[1] {
+            true => "exact.grad_u2",
+            false => "the derivatives of exact.u2 (no grad_u2 given)",
         };
         [
             (u, Some(self.l2_u1)),
             ("exact.u2", Some(self.l2_u2)),
             (grad_u, self.h1_u1),
-            ("exact.grad_u2", self.h1_u2),
+            (grad_u2, self.h1_u2),
             ("exact.lambda", Some(self.l2_lambda)),
             ("exact.lambda", self.hminus1_lambda),
         ]
@@ -622,6 +632,37 @@ mod tests {
         assert!(u.describe(false).starts_with("grad_u2 is not the gradient of u2"));
     }
 
+    /// An H¹ error that is not finite is named by the key it comes from: a gradient the case
+    /// gave, or the derivatives of u where it gave none.
+    #[test]
+    fn a_norm_that_is_not_finite_names_its_key() {
+        let key = |rigid: bool, gradients_given: [bool; 2], h1: [f64; 2]| {
+            let e = super::Errors {
+                rigid,
+                gradients_given,
+                h1_u1: Some(h1[0]),
+                h1_u2: (!rigid).then_some(h1[1]),
+                ..Default::default()
+            };
+            e.not_finite()
+        };
+        assert_eq!(key(false, [true; 2], [1.0, 1.0]), None);
+        assert_eq!(key(false, [true; 2], [f64::NAN, 1.0]), Some("exact.grad_u1"));
+        assert_eq!(
+            key(false, [false, true], [f64::NAN, 1.0]),
+            Some("the derivatives of exact.u1 (no grad_u1 given)")
+        );
+        assert_eq!(
+            key(false, [true, false], [1.0, f64::INFINITY]),
+            Some("the derivatives of exact.u2 (no grad_u2 given)")
+        );
+        assert_eq!(key(true, [true, false], [f64::NAN, 0.0]), Some("exact.grad_u"));
+        assert_eq!(
+            key(true, [false; 2], [f64::NAN, 0.0]),
+            Some("the derivatives of exact.u (no grad_u given)")
+        );
+    }
+
     #[test]
     fn a_study_names_the_norms_of_the_obstacle_problem_as_u() {
         let json = |rigid: bool| {
@@ -688,6 +729,7 @@ mod tests {
             lambda: Expr::parse("0").unwrap(),
             grad_u1: grad.map(|g| Expr::parse(g).unwrap()),
             grad_u2: [(); 2].map(|_| Expr::parse("0").unwrap()),
+            gradients_given: [true; 2],
             rigid: false,
         };
         p1_errors(&mesh, [&zero, &zero], &exact)
