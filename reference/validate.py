@@ -31,8 +31,8 @@ Fails (exit 1) when
   - an exact case fails its SymPy check (exact_cases), or ParaView cannot read a result in double
     precision (paraview_check);
   - the a posteriori estimator (`solve --estimate`, on the first validation level of every case of
-    two membranes with u2 = 0 on the boundary, and on the jittered mesh files) differs from its
-    recomputation by reference/estimator.py
+    two membranes with u2 = 0 on the boundary, on the jittered mesh files and on a mesh whose holes
+    touch at a vertex) differs from its recomputation by reference/estimator.py
     (--compare: every attribute and cell field, 1e-9 of eta for the flux, oscillation and means,
     1e-7 for the boundary terms and what contains them), or eta < |||u - u_h||| on an exact case;
   - on meshes made by `adapt` (newest-vertex bisection of the L-shape toward its corner, and of
@@ -309,6 +309,24 @@ def run_case(path, binary, out, tol, failures, reuse=False):
             "convex": convex, "exact": "exact" in case, "estimate": estimate, "direct": direct}
 
 
+def pinched_mesh_file(workdir):
+    """A 16 x 16 square mesh (meshio) with two square holes that touch at one vertex, (7/16, 7/16):
+    its patch is two fans, as a Gmsh file can give (the estimator's local problems then have
+    ψ(a) once per fan). Its path and vertex count."""
+    import meshio
+    import numpy as np
+
+    n = 16
+    i, j = np.meshgrid(np.arange(n + 1), np.arange(n + 1), indexing="xy")
+    points = np.stack([i.ravel() / n, j.ravel() / n, 0.0 * i.ravel()], axis=1)
+    v = lambda i, j: j * (n + 1) + i  # noqa: E731
+    cells = [t for j in range(n) for i in range(n) if (i, j) not in ((6, 6), (7, 7))
+             for t in ([v(i, j), v(i + 1, j), v(i + 1, j + 1)], [v(i, j), v(i + 1, j + 1), v(i, j + 1)])]
+    path = os.path.join(workdir, "pinched_mesh.xdmf")
+    meshio.write(path, meshio.Mesh(points, [("triangle", np.array(cells))]))
+    return path, len(points)
+
+
 def jittered_mesh_files(workdir):
     """A jittered (unstructured) 20 x 20 square mesh written by meshio and by dolfinx (XDMF + HDF5):
     {writer: mesh path}, and its vertex count."""
@@ -331,7 +349,8 @@ def jittered_mesh_files(workdir):
 
 def mesh_files(binary, out, tol, failures):
     """Meshes written by meshio and by dolfinx, read by the Rust solver with the default case's
-    data, compared with the reference."""
+    data, compared with the reference; and a mesh with a pinched vertex (the default data without
+    the exact solution, which does not hold on its holes)."""
     workdir = os.path.join(out, "mesh_files")
     os.makedirs(workdir, exist_ok=True)
     base = open(os.path.join(common.ROOT, "data", "cases", "default.toml")).read()
@@ -339,12 +358,15 @@ def mesh_files(binary, out, tol, failures):
     lines = ["| writer | vertices | max Δu1 | max Δu2 | max Δgap | max Δλ | max Δλ2 | contact mismatches |",
              "|---|---|---|---|---|---|---|---|"]
     paths, count = jittered_mesh_files(workdir)
+    meshes = {writer: (path, count, data) for writer, path in paths.items()}
+    meshes["meshio, pinched"] = pinched_mesh_file(workdir) + (base[: base.index("[exact]")],)
     estimates = []
-    for writer, mesh_path in paths.items():
-        case_path = os.path.join(workdir, writer + ".toml")
+    for writer, (mesh_path, count, case_data) in meshes.items():
+        case_path = os.path.join(workdir, writer.replace(", ", "_") + ".toml")
         with open(case_path, "w") as f:
-            f.write(data + '[mesh]\nkind = "file"\npath = "%s"\n' % os.path.basename(mesh_path))
-        rust_dir, ref_path = os.path.join(workdir, writer + "-rust"), os.path.join(workdir, writer + "-reference.h5")
+            f.write(case_data + '[mesh]\nkind = "file"\npath = "%s"\n' % os.path.basename(mesh_path))
+        stem = os.path.join(workdir, writer.replace(", ", "_"))
+        rust_dir, ref_path = stem + "-rust", stem + "-reference.h5"
         proc = subprocess.run([binary, "solve", case_path, "--estimate", "--dual", "-o", rust_dir], capture_output=True, text=True)
         label = "mesh file from %s" % writer
         if proc.returncode != 0:
@@ -360,7 +382,8 @@ def mesh_files(binary, out, tol, failures):
         field_failures(label, "", diffs, mismatch, tol, failures)
         cols = " | ".join(report.fmt(diffs[k][0]) for k in problems.MEMBRANES.compared)
         lines.append("| %s | %d | %s | %d |" % (writer, nv, cols, mismatch))
-    return ["### Meshes read from files (meshio and dolfinx XDMF, jittered 20 × 20 square, default case data)",
+    return ["### Meshes read from files (meshio and dolfinx XDMF, jittered 20 × 20 square, default case data; "
+            "a 16 × 16 square with two holes touching at a vertex)",
             ""] + lines + [""], [e for e in estimates if e]
 
 

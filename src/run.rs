@@ -190,9 +190,10 @@ pub fn on_mesh<'c>(
         .filter(|e| !(e.total.is_finite() && e.lambda.is_finite()))
     {
         return Err(CaseError(format!(
-            "{}: the error estimate is not finite (η = {:.4e}): its squared terms overflow double \
-             precision at the size of this case's data; solve without --estimate, or scale the data",
-            case.origin, e.total
+            "{}: the error estimate is not finite (η = {:.4e}, the bound of ‖λ − λ_h‖ {:.4e}): its \
+             squared terms overflow double precision at the size of this case's data; solve without \
+             --estimate, or scale the data",
+            case.origin, e.total, e.lambda
         ))
         .into());
     }

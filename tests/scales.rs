@@ -161,3 +161,37 @@ fn a_membrane_below_the_round_off_of_the_other_is_refused() {
     assert!(unloaded.u2.iter().all(|u| u.abs() < 1e-12));
     assert_eq!(action.checks.sizes[1], 0.0);
 }
+
+/// Scaled with the data (f × 1/side², powers of 2: exact), the estimate is the same at sides of
+/// 1e±100 and 1e150: η, its indicators and the bound of ‖λ − λ_h‖ are invariant. (At 1e-150 the
+/// squared loads, 1e602, overflow, and the run says so.)
+/// (The RT0 norms once multiplied |κ| by squared lengths, which overflowed at sides of 1e80.)
+#[test]
+fn the_estimate_is_the_same_in_any_units() {
+    let estimated = |side: f64| {
+        let text = format!(
+            "mu1 = 1.0\nmu2 = 2.0\nf1 = \"-8/{side:e}^2\"\nf2 = \"if(x < {half:e}, 3, 1)/{side:e}^2\"\n\
+             g = 0.1\n[mesh]\nkind = \"rectangle\"\ncorners = [[0.0, 0.0], [{side:e}, {side:e}]]\n\
+             n = 16\ndiagonal = \"crossed\"\n",
+            half = side / 2.0
+        );
+        let options = run::Options {
+            estimate: true,
+            ..options()
+        };
+        let c = case(&text);
+        let r = run::run(&c, &options).unwrap_or_else(|e| panic!("{side:e}: {e}"));
+        r.estimate.expect("estimated")
+    };
+    let unit = estimated(1.0);
+    for side in [2f64.powi(-333), 2f64.powi(333), 2f64.powi(500)] {
+        let e = estimated(side);
+        for (a, b) in [(e.total, unit.total), (e.lambda, unit.lambda)] {
+            assert!((a - b).abs() <= 1e-12 * b, "{side:e}: {a:e} against {b:e}");
+        }
+        assert!(
+            max_relative_difference(&e.indicator, &unit.indicator) < 1e-12,
+            "{side:e}"
+        );
+    }
+}

@@ -18,7 +18,8 @@
 //! divergence-free correction curl ψ, ψ a P1 function on S_h|ω_a vanishing on the closed part of
 //! ∂ω_a. Curls of P1 functions are constant on each cell and ‖curl ψ‖ = ‖∇ψ‖, so the
 //! correction solves the P1 stiffness system of S_h|ω_a: 2k + 1 unknowns at an interior vertex
-//! with k triangles (a, the k midpoints of its edges, the k barycentres), 2k + 2 at a boundary one.
+//! with k triangles (a, the k midpoints of its edges, the k barycentres), 2k + 2 at a boundary one
+//! (2k + 2F where ω_a is F fans that touch only at a: ψ(a) is one unknown per fan).
 //! The system depends on the geometry only: one factorization serves both membranes.
 //!
 //! The fluxes are never held on the whole of S_h: the patches are solved block by block along a
@@ -354,6 +355,8 @@ struct Patch {
     /// where each of its pieces begins and ends.
     chain: Vec<usize>,
     pieces: Vec<Range<usize>>,
+    /// The piece of the chain each triangle of the star lies in.
+    piece_of: Vec<usize>,
     /// Whether the patch touches ∂ω, where the chain's pieces begin.
     grounded: bool,
     unknowns: usize,
@@ -381,18 +384,20 @@ impl Patch {
         others.extend((star.iter()).flat_map(|&(t, k)| [1, 2].map(|d| mesh.triangle(t)[(k + d) % 3])));
         others.sort_unstable();
         others.dedup();
-        self.unknowns = 1 + others.len() + star.len();
-        self.cells(mesh, dual, a, &star, &others);
         self.chain(patches, &star);
+        self.unknowns = self.pieces.len() + others.len() + star.len();
+        self.cells(mesh, dual, a, &star, &others);
         self.factorize();
         (self.star, self.others) = (star, others);
     }
 
     /// The six cells of S_h in each triangle of the `star` of `a` (`others` a's neighbours, in
-    /// order): their geometry, φ_a on them and their stream unknowns (a, the edge midpoints at a,
+    /// order): their geometry, φ_a on them and their stream unknowns (a once per piece of the
+    /// chain — where ω_a's fans touch only at a, ψ(a) is free in each —, the edge midpoints at a,
     /// the centroids).
     fn cells(&mut self, mesh: &Mesh, dual: &DualMesh, a: usize, star: &[(usize, usize)], others: &[usize]) {
-        let midpoint_unknown = |v: usize| 1 + others.binary_search(&v).expect("a neighbour of a");
+        let at_a = self.pieces.len();
+        let midpoint_unknown = |v: usize| at_a + others.binary_search(&v).expect("a neighbour of a");
         let held = self.unknowns;
         self.cells.clear();
         self.hats.clear();
@@ -400,7 +405,7 @@ impl Patch {
             let tri = mesh.triangle(t);
             self.hats.push(gradients(mesh.corners(t)));
             let grad_phi = self.hats[i][k];
-            let centre = 1 + others.len() + i;
+            let (centre, piece) = (at_a + others.len() + i, self.piece_of[i]);
             for (c, p) in dual.cells_of(t).into_iter().enumerate() {
                 let j = c / 2;
                 let (v, w) = if c % 2 == 0 {
@@ -409,7 +414,7 @@ impl Patch {
                     (tri[j], tri[(j + 2) % 3])
                 };
                 // The corners of cell c: [v, m_vw, g] or [v, g, m_wv] (DualMesh).
-                let vertex = if v == a { (0, 1.0) } else { (held, 0.0) };
+                let vertex = if v == a { (piece, 1.0) } else { (held, 0.0) };
                 let mid = if v == a {
                     (midpoint_unknown(w), 0.5)
                 } else if w == a {
@@ -475,6 +480,13 @@ impl Patch {
                 i = next(j);
             }
             self.pieces.push(begin..self.chain.len());
+        }
+        self.piece_of.clear();
+        self.piece_of.resize(star.len(), 0);
+        for (p, piece) in self.pieces.iter().enumerate() {
+            for &j in &self.chain[piece.clone()] {
+                self.piece_of[j] = p;
+            }
         }
         assert_eq!(
             self.chain.len(),

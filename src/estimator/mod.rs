@@ -117,9 +117,14 @@ fn indicators(terms: &[TriangleTerms], boundary: &[f64], contact: &[f64], m: usi
         .collect()
 }
 
-/// ‖c‖ of a field given at the vertices, by the lumped mass.
+/// ‖c‖ of a field given at the vertices, by the lumped mass (each term (c √m)², of the size of
+/// the norm, where c² would overflow).
 fn mass_norm(problem: &DiscreteProblem, c: &[f64]) -> f64 {
-    (c.iter().zip(&problem.mass).map(|(c, m)| c * c * m).sum::<f64>()).sqrt()
+    (c.iter()
+        .zip(&problem.mass)
+        .map(|(c, m)| (c * m.sqrt()).powi(2))
+        .sum::<f64>())
+    .sqrt()
 }
 
 /// What the case's rule of the loads gives and misses: whether it resolves them (§11), and its
@@ -537,8 +542,10 @@ fn visit_cell_loads(
             // ‖v − Π v‖²_κ in a second pass: ∫v² − (∫v)²/|κ| would cancel to noise where v is
             // nearly constant.
             for (k, p) in points.iter().enumerate() {
+                // (√w (v − Π v))², of the size of the norm, where w (v − Π v)² would overflow.
+                let root = p.weight.sqrt();
                 for ((o, f), m) in l.oscillation.iter_mut().zip(f(k)).zip(mean) {
-                    *o += p.weight * (f - m / area).powi(2);
+                    *o += (root * (f - m / area)).powi(2);
                 }
             }
             each(s, l);
@@ -646,12 +653,13 @@ impl Terms<'_> {
                 })
             };
             // An RT0 field σ(x) = σ(g) + (div σ / 2)(x − g), g the centroid, has
-            // ‖σ‖²_κ = |κ| |σ(g)|² + (div σ / 2)² ∫_κ |x − g|², ∫_κ |x − g|² = |κ| Σ_e |e|² / 36.
+            // ‖σ‖²_κ = |κ| (|σ(g)|² + (div σ / 2)² r²), r² = Σ_e |e|² / 36 = ∫_κ |x − g|² / |κ|
+            // (each factor of the size of σ, so that nothing overflows before ‖σ‖ does).
             let centroid = [0, 1].map(|k| (p[0][k] + p[1][k] + p[2][k]) / 3.0);
-            let spread = area * (squares[0] + squares[1] + squares[2]) / 36.0;
+            let r = ((squares[0] + squares[1] + squares[2]) / 36.0).sqrt();
             let norm = |(v, outflow): ([f64; 2], f64)| {
-                let half_div = outflow / (2.0 * area);
-                (area * (v[0] * v[0] + v[1] * v[1]) + half_div * half_div * spread).sqrt()
+                let w = outflow / (2.0 * area) * r;
+                (area * (v[0] * v[0] + v[1] * v[1] + w * w)).sqrt()
             };
             let values: [([f64; 2], f64); 2] = std::array::from_fn(|i| match i < membranes.len() {
                 true => (at(i, centroid), tau[i][c].iter().sum()),
