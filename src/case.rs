@@ -655,7 +655,13 @@ impl Case {
                 format!("[mesh] corners = {corners:?}, n = {n:?}{refine}")
             }
             MeshSpec::Lshape { n, grading, .. } => format!("[mesh] n = {n}, grading = {grading}{refine}"),
-            MeshSpec::Domain { h, .. } => format!("[mesh] kind = \"{}\", h = {h}{refine}", self.kind()),
+            MeshSpec::Domain { h, .. } => {
+                format!(
+                    "[mesh] kind = \"{}\", h = {}{refine}",
+                    self.kind(),
+                    mesh::Number(*h)
+                )
+            }
             MeshSpec::File { path } => {
                 let mesh = mesh::file::read(&self.base_dir.join(path))
                     .map_err(|e| err(format!("[mesh] path: {e}")))?;

@@ -119,25 +119,35 @@ impl Datum {
 /// The names of the mesh's groups `on` which the datum is given, once every key of `table` is
 /// found among them (and they name their elements unambiguously).
 fn group_names<'g>(groups: &'g Groups, table: &[(String, Expr)], on: On) -> Result<&'g [String], String> {
-    let (names, ambiguous) = match on {
-        On::Surfaces => (&groups.surfaces, &groups.ambiguous[0]),
-        On::Curves => (&groups.curves, &groups.ambiguous[1]),
-    };
-    if let Some(why) = ambiguous {
-        return Err(format!("{}: {why}", groups.source));
+    let k = usize::from(on == On::Curves);
+    let (names, noun, source) = ([&groups.surfaces, &groups.curves][k], on.noun(), &groups.source);
+    if let Some(why) = &groups.ambiguous[k] {
+        return Err(format!("{source}: {why}"));
     }
-    match table.iter().find(|(key, _)| !names.contains(key)) {
-        Some((key, _)) => {
-            let listed: Vec<String> = names.iter().map(|n| format!("'{n}'")).collect();
-            let noun = on.noun();
-            Err(format!(
-                "'{key}' is not a {noun} of {} (its {noun}s: {})",
-                groups.source,
-                listed.join(", ")
-            ))
+    for (key, _) in table {
+        let count = names.iter().filter(|n| *n == key).count();
+        if count > 1 {
+            return Err(format!(
+                "'{key}' names {count} {noun}s of {source} (groups of different tags): data per \
+                 group need each group's name to be its own"
+            ));
         }
-        None => Ok(names),
+        if count == 0 && groups.unused[k].contains(key) {
+            return Err(format!(
+                "'{key}' is declared in $PhysicalNames of {source}, but no element carries it \
+                 (an entity without its physical tag?)"
+            ));
+        }
+        if count == 0 {
+            let listed: Vec<String> = names.iter().map(|n| format!("'{n}'")).collect();
+            let theirs = match listed.is_empty() {
+                true => format!("it has no {noun}s"),
+                false => format!("its {noun}s: {}", listed.join(", ")),
+            };
+            return Err(format!("'{key}' is not a {noun} of {source} ({theirs})"));
+        }
     }
+    Ok(names)
 }
 
 /// The entry of `table` of every triangle (`On::Surfaces`) or boundary edge (`On::Curves`), by

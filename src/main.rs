@@ -120,6 +120,9 @@ enum Command {
         /// in the case's proportion; overrides the case; an error for other kinds).
         #[arg(long)]
         n: Option<usize>,
+        /// Uniform refinements of the case's initial mesh, any kind (overrides `[mesh] refine`).
+        #[arg(long)]
+        refine: Option<usize>,
         /// Dörfler's θ in (0, 1]: refine the fewest triangles carrying this share of η².
         #[arg(long)]
         theta: Option<f64>,
@@ -195,13 +198,20 @@ fn main() -> ExitCode {
         Command::Adapt {
             case,
             n,
+            refine,
             theta,
             target,
             max_vertices,
             steps,
             dual,
             output,
-        } => adapt(case, n, (theta, target, max_vertices, steps), dual, output),
+        } => adapt(
+            case,
+            (n, refine),
+            (theta, target, max_vertices, steps),
+            dual,
+            output,
+        ),
     };
     membrane_contact::atomic::exit_as_signalled();
     let result = result.and_then(|()| match membrane_contact::progress::stdout_error() {
@@ -335,7 +345,7 @@ fn study(
 
 fn adapt(
     case_path: Option<PathBuf>,
-    n: Option<usize>,
+    (n, refine): (Option<usize>, Option<usize>),
     (theta, target, max_vertices, steps): (Option<f64>, Option<f64>, Option<usize>, Option<usize>),
     dual: bool,
     output: Option<PathBuf>,
@@ -344,6 +354,9 @@ fn adapt(
     if let Some(n) = n {
         case.set_cells(n)
             .map_err(|e| CaseError(format!("--n {n}: {e}")))?;
+    }
+    if let Some(k) = refine {
+        case.refine = k;
     }
     let mut settings = case.adapt;
     settings.theta = theta.unwrap_or(settings.theta);

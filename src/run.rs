@@ -365,7 +365,9 @@ impl Run<'_> {
             k => format!(", refined {k} times"),
         };
         let given = match &self.case.mesh {
-            crate::case::MeshSpec::Domain { h, .. } => format!(" (meshed to h = {h}{refined})"),
+            crate::case::MeshSpec::Domain { h, .. } => {
+                format!(" (meshed to h = {}{refined})", crate::mesh::Number(*h))
+            }
             _ if !refined.is_empty() => format!(" ({})", &refined[2..]),
             _ => String::new(),
         };

@@ -485,6 +485,40 @@ fn non_triangle_cells() {
     contains(&e, "cell type 'Quadrilateral' is not supported");
 }
 
+/// A time series (adapt.xdmf) names its meshes' count and the last one's file instead of reading
+/// the first step's mesh without a word.
+#[test]
+fn a_time_series_is_not_one_mesh() {
+    let e = fails(
+        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"steps.xdmf\"\n"),
+        |d| {
+            let (p, c) = fan();
+            for step in ["a.h5", "b.h5"] {
+                write_mesh(&d.join(step), &p, &c);
+            }
+            let grid = |h5: &str| {
+                format!(
+                    "<Grid GridType=\"Uniform\"><Topology TopologyType=\"Triangle\"><DataItem Format=\"HDF\">{h5}:/mesh/topology</DataItem></Topology><Geometry GeometryType=\"XY\"><DataItem Format=\"HDF\">{h5}:/mesh/geometry</DataItem></Geometry></Grid>"
+                )
+            };
+            let xdmf = format!(
+                "<Xdmf><Domain><Grid GridType=\"Collection\" CollectionType=\"Temporal\">{}{}</Grid></Domain></Xdmf>",
+                grid("a.h5"),
+                grid("b.h5")
+            );
+            std::fs::write(d.join("steps.xdmf"), xdmf).unwrap();
+        },
+        &[],
+        None,
+    );
+    contains(
+        &e,
+        "steps.xdmf: a time series (or collection) of 2 meshes, not one mesh",
+    );
+    contains(&e, "e.g. the last: ");
+    contains(&e, "b.h5");
+}
+
 #[test]
 fn zero_area_triangle() {
     let (p, mut c) = fan();
@@ -924,7 +958,7 @@ fn bad_disks() {
     );
     // Estimated from the area before meshing: nothing is built.
     let e = disk("radius = 1\nh = 1e-6\n");
-    contains(&e, "[mesh] kind = \"disk\", h = 0.000001");
+    contains(&e, "[mesh] kind = \"disk\", h = 1e-6");
     contains(&e, "use a coarser mesh");
     let e = disk("radius = 1\nh = 0.1\nrefine = 12\n");
     contains(&e, "h = 0.1, refine = 12:");
@@ -1054,6 +1088,19 @@ fn an_estimate_beyond_double_precision_is_refused() {
     let case = format!("{}{SQUARE}", GOOD.replace("f1 = -5", "f1 = \"-exp(700*x)\""));
     let e = fails(&case, |_| {}, &["--estimate"], None);
     contains(&e, "the error estimate is not finite (η = inf, ");
+}
+
+/// An estimate whose squares overflow into inf − inf = NaN says NaN: it was reported as η = 0
+/// (`f64::max(NaN, 0)`) beside a bound of λ that was NaN.
+#[test]
+fn an_estimate_that_overflows_to_nan_is_not_reported_as_zero() {
+    let e = fails(
+        "mu1 = 1.0\nmu2 = 1.0\nf1 = -10\nf2 = 5\ng = 0.01\n[mesh]\nkind = \"rectangle\"\ncorners = [[0, 0], [1e150, 1e150]]\nn = 8\n",
+        |_| {},
+        &["--estimate"],
+        None,
+    );
+    contains(&e, "the error estimate is not finite (η = NaN, ");
 }
 
 /// Cells per side that are neither a number nor two say what is expected, not serde's words.

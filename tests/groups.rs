@@ -370,3 +370,49 @@ fn a_non_finite_entry_names_its_group() {
     let message = refused(e("1").into(), g);
     assert!(message.starts_with("g.rim is NaN at (2, "), "{message}");
 }
+
+/// A key for a name the file declares twice (two tags, one name), for a name declared in
+/// `$PhysicalNames` that no element carries, and for a group of a mesh that has none of its kind:
+/// each message says which, instead of merging the groups or listing the groups that exist.
+#[test]
+fn keys_of_repeated_unused_and_missing_names_are_told_apart() {
+    let text = std::fs::read_to_string(MESH).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let refused = |text: String, data: &str| {
+        std::fs::write(dir.path().join("m.msh"), text).unwrap();
+        let case =
+            format!("mu1 = 1.0\nmu2 = 2.0\nf2 = 5\n{data}\n[mesh]\nkind = \"file\"\npath = \"m.msh\"\n");
+        match Case::parse(&case, "case.toml", dir.path().to_path_buf()) {
+            Err(e) => e.0,
+            Ok(c) => DiscreteProblem::new(c.mesh().unwrap(), &c.data)
+                .unwrap_err()
+                .to_string(),
+        }
+    };
+    let twice = text.replacen("2 4 \"free\"", "2 4 \"loaded\"", 1);
+    let e = refused(twice, "f1 = { loaded = -20 }\ng = 0.05");
+    assert!(e.contains("'loaded' names 2 physical surfaces of"), "{e}");
+    // Surface entity 2 without its physical tag 4 ("free").
+    let untagged = text.replacen(
+        "\n2 1 0 0 2 1 0 1 4 4 2 3 4 -7\n",
+        "\n2 1 0 0 2 1 0 0 4 2 3 4 -7\n",
+        1,
+    );
+    let e = refused(untagged, "f1 = { loaded = -20, free = 0 }\ng = 0.05");
+    assert!(
+        e.contains("'free' is declared in $PhysicalNames of") && e.contains("no element carries it"),
+        "{e}"
+    );
+    let mesh = two_regions();
+    let mut groups = mesh.groups().unwrap().clone();
+    groups.curves.clear();
+    let e = table(&[("rim", "0")])
+        .pieces(
+            "g",
+            &mesh.with_groups(groups),
+            membrane_contact::datum::On::Curves,
+        )
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("(it has no physical curves)"), "{e}");
+}

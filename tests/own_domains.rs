@@ -428,3 +428,75 @@ fn the_readme_s_plate_solves_as_shipped() {
         );
     }
 }
+
+/// Disks far below the unit: their vertex count is estimated in units of h (the area π r² of a
+/// radius of 1e-180 underflowed to 0, and 0/0 estimated 1e18 vertices), a radius of 1e-150 meshes
+/// as the unit disk does, and where the triangles' areas leave the range of double precision the
+/// refusal says so, with h in scientific notation (it was "the mesh overlaps itself" at 1e-160,
+/// and h printed with 180 zeros).
+#[test]
+fn disks_far_below_the_unit_mesh_or_say_why_not() {
+    let disk = |r: f64| {
+        let text = format!(
+            "mu1 = 1.0\nmu2 = 1.0\nf1 = -1\nf2 = 0\ng = 0\n[mesh]\nkind = \"disk\"\nradius = {r:e}\nh = {:e}\n",
+            r / 10.0
+        );
+        Case::parse(&text, "disk", PathBuf::new()).unwrap()
+    };
+    // Radii scaled by powers of two, which the mesher's unit takes out exactly.
+    let (unit, tiny) = (disk(1.0).mesh().unwrap(), 2f64.powi(-500));
+    for r in [tiny, 2f64.powi(-600)] {
+        assert!(
+            disk(r).estimated_vertices() <= 2 * unit.n_vertices(),
+            "{r:e}: {}",
+            disk(r).estimated_vertices()
+        );
+    }
+    let small = disk(tiny).mesh().unwrap();
+    assert_eq!(
+        small.triangles().collect::<Vec<_>>(),
+        unit.triangles().collect::<Vec<_>>()
+    );
+    assert!((small.points.iter().zip(&unit.points)).all(|(p, q)| p.map(|x| x / tiny) == *q));
+    for r in [2f64.powi(-530), 2f64.powi(-600)] {
+        let e = disk(r).mesh().unwrap_err().to_string();
+        assert!(
+            e.contains(&format!(
+                "h = {:e}: the areas of triangles of this size (about h²) lie outside",
+                r / 10.0
+            )),
+            "{e}"
+        );
+    }
+}
+
+/// A polygon moved by any translation that keeps its coordinates exact (here, across the axes,
+/// where the first vertex's coordinates are not within a factor 2 of the others) gets the same
+/// mesh, moved: it was meshed as given near the origin, so that moving a square of side 2 by
+/// (−1, −1) gave 2970 vertices instead of 2983.
+#[test]
+fn a_polygon_moved_across_the_axes_keeps_its_mesh() {
+    let ring = [[0.0, 0.0], [2.0, 0.0], [2.0, 1.25], [1.0, 1.25], [1.0, 2.0], [0.0, 2.0]];
+    let mesh = |offset: [f64; 2]| {
+        let boundary: Vec<[f64; 2]> = ring.iter().map(|p| [p[0] + offset[0], p[1] + offset[1]]).collect();
+        let domain = Domain::Polygon {
+            boundary,
+            holes: vec![],
+        };
+        domain.mesh(0.05).unwrap()
+    };
+    let base = mesh([0.0, 0.0]);
+    for offset in [[-1.0, -1.0], [-0.5, 0.75], [1.5, -3.0], [-2.0, 1.0], [1000.0, -1024.0]] {
+        let moved = mesh(offset);
+        assert_eq!(
+            moved.triangles().collect::<Vec<_>>(),
+            base.triangles().collect::<Vec<_>>(),
+            "{offset:?}"
+        );
+        for (p, q) in moved.points.iter().zip(&base.points) {
+            for k in 0..2 {
+                assert!((p[k] - offset[k] - q[k]).abs() <= 4.0 * f64::EPSILON * (offset[k].abs() + 2.0), "{offset:?}");
+            }
+        }
+    }
+}

@@ -168,7 +168,7 @@ fn on_edge<'a>(
         })
         .sum();
     let on = OnTriangle {
-        grad_norm: (area * (k * a + 2.0 * c + b / k)).max(0.0).sqrt(),
+        grad_norm: super::root(area * (k * a + 2.0 * c + b / k)),
         with_lambda: lambda_c * 2.0 * area * with_lambda,
         range,
     };
@@ -183,7 +183,7 @@ fn corner(mesh: &Mesh, t: usize, edges: [(OnTriangle, EdgeLifting); 2], gap: Opt
     let [(e1, l1), (e2, l2)] = &edges;
     let (n1, n2) = (e1.grad_norm, e2.grad_norm);
     let cross = cross_term(mesh.corners(t), l1, l2);
-    let norm0 = (n1 * n1 + n2 * n2 + 2.0 * cross).max(0.0).sqrt().min(n1 + n2);
+    let norm0 = super::root(n1 * n1 + n2 * n2 + 2.0 * cross).min(n1 + n2);
     let range = [0, 1].map(|k| e1.range[k] + e2.range[k]);
     let tri = mesh.triangle(t);
     let grad_norm = match gap {

@@ -109,12 +109,19 @@ fn weights(membranes: &[Membrane]) -> (f64, f64) {
 /// (Σ_i η_{i,K}² + η_{∂,K}² + 2 η_{C,K})^½.
 fn indicators(terms: &[TriangleTerms], boundary: &[f64], contact: &[f64], m: usize) -> Vec<f64> {
     (terms.iter().zip(boundary).zip(contact))
-        .map(|((t, b), c)| {
-            (t.local2[..m].iter().sum::<f64>() + b * b + 2.0 * c)
-                .max(0.0)
-                .sqrt()
-        })
+        .map(|((t, b), c)| root(t.local2[..m].iter().sum::<f64>() + b * b + 2.0 * c))
         .collect()
+}
+
+/// √x of a sum of squares and cross terms that round-off may take just below 0 (then 0). NaN,
+/// what an overflow of the squares leaves, stays NaN, so that the run reports it rather than a
+/// bound of 0 (`f64::max` would turn it into 0).
+pub(crate) fn root(x: f64) -> f64 {
+    if x < 0.0 {
+        0.0
+    } else {
+        x.sqrt()
+    }
 }
 
 /// ‖c‖ of a field given at the vertices, by the lumped mass (each term (c √m)², of the size of
@@ -297,9 +304,7 @@ impl Estimate {
         e.boundary_total = e.boundary.iter().map(|b| b * b).sum::<f64>().sqrt();
         e.contact_total = e.contact.iter().sum();
         let eta_fr2: f64 = e.membranes.iter().map(|x| x * x).sum();
-        e.total = (eta_fr2 + e.boundary_total.powi(2) + 2.0 * e.contact_total)
-            .max(0.0)
-            .sqrt();
+        e.total = root(eta_fr2 + e.boundary_total.powi(2) + 2.0 * e.contact_total);
         if lifting.apart {
             let (total, lifted) = e.through_lifted(terms);
             if total < e.total {
@@ -318,7 +323,7 @@ impl Estimate {
         let lifted = terms.iter().map(|t| t.local2_lifted).sum::<f64>().sqrt() + self.means[0];
         let cross: f64 = terms.iter().map(|t| t.cross).sum();
         let total = lifted.powi(2) + self.boundary_total.powi(2) + 2.0 * (self.contact_total + cross);
-        (total.max(0.0).sqrt(), lifted)
+        (root(total), lifted)
     }
 
     /// §8: ‖λ − λ_h‖ ≤ μ̄^½ E_w + η_λ, E_w ≤ (η_λ²/μ̄ + μ̄‖∇z‖² + 2η_C)^½, from the totals of
@@ -340,10 +345,8 @@ impl Estimate {
         let grad_z2 = self.boundary_total.powi(2) / membranes[0].mu;
         // E_w ≤ E ≤ η as well (E² = (μ1 + μ2)‖∇e_v‖² + E_w²; E_w = E above an obstacle), which
         // is the smaller where (O') of §14 gave η.
-        let e_w = (eta_lambda.powi(2) / mu_bar + mu_bar * grad_z2 + 2.0 * self.contact_total)
-            .max(0.0)
-            .sqrt()
-            .min(self.total);
+        let e_w = root(eta_lambda.powi(2) / mu_bar + mu_bar * grad_z2 + 2.0 * self.contact_total);
+        let e_w = if e_w > self.total { self.total } else { e_w };
         mu_bar.sqrt() * e_w + eta_lambda
     }
 

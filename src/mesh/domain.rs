@@ -30,6 +30,11 @@ pub enum Domain {
 /// The units in the last place of the largest coordinate a mesh size must span at least.
 const RESOLUTION: f64 = 65536.0;
 
+/// The areas h² of the triangles of a mesh size h that double precision computes to full
+/// precision, with room for the products of a mesh's checks and of the estimator (smaller ones
+/// are subnormal or 0: a disk of radius 1e-160 was refused as "overlapping itself").
+const AREAS: std::ops::RangeInclusive<f64> = 1e-306..=1e306;
+
 /// The smallest angle spade's refinement keeps (above 30° it may not terminate).
 const ANGLE_LIMIT_DEG: f64 = 25.0;
 
@@ -73,12 +78,20 @@ impl Domain {
 
     /// |ω|.
     pub fn area(&self) -> f64 {
+        self.area_in(1.0)
+    }
+
+    /// The area in units of h² (the lengths divided by h before they are multiplied, so that
+    /// neither underflows nor overflows where the ratio is of a mesh's size).
+    fn area_in(&self, h: f64) -> f64 {
+        let scaled = |ring: &[[f64; 2]]| -> Vec<[f64; 2]> { ring.iter().map(|p| p.map(|x| x / h)).collect() };
         match self {
             Domain::Disk {
                 radius, inner_radius, ..
-            } => PI * (radius * radius - inner_radius.map_or(0.0, |r| r * r)),
+            } => PI * ((radius / h).powi(2) - inner_radius.map_or(0.0, |r| (r / h).powi(2))),
             Domain::Polygon { boundary, holes } => {
-                ring_area(boundary).abs() - holes.iter().map(|h| ring_area(h).abs()).sum::<f64>()
+                ring_area(&scaled(boundary)).abs()
+                    - holes.iter().map(|r| ring_area(&scaled(r)).abs()).sum::<f64>()
             }
         }
     }
@@ -96,12 +109,13 @@ impl Domain {
                 .map(|r| circle_points(r, h))
                 .fold(0usize, usize::saturating_add),
         };
-        ((VERTICES_PER_AREA * self.area() / (h * h)).min(1e18) as usize).saturating_add(rings)
+        ((VERTICES_PER_AREA * self.area_in(h)).min(1e18) as usize).saturating_add(rings)
     }
 
     /// Whether coordinates of this domain resolve the mesh size h: h must span at least
     /// 65 536 units in the last place of the largest coordinate, or the mesh's vertices
-    /// (rounded to what f64 can hold there) would be too coarse a lattice for its triangles.
+    /// (rounded to what f64 can hold there) would be too coarse a lattice for its triangles, or
+    /// triangles of size h would have areas outside [`AREAS`].
     pub fn check_size(&self, h: f64) -> Result<(), String> {
         let largest = match self {
             Domain::Polygon { boundary, .. } => {
@@ -110,6 +124,15 @@ impl Domain {
             Domain::Disk { centre, radius, .. } => centre[0].abs().max(centre[1].abs()) + radius,
         };
         let unit = largest * f64::EPSILON;
+        if !(AREAS.contains(&(h * h))) {
+            return Err(format!(
+                "h = {h:e}: the areas of triangles of this size (about h²) lie outside the range \
+                 double precision computes them in ({:e} to {:e}): state the case in other units \
+                 of length",
+                AREAS.start(),
+                AREAS.end()
+            ));
+        }
         if h < RESOLUTION * unit {
             return Err(format!(
                 "h = {h:e} is too small for coordinates as large as {largest:e}: double precision \
@@ -264,23 +287,21 @@ impl Domain {
     /// must have passed [`Domain::check`].
     pub fn mesh(&self, h: f64) -> Result<Mesh, MeshError> {
         // The mesh is made relative to a point of the domain (a disk's centre, a polygon's first
-        // vertex where that moves every vertex exactly, Sterbenz) in units of a power of two
-        // near its extent, so that it is the same wherever the domain lies and whatever its size,
-        // and spade's predicates see numbers near 1.
+        // vertex where that moves every vertex exactly) in units of a power of two near its
+        // extent, so that it is the same wherever the domain lies and whatever its size, and
+        // spade's predicates see numbers near 1.
         let (origin, extent) = match self {
             Domain::Disk { centre, radius, .. } => (*centre, *radius),
             Domain::Polygon { boundary, holes } => {
                 let points = || std::iter::once(boundary).chain(holes).flatten();
-                // Per axis, the first vertex's coordinate where every other is within a factor
-                // 2 of it (then each difference is exact), else 0: the vertices stay as given.
+                // Per axis, the first vertex's coordinate where every difference from it is exact
+                // in double precision (always within a factor 2 of it, Sterbenz; for coordinates
+                // of few binary digits anywhere), else 0: the vertices stay as given.
                 let o = [0, 1].map(|k| {
                     let c = boundary[0][k];
-                    let (lo, hi) = (c.abs() / 2.0, c.abs() * 2.0);
-                    let near = |x: f64| x.signum() == c.signum() && (lo..=hi).contains(&x.abs());
-                    if c != 0.0 && points().all(|p| near(p[k])) {
-                        c
-                    } else {
-                        0.0
+                    match points().all(|p| exact_difference(p[k], c)) {
+                        true => c,
+                        false => 0.0,
                     }
                 });
                 let far = points().fold(0.0_f64, |m, p| {
@@ -403,6 +424,14 @@ fn ring_area(ring: &[[f64; 2]]) -> f64 {
         .map(|k| orient(ring[0], ring[k], ring[(k + 1) % ring.len()]))
         .sum::<f64>()
         * 0.5
+}
+
+/// Whether a − b is exact in double precision (the error term of Knuth's TwoSum is 0).
+fn exact_difference(a: f64, b: f64) -> bool {
+    let d = a - b;
+    let virtual_b = a - d;
+    let virtual_a = d + virtual_b;
+    (a - virtual_a) + (virtual_b - b) == 0.0
 }
 
 /// The pieces of length at most h that the edge pq is split into (at least one).

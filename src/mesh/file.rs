@@ -119,6 +119,25 @@ pub fn read(path: &Path) -> Result<Mesh, FileError> {
     }
 }
 
+/// `mesh` with physical groups given as Gmsh numbers them (a meshio mesh read from a .msh file:
+/// the `gmsh:physical` tags of its triangles and lines, its `field_data` names): the names by
+/// (dimension, tag), the tag of each triangle (`None` for none), the lines (vertex numbers of
+/// `mesh`) with their tag. `source` names the groups in messages.
+pub fn with_physical_groups(
+    mesh: Mesh,
+    names: &[((i32, i32), String)],
+    triangle: &[Option<i32>],
+    lines: &[([usize; 2], i32)],
+    source: &str,
+) -> Mesh {
+    let n = mesh.n_vertices();
+    let lines: Vec<([u64; 2], i32)> = lines.iter().map(|&(l, t)| (l.map(|v| v as u64), t)).collect();
+    let raw = super::msh::raw_groups(names, triangle, &lines, |v| {
+        usize::try_from(v).ok().filter(|&v| v < n)
+    });
+    with_msh_groups(mesh, raw, Path::new(source))
+}
+
 /// The mesh with the physical groups of its MSH file: the surface of each triangle, and the
 /// curve of each boundary edge that a line element of a physical curve covers (lines inside ω
 /// are not on a boundary edge and are left aside).
@@ -142,7 +161,7 @@ fn with_msh_groups(mesh: Mesh, raw: super::msh::RawGroups, path: &Path) -> Mesh 
         raw.triangle,
         edges,
     );
-    groups.ambiguous = raw.ambiguous;
+    (groups.ambiguous, groups.unused) = (raw.ambiguous, raw.unused);
     mesh.with_groups(groups)
 }
 
@@ -183,10 +202,14 @@ fn read_xdmf(path: &Path) -> Result<RawMesh, FileError> {
     };
     let doc = roxmltree::Document::parse_with_options(&text, options)
         .map_err(|e| err(format!("not valid XDMF (XML): {e}")))?;
-    let grid = doc
-        .descendants()
-        .find(|n| n.has_tag_name("Grid") && n.children().any(|c| c.has_tag_name("Topology")))
-        .ok_or_else(|| err("no <Grid> with a <Topology> in the XDMF file".into()))?;
+    let grids: Vec<roxmltree::Node> = (doc.descendants())
+        .filter(|n| n.has_tag_name("Grid") && n.children().any(|c| c.has_tag_name("Topology")))
+        .collect();
+    let grid = match grids[..] {
+        [] => return Err(err("no <Grid> with a <Topology> in the XDMF file".into())),
+        [grid] => grid,
+        [.., last] => return Err(err(several_meshes(path, grids.len(), last))),
+    };
     let child = |tag: &str| {
         grid.children()
             .find(|c| c.has_tag_name(tag))
@@ -217,6 +240,20 @@ fn read_xdmf(path: &Path) -> Result<RawMesh, FileError> {
         }
     }
     Ok((points, cells))
+}
+
+/// Why an XDMF file of `count` meshes (a time series such as `adapt.xdmf`) is not one mesh, naming
+/// the heavy-data file of the `last` one where it is known.
+fn several_meshes(path: &Path, count: usize, last: roxmltree::Node) -> String {
+    let file = (last.children().find(|c| c.has_tag_name("Topology")))
+        .and_then(|t| heavy(path, t).ok())
+        .map_or(String::new(), |h| {
+            format!(", e.g. the last: {}", h.file.display())
+        });
+    format!(
+        "a time series (or collection) of {count} meshes, not one mesh: give the file of one of \
+         them{file}"
+    )
 }
 
 /// The heavy-data reference `FILE:/PATH` of the `DataItem` of `node`, relative to the XDMF file.

@@ -26,6 +26,9 @@ pub struct Groups {
     /// entity in several physical groups, its elements kept in the first), if one is: data per
     /// group are then refused, data without groups take the mesh as it is.
     pub ambiguous: [Option<String>; 2],
+    /// Of the surfaces and of the curves: the names the file declares (`$PhysicalNames`) that no
+    /// element carries, for messages.
+    pub unused: [Vec<String>; 2],
 }
 
 impl Groups {
@@ -49,6 +52,7 @@ impl Groups {
             triangle,
             edge,
             ambiguous: [None, None],
+            unused: [Vec::new(), Vec::new()],
         }
     }
 
@@ -113,6 +117,7 @@ impl Groups {
     fn on(&self, triangle: Vec<u32>, edges: impl IntoIterator<Item = ((usize, usize), u32)>) -> Groups {
         Groups {
             ambiguous: self.ambiguous.clone(),
+            unused: self.unused.clone(),
             ..Groups::new(
                 self.source.clone(),
                 self.surfaces.clone(),

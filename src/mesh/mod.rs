@@ -117,11 +117,22 @@ pub struct Point(pub [f64; 2]);
 
 impl fmt::Display for Point {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let show = |x: f64| match x.abs() {
-            a if a == 0.0 || (1e-4..1e16).contains(&a) || !a.is_finite() => format!("{x}"),
-            _ => format!("{x:e}"),
-        };
-        write!(f, "({}, {})", show(self.0[0]), show(self.0[1]))
+        write!(f, "({}, {})", Number(self.0[0]), Number(self.0[1]))
+    }
+}
+
+/// A number as a message shows it: its shortest form that reads back exactly, in scientific
+/// notation when it is far from 1 (1e-181, not 183 digits).
+#[derive(Debug, Clone, Copy)]
+pub struct Number(pub f64);
+
+impl fmt::Display for Number {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let x = self.0;
+        match x.abs() {
+            a if a == 0.0 || (1e-4..1e16).contains(&a) || !a.is_finite() => write!(f, "{x}"),
+            _ => write!(f, "{x:e}"),
+        }
     }
 }
 

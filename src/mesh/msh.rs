@@ -26,6 +26,8 @@ pub(super) struct RawGroups {
     /// Of the surfaces and of the curves: why an element's group is ambiguous (an entity in
     /// several physical groups, kept in the first), if one is.
     pub ambiguous: [Option<String>; 2],
+    /// Of the surfaces and of the curves: the names of `$PhysicalNames` that no element carries.
+    pub unused: [Vec<String>; 2],
 }
 
 /// Reads the triangles of a MSH 4.1 file and the nodes they use (in the order of their tags), the
@@ -78,7 +80,7 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>, Tags), Fi
     let has_groups = triangle_tag.iter().any(Option::is_some) || !lines.is_empty();
     let groups = has_groups.then(|| RawGroups {
         ambiguous,
-        ..raw_groups(&names, &triangle_tag, &lines, &index)
+        ..raw_groups(&names, &triangle_tag, &lines, |tag| index.get(&tag).copied())
     });
     let triangles = triangles.iter().map(|t| t.map(|tag| index[&tag])).collect();
     let tags = Tags {
@@ -175,12 +177,13 @@ fn elements(
 }
 
 /// The physical groups of the triangles and lines, numbered by increasing tag and named by
-/// $PhysicalNames (`names`) or by their tag; `index` numbers the nodes the triangles use.
-fn raw_groups(
+/// $PhysicalNames (`names`) or by their tag; `index` numbers the nodes the triangles use (`None`
+/// for another node).
+pub(super) fn raw_groups(
     names: &[((i32, i32), String)],
     triangle_tag: &[Option<i32>],
     lines: &[([u64; 2], i32)],
-    index: &HashMap<u64, usize>,
+    index: impl Fn(u64) -> Option<usize>,
 ) -> RawGroups {
     // Groups numbered by increasing tag, named by $PhysicalNames or by their tag.
     let numbering = |dim: i32, tags: &mut dyn Iterator<Item = i32>| {
@@ -197,8 +200,15 @@ fn raw_groups(
     let (surface_tags, surfaces) = numbering(2, &mut triangle_tag.iter().flatten().copied());
     let (curve_tags, curves) = numbering(1, &mut lines.iter().map(|l| l.1));
     let group = |tags: &[i32], t: i32| tags.binary_search(&t).expect("a tag numbered") as u32;
+    let unused = |dim: i32, tags: &[i32]| -> Vec<String> {
+        (names.iter())
+            .filter(|((d, t), _)| *d == dim && tags.binary_search(t).is_err())
+            .map(|(_, n)| n.clone())
+            .collect()
+    };
     RawGroups {
         ambiguous: [None, None],
+        unused: [unused(2, &surface_tags), unused(1, &curve_tags)],
         surfaces,
         curves,
         triangle: (triangle_tag.iter())
@@ -207,7 +217,7 @@ fn raw_groups(
         // Lines on nodes that no triangle uses are not on ω.
         lines: (lines.iter())
             .filter_map(|(l, t)| {
-                let [a, b] = l.map(|tag| index.get(&tag).copied());
+                let [a, b] = l.map(&index);
                 Some(([a?, b?], group(&curve_tags, *t)))
             })
             .collect(),
