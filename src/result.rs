@@ -430,7 +430,7 @@ fn free_bytes(dir: &Path) -> Option<u64> {
 /// with a ctime stamp, which ends in a line break, and the call's descriptor, buffer address and
 /// sizes: it is cut before them, keeping the system's message (`file write failed: File too
 /// large`). The caller names the file.
-pub(crate) fn hdf5_error(e: &hdf5::Error) -> String {
+pub fn hdf5_error(e: &hdf5::Error) -> String {
     let text = e.to_string();
     let shown = match text.find(": time = ") {
         Some(cut) => {

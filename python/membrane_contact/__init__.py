@@ -65,9 +65,11 @@ def _case(case):
 
 
 def _mesh(mesh):
-    """(points float64 (N, 2), triangles int64 (M, 3)) of a mesh, or (None, None)."""
+    """(points float64 (N, 2), triangles int64 (M, 3), groups) of a mesh, or (None, None, None);
+    groups: the physical groups of a meshio mesh read from a Gmsh file (`_groups`), or None."""
     if mesh is None:
-        return None, None
+        return None, None, None
+    groups = None
     if hasattr(mesh, "cells_dict") and hasattr(mesh, "points"):  # meshio.Mesh
         kinds = ", ".join(sorted(mesh.cells_dict)) or "none"
         if "triangle" not in mesh.cells_dict:
@@ -81,7 +83,10 @@ def _mesh(mesh):
                 f"{', '.join(others)} cells are not supported (split quadrilaterals into triangles, "
                 "and use linear triangles, not curved ones)"
             )
-        points, triangles = _used_points(np.asarray(mesh.points), np.asarray(mesh.cells_dict["triangle"]))
+        groups = _groups(mesh)
+        points, triangles, used = _used_points(np.asarray(mesh.points), np.asarray(mesh.cells_dict["triangle"]))
+        if groups is not None:
+            groups = _renumbered_lines(groups, used)
     elif hasattr(mesh, "geometry") and hasattr(mesh, "topology"):  # a dolfinx mesh
         _linear_triangles(mesh)
         points = mesh.geometry.x
@@ -119,7 +124,34 @@ def _mesh(mesh):
         raise InputError(f"mesh: triangle {t} refers to vertex {v}, which does not exist")
     points = np.ascontiguousarray(points, dtype=np.float64)
     triangles = np.ascontiguousarray(triangles, dtype=np.int64)
-    return points, triangles
+    return points, triangles, groups
+
+
+def _groups(mesh):
+    """The physical groups of a meshio mesh read from a Gmsh file, as the core takes them: the
+    names [(dimension, tag, name)] of `field_data`, the `gmsh:physical` tag of each triangle (0 for
+    none), the line cells and their tags; None for a mesh without `gmsh:physical`."""
+    tags = mesh.cell_data_dict.get("gmsh:physical") if mesh.cell_data else None
+    if not tags or "triangle" not in tags:
+        return None
+    lines = np.asarray(mesh.cells_dict.get("line", np.zeros((0, 2))), dtype=np.int64).reshape(-1, 2)
+    line_tags = np.asarray(tags.get("line", np.zeros(len(lines))), dtype=np.int64)
+    if len(line_tags) != len(lines) or (lines.size and (lines.min() < 0 or lines.max() >= len(mesh.points))):
+        raise InputError("mesh: the meshio mesh's line cells or their gmsh:physical tags do not fit its points")
+    names = [(int(v[1]), int(v[0]), str(k)) for k, v in (mesh.field_data or {}).items() if len(v) >= 2]
+    return names, np.asarray(tags["triangle"], dtype=np.int64), lines, line_tags
+
+
+def _renumbered_lines(groups, used):
+    """`groups` as lists, its lines in the numbering of the points the triangles use (`used`, from
+    `_used_points`: None where it kept every point); lines on other points are not on the mesh and
+    are dropped."""
+    names, triangle_tags, lines, line_tags = groups
+    if used is not None and lines.size:
+        at = np.searchsorted(used, lines).clip(max=len(used) - 1)
+        keep = (used[at] == lines).all(axis=1)
+        lines, line_tags = at[keep], line_tags[keep]
+    return names, triangle_tags.tolist(), lines.tolist(), line_tags.tolist()
 
 
 def _linear_triangles(mesh):
@@ -138,15 +170,16 @@ def _linear_triangles(mesh):
 
 
 def _used_points(points, triangles):
-    """The points the triangles use, in their order, and the triangles renumbered: a file read by
-    meshio keeps every node (a Gmsh geometry point that no triangle uses, say)."""
+    """The points the triangles use, in their order, the triangles renumbered and the old number
+    of each point kept (None where every point is kept): a file read by meshio keeps every node (a
+    Gmsh geometry point that no triangle uses, say)."""
     in_range = triangles.size and triangles.min() >= 0 and triangles.max() < len(points)
     if not in_range or np.issubdtype(triangles.dtype, np.floating):
-        return points, triangles  # checked and refused below
+        return points, triangles, None  # checked and refused below
     used = np.unique(triangles)
     if len(used) == len(points):
-        return points, triangles
-    return points[used], np.searchsorted(used, triangles)
+        return points, triangles, None
+    return points[used], np.searchsorted(used, triangles), used
 
 
 def _count(name, value):
@@ -265,7 +298,8 @@ def solve(
 
     case: a path (str or os.PathLike; a str of one line without "=" is always a path), a TOML string
         or a dict of the case file's keys.
-    mesh: a meshio.Mesh (its "triangle" cells), a (points, triangles) pair (points (N, 2), or
+    mesh: a meshio.Mesh (its "triangle" cells; read from a Gmsh file, its physical groups too:
+    gmsh:physical and field_data), a (points, triangles) pair (points (N, 2), or
     (N, 3) with z = 0; triangles (M, 3) of any integer type) or a dolfinx mesh; it replaces the
     case's [mesh] (which may then be left out), keeps its vertex numbering (but for the points of
     a meshio.Mesh that no triangle uses, dropped) and is checked as a mesh file is. estimate, flux, dual, hminus1: as the command line's --estimate, --flux, --dual,
@@ -273,12 +307,13 @@ def solve(
     of a built-in mesh. start: "nested" (the default) or "cold". verbose: the solver's details in
     `summary()`.
     """
-    (source, origin), (points, triangles) = _case(case), _mesh(mesh)
+    (source, origin), (points, triangles, groups) = _case(case), _mesh(mesh)
     parts = _core.solve(
         source,
         origin,
         points,
         triangles,
+        groups,
         estimate=estimate,
         flux=flux,
         dual=dual,
@@ -322,12 +357,13 @@ def study(
     estimator, effectivity, iterations, cold_iterations, seconds; with several gradings also
     `variant`), and the `Result` of each level, in the same order.
     """
-    (source, origin), (points, triangles) = _case(case), _mesh(mesh)
+    (source, origin), (points, triangles, groups) = _case(case), _mesh(mesh)
     series = _core.study(
         source,
         origin,
         points,
         triangles,
+        groups,
         levels=_counts("levels", levels),
         refine=_counts("refine", refine),
         cold=cold,
@@ -353,6 +389,7 @@ def adapt(
     mesh=None,
     *,
     n=None,
+    refine=None,
     theta=None,
     target=None,
     max_vertices=None,
@@ -360,18 +397,22 @@ def adapt(
 ):
     """Adaptive refinement, as `membrane-contact adapt` computes it (nothing is written): solve,
     estimate, refine the triangles with the largest indicators (Dörfler's θ), solve again, … until
-    η ≤ target, the vertex budget or the step count (each default: the case's [adapt]).
+    η ≤ target, the vertex budget or the step count (each default: the case's [adapt]). n: cells
+    per side of a built-in initial mesh; refine: uniform refinements of the initial mesh (K), any
+    kind.
 
     Returns (table, results): one dict per step (vertices, triangles, marked, estimator, error,
     effectivity, iterations, seconds) and the `Result` of each step.
     """
-    (source, origin), (points, triangles) = _case(case), _mesh(mesh)
+    (source, origin), (points, triangles, groups) = _case(case), _mesh(mesh)
     steps_json, parts = _core.adapt(
         source,
         origin,
         points,
         triangles,
+        groups,
         n=_count("n", n),
+        refine=_count("refine", refine),
         theta=theta,
         target=target,
         max_vertices=_count("max_vertices", max_vertices),

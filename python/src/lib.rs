@@ -19,7 +19,7 @@ use membrane_contact::case::{Case, CaseError, Levels};
 use membrane_contact::contact::{LinearSolver, SolveError, Start};
 use membrane_contact::mesh::{Edges, Mesh};
 use membrane_contact::progress;
-use membrane_contact::result::{Attr, Attribute, Field, Place, SOLUTION_H5};
+use membrane_contact::result::{hdf5_error, Attr, Attribute, Field, Place, SOLUTION_H5};
 use membrane_contact::run::{self, Parts, RunError};
 use membrane_contact::study::{self, StudyOptions};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
@@ -118,7 +118,15 @@ struct CaseSource {
 }
 
 /// A mesh given as arrays, copied: points and triangles (any vertex numbers, checked later).
-type Arrays = (Vec<[f64; 2]>, Vec<[i64; 3]>);
+type Arrays = (Vec<[f64; 2]>, Vec<[i64; 3]>, Option<GroupLists>);
+
+/// The physical groups of a mesh given from Python as Gmsh numbers them (a meshio mesh read from
+/// a .msh file): the names by (dimension, tag, name), the tag of each triangle (0 for none), the
+/// lines (vertex numbers) and the tag of each.
+type GroupLists = (Vec<(i32, i32, String)>, Vec<i64>, Vec<[i64; 2]>, Vec<i64>);
+
+/// Where the groups of a mesh given from Python come from, for messages.
+const GIVEN_GROUPS: &str = "the given mesh";
 
 /// The placeholder `[mesh]` table of a case given without one beside a mesh: replaced by the
 /// mesh at once, and left out of the case text the result stores.
@@ -153,7 +161,7 @@ impl CaseSource {
             }
             _ => Case::parse(&self.value, &self.origin, PathBuf::new())?,
         };
-        if let Some((points, triangles)) = mesh {
+        if let Some((points, triangles, groups)) = mesh {
             let n = points.len();
             let triangles = (triangles.iter().enumerate())
                 .map(|(t, tri)| {
@@ -172,32 +180,75 @@ impl CaseSource {
                 .collect::<Result<Vec<_>, CaseError>>()?;
             let mesh = Mesh::new(points, triangles)
                 .map_err(|e| CaseError(format!("{}: the given mesh is not valid: {e}", case.origin)))?;
+            let mesh = match groups {
+                None => mesh,
+                Some(groups) => with_groups(mesh, groups)
+                    .map_err(|e| CaseError(format!("{}: the given mesh's groups: {e}", case.origin)))?,
+            };
             case.set_mesh(mesh);
         }
         Ok(case)
     }
 }
 
+/// `mesh` with the physical `groups` given from Python, checked against it.
+fn with_groups(mesh: Mesh, (names, triangle, lines, line_tags): GroupLists) -> Result<Mesh, String> {
+    if triangle.len() != mesh.n_triangles() || lines.len() != line_tags.len() {
+        return Err(format!(
+            "{} tags for {} triangles, {} for {} lines",
+            triangle.len(),
+            mesh.n_triangles(),
+            line_tags.len(),
+            lines.len()
+        ));
+    }
+    let tag = |t: i64| i32::try_from(t).map_err(|_| format!("tag {t} is not a Gmsh physical tag"));
+    let triangle = (triangle.iter())
+        .map(|&t| Ok((t > 0).then_some(tag(t)?)))
+        .collect::<Result<Vec<_>, String>>()?;
+    let n = mesh.n_vertices();
+    let vertex = |v: i64| {
+        usize::try_from(v)
+            .ok()
+            .filter(|&v| v < n)
+            .ok_or_else(|| format!("a line refers to vertex {v}, which does not exist"))
+    };
+    let lines = (lines.iter().zip(&line_tags))
+        .filter(|(_, &t)| t > 0)
+        .map(|(l, &t)| Ok(([vertex(l[0])?, vertex(l[1])?], tag(t)?)))
+        .collect::<Result<Vec<_>, String>>()?;
+    let names: Vec<((i32, i32), String)> = names.into_iter().map(|(d, t, n)| ((d, t), n)).collect();
+    Ok(membrane_contact::mesh::file::with_physical_groups(
+        mesh,
+        &names,
+        &triangle,
+        &lines,
+        GIVEN_GROUPS,
+    ))
+}
+
 /// The case (kind and value, from Python's `_case`), its origin for messages and the mesh
-/// arrays, if given: what `solve`, `study` and `adapt` take.
+/// arrays with their groups, if given: what `solve`, `study` and `adapt` take.
 fn inputs(
     case: (String, String),
     origin: String,
     points: Option<PyReadonlyArray2<'_, f64>>,
     triangles: Option<PyReadonlyArray2<'_, i64>>,
+    groups: Option<GroupLists>,
 ) -> PyResult<(CaseSource, Option<Arrays>)> {
     let source = CaseSource {
         kind: case.0,
         value: case.1,
         origin,
     };
-    Ok((source, arrays(points, triangles)?))
+    Ok((source, arrays(points, triangles, groups)?))
 }
 
 /// The arrays of a mesh given from Python, copied (the shapes are checked on the Python side).
 fn arrays(
     points: Option<PyReadonlyArray2<'_, f64>>,
     triangles: Option<PyReadonlyArray2<'_, i64>>,
+    groups: Option<GroupLists>,
 ) -> PyResult<Option<Arrays>> {
     let (Some(points), Some(triangles)) = (points, triangles) else {
         return Ok(None);
@@ -212,7 +263,7 @@ fn arrays(
     }
     let points = p.rows().into_iter().map(|r| [r[0], r[1]]).collect();
     let triangles = t.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect();
-    Ok(Some((points, triangles)))
+    Ok(Some((points, triangles, groups)))
 }
 
 /// The case's settings that the keyword arguments override.
@@ -320,7 +371,7 @@ impl PyParts {
 
 /// Solves a case: the `Parts` of its result.
 #[pyfunction]
-#[pyo3(signature = (case, origin, points=None, triangles=None, *, estimate=false, flux=false,
+#[pyo3(signature = (case, origin, points=None, triangles=None, groups=None, *, estimate=false, flux=false,
     dual=false, hminus1=false, linear=None, refine=None, n=None, start=None, verbose=false))]
 #[allow(clippy::too_many_arguments)]
 fn solve(
@@ -329,6 +380,7 @@ fn solve(
     origin: String,
     points: Option<PyReadonlyArray2<'_, f64>>,
     triangles: Option<PyReadonlyArray2<'_, i64>>,
+    groups: Option<GroupLists>,
     estimate: bool,
     flux: bool,
     dual: bool,
@@ -339,7 +391,7 @@ fn solve(
     start: Option<String>,
     verbose: bool,
 ) -> PyResult<PyParts> {
-    let (source, mesh) = inputs(case, origin, points, triangles)?;
+    let (source, mesh) = inputs(case, origin, points, triangles, groups)?;
     let start = match start.as_deref() {
         None | Some("nested") => Start::Nested,
         Some("cold") => Start::Cold,
@@ -367,7 +419,7 @@ fn solve(
 /// A convergence study: per variant (its label, "" or "grading g"), the levels as JSON and the
 /// `Parts` of each level.
 #[pyfunction]
-#[pyo3(signature = (case, origin, points=None, triangles=None, *, levels=None, refine=None,
+#[pyo3(signature = (case, origin, points=None, triangles=None, groups=None, *, levels=None, refine=None,
     cold=false, grading=None, hminus1_max=512, linear=None))]
 #[pyo3(name = "study")]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
@@ -377,6 +429,7 @@ fn run_study(
     origin: String,
     points: Option<PyReadonlyArray2<'_, f64>>,
     triangles: Option<PyReadonlyArray2<'_, i64>>,
+    groups: Option<GroupLists>,
     levels: Option<Vec<usize>>,
     refine: Option<Vec<usize>>,
     cold: bool,
@@ -384,7 +437,7 @@ fn run_study(
     hminus1_max: usize,
     linear: Option<String>,
 ) -> PyResult<Vec<(String, String, Vec<PyParts>)>> {
-    let (source, mesh) = inputs(case, origin, points, triangles)?;
+    let (source, mesh) = inputs(case, origin, points, triangles, groups)?;
     if levels.is_some() && refine.is_some() {
         return Err(InputError::new_err("give levels or refine, not both"));
     }
@@ -418,7 +471,7 @@ fn run_study(
 
 /// The adaptive loop: its steps as JSON and the `Parts` of each step.
 #[pyfunction]
-#[pyo3(signature = (case, origin, points=None, triangles=None, *, n=None, theta=None,
+#[pyo3(signature = (case, origin, points=None, triangles=None, groups=None, *, n=None, refine=None, theta=None,
     target=None, max_vertices=None, steps=None))]
 #[pyo3(name = "adapt")]
 #[allow(clippy::too_many_arguments)]
@@ -428,16 +481,18 @@ fn run_adapt(
     origin: String,
     points: Option<PyReadonlyArray2<'_, f64>>,
     triangles: Option<PyReadonlyArray2<'_, i64>>,
+    groups: Option<GroupLists>,
     n: Option<usize>,
+    refine: Option<usize>,
     theta: Option<f64>,
     target: Option<f64>,
     max_vertices: Option<usize>,
     steps: Option<usize>,
 ) -> PyResult<(String, Vec<PyParts>)> {
-    let (source, mesh) = inputs(case, origin, points, triangles)?;
+    let (source, mesh) = inputs(case, origin, points, triangles, groups)?;
     wait(py, move || {
         let mut case = source.case(mesh)?;
-        override_case(&mut case, n, None, None)?;
+        override_case(&mut case, n, refine, None)?;
         let mut settings = case.adapt;
         settings.theta = theta.unwrap_or(settings.theta);
         settings.target = target.or(settings.target);
@@ -485,10 +540,37 @@ fn xdmf_attributes(path: &Path) -> Result<Vec<(String, String)>, String> {
         .collect())
 }
 
+/// Why `dir` is not a result directory to read, if it is not one: missing, a file, an adapt
+/// run's directory (whose steps are), a directory without a solution file.
+fn not_a_result(dir: &Path) -> Option<String> {
+    let shown = dir.display();
+    if !dir.exists() {
+        return Some(format!("{shown}: no such directory"));
+    }
+    if !dir.is_dir() {
+        return Some(format!(
+            "{shown} is a file: give the result directory (the one holding {SOLUTION_H5})"
+        ));
+    }
+    if dir.join("adapt.xdmf").exists() {
+        let last = (std::fs::read_dir(dir).ok()?)
+            .filter_map(|e| e.ok()?.file_name().into_string().ok())
+            .filter(|n| n.starts_with("step-"))
+            .max()
+            .unwrap_or_else(|| "step-000".into());
+        return Some(format!(
+            "{shown} is an adapt run: read one of its step directories, e.g. {}",
+            dir.join(last).display()
+        ));
+    }
+    (!dir.join(SOLUTION_H5).exists())
+        .then(|| format!("{shown}: no {SOLUTION_H5}: not a result directory of this program"))
+}
+
 /// Reads a result directory written by [`run::Parts::write`] (or the command line).
 fn read_parts(dir: &Path) -> Result<Parts, String> {
     let h5 = dir.join(SOLUTION_H5);
-    let named = |e: hdf5::Error| format!("{}: {e}", h5.display());
+    let named = |e: hdf5::Error| format!("{}: {}", h5.display(), hdf5_error(&e));
     let file = hdf5::File::open(&h5).map_err(named)?;
     let geometry = file.dataset("mesh/geometry").map_err(named)?;
     let xy = geometry.read_raw::<f64>().map_err(named)?;
@@ -560,6 +642,9 @@ fn read_parts(dir: &Path) -> Result<Parts, String> {
 /// Reads a result directory.
 #[pyfunction]
 fn read(py: Python<'_>, directory: PathBuf) -> PyResult<PyParts> {
+    if let Some(why) = not_a_result(&directory) {
+        return Err(InputError::new_err(why));
+    }
     let parts = py
         .allow_threads(|| read_parts(&directory))
         .map_err(|e| OutputError::new_err(format!("cannot read the result: {e}")))?;

@@ -158,6 +158,42 @@ def test_groups_of_a_gmsh_mesh_are_in_the_result(tmp_path):
         assert r.attributes[name] == attrs[name], name
 
 
+def test_a_meshio_mesh_read_from_gmsh_keeps_its_physical_groups():
+    # The groups of a meshio.Mesh read from the .msh file (gmsh:physical, field_data) carry the
+    # case's data per group as the .msh path does: the same fields bit for bit.
+    case = tomllib.loads((CASES / "two_regions.toml").read_text())
+    msh = ROOT / "data" / "meshes" / "two_regions.msh"
+    del case["mesh"]
+    from_meshio = mc.solve(case, meshio.read(msh))
+    from_path = mc.solve(dict(case, mesh={"kind": "file", "path": str(msh)}))
+    assert same_bits(from_meshio.points, from_path.points)
+    for name in ("u1", "u2", "lambda", "group"):
+        assert same_bits(from_meshio.fields[name], from_path.fields[name]), name
+    # Refinement and adaptivity keep them; a key the mesh does not have is named as such.
+    table, _ = mc.adapt(case, meshio.read(msh), refine=1, steps=1)
+    assert table[0]["vertices"] == len(mc.solve(case, meshio.read(msh), refine=1).points) > len(from_path.points)
+    case["f1"] = {"upper": -20}
+    with pytest.raises(mc.InputError, match="'upper' is not a physical surface of the given mesh"):
+        mc.solve(case, meshio.read(msh))
+
+
+def test_what_is_not_a_result_directory_is_named(tmp_path):
+    r = mc.solve(n=4)
+    r.write(tmp_path / "out")
+    (tmp_path / "run").mkdir()
+    (tmp_path / "run" / "adapt.xdmf").write_text("")
+    (tmp_path / "run" / "step-002").mkdir()
+    (tmp_path / "empty").mkdir()
+    for path, message in [
+        (tmp_path / "nope", "nope: no such directory"),
+        (tmp_path / "out" / "solution.h5", "solution.h5 is a file: give the result directory"),
+        (tmp_path / "run", "run is an adapt run: read one of its step directories, e.g. .*step-002"),
+        (tmp_path / "empty", "empty: no solution.h5: not a result directory"),
+    ]:
+        with pytest.raises(mc.InputError, match=message):
+            mc.read(path)
+
+
 def test_obstacle_with_estimate_and_g2_with_estimate(tmp_path):
     r = mc.solve(CASES / "ball.toml", n=16, estimate=True, flux=True)
     assert r.eta >= r.error_energy and r.estimator.shape == (len(r.triangles),)
