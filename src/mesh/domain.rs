@@ -595,6 +595,29 @@ mod tests {
         }
     }
 
+    /// The difference is exact where it is representable: within a factor 2 (Sterbenz), of few
+    /// binary digits across 0, or far apart in scale only when the bits fit.
+    #[test]
+    fn exact_differences_are_told_from_rounded_ones() {
+        for (a, b) in [
+            (1.5, -0.25),
+            (3.0, 1.0),
+            (1e16, 1e16 - 2.0),
+            (-1.0, 1.0),
+            (0.7, 0.4),
+        ] {
+            assert!(exact_difference(a, b), "{a} − {b}");
+        }
+        for (a, b) in [
+            (1.0, 2f64.powi(-60)),
+            (2f64.powi(60), 1.0),
+            (0.1, 1e-20),
+            (1.0, 0.1),
+        ] {
+            assert!(!exact_difference(a, b), "{a} − {b}");
+        }
+    }
+
     #[test]
     fn polygon_with_hole_has_the_polygons_area() {
         let d = square_with_hole();
