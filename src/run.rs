@@ -409,8 +409,12 @@ impl Run<'_> {
             }
             _ => String::new(),
         };
+        let per = match self.case.data.is_obstacle() {
+            true => "",
+            false => " per membrane",
+        };
         format!(
-            "solver      {} unknowns per membrane; {} active-set iterations + {} local ones (coarser levels: {:?}); {}{fallback}; contact at {contact} vertices\n",
+            "solver      {} unknowns{per}; {} active-set iterations + {} local ones (coarser levels: {:?}); {}{fallback}; contact at {contact} vertices\n",
             s.unknowns,
             s.iterations,
             s.local_iterations,

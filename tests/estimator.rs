@@ -221,6 +221,12 @@ fn above_an_obstacle_the_bound_holds_and_tightens() {
             )) && !summary.contains("boundary data"),
             "{summary}"
         );
+        // One membrane: its unknowns are not "per membrane".
+        let verbose = r.summary(true);
+        assert!(
+            verbose.contains(" unknowns; ") && !verbose.contains("per membrane"),
+            "{verbose}"
+        );
     }
     assert!(effectivities.windows(2).all(|w| w[1] < w[0]), "{effectivities:?}");
     assert!(
@@ -570,6 +576,43 @@ fn a_load_the_rule_does_not_resolve_is_named() {
     let default = estimated(&case);
     let d = default.estimate.as_ref().unwrap();
     assert!(d.loads_resolved(), "{}", d.summary(None));
+}
+
+/// Boundary values ≥ 0 at the boundary vertices but below 0 between them (so that no u1 ≥ u2
+/// takes them: the problem has no solution) are found on the edges and said: η is not a bound. The
+/// discrete problem, which takes g_h, solves; g ≥ 0 everywhere is not flagged.
+#[test]
+fn boundary_values_below_zero_between_the_vertices_are_named() {
+    let body = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"-5\"\nf2 = \"5\"\ng = \"0.01*(1 - 2*sin(16*pi*x)^2)\"";
+    let case = square(body, 16, "right");
+    let r = estimated(&case);
+    let e = r.estimate.as_ref().unwrap();
+    let (g, [x, y]) = e
+        .g_below_zero
+        .expect("g = -0.01 at x = 1/32, 3/32, … on y = 0 and 1");
+    assert!(g < -0.0099 && (y == 0.0 || y == 1.0), "{g} at ({x}, {y})");
+    assert!(((16.0 * x) - (16.0 * x).floor() - 0.5).abs() < 0.1, "{x}");
+    assert!(e.summary(None).contains("η is NOT a bound"));
+    for body in [
+        body.replace("1 - 2*", "1 - "),
+        format!("{}\n", shipped_text("default")),
+    ] {
+        let case = Case::parse(
+            &format!("{body}\n[mesh]\nkind = \"rectangle\"\nn = [16, 16]\n"),
+            "g",
+            PathBuf::new(),
+        );
+        let r = estimated(case.as_ref().unwrap());
+        let e = r.estimate.as_ref().unwrap();
+        assert_eq!(e.g_below_zero, None, "{}", e.summary(None));
+    }
+}
+
+/// The text of the shipped case data/cases/`name`.toml without its `[mesh]` table and what follows.
+fn shipped_text(name: &str) -> String {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("data/cases/{name}.toml"));
+    let text = std::fs::read_to_string(path).unwrap();
+    text[..text.find("[mesh]").unwrap()].to_string()
 }
 
 /// An `[exact]` that misses its equation, or whose ∇u is not u's gradient, is named as such (its

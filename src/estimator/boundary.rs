@@ -38,6 +38,21 @@ pub struct OnTriangle {
     pub with_lambda: f64,
     /// Bounds of ψ on K: min(0, min δ) and max(0, max δ), summed over K's boundary edges.
     pub range: [f64; 2],
+    /// The least g at the rule's points on K's boundary edges, and where.
+    pub lowest: Option<(f64, [f64; 2])>,
+}
+
+/// The lower of two least values (a NaN one loses).
+fn lower(a: Option<(f64, [f64; 2])>, b: Option<(f64, [f64; 2])>) -> Option<(f64, [f64; 2])> {
+    match (a, b) {
+        (Some(x), Some(y)) => Some(if y.0 < x.0 { y } else { x }),
+        (x, None) | (None, x) => x,
+    }
+}
+
+/// The least g over the boundary edges of every triangle of `on`, and where.
+pub fn lowest(on: &[OnTriangle]) -> Option<(f64, [f64; 2])> {
+    on.iter().fold(None, |m, t| lower(m, t.lowest))
 }
 
 /// ψ on every triangle of `mesh` (zero on those without a boundary edge). `neighbour[t][j]` is
@@ -148,10 +163,13 @@ fn on_edge<'a>(
     let dot = |a: [f64; 2], b: [f64; 2]| a[0] * b[0] + a[1] * b[1];
     let grad_s = edge.grad_s;
     let (mut a, mut b, mut c, mut range) = (0.0, 0.0, 0.0, [0.0_f64; 2]);
+    let mut lowest = None;
     let deltas: Vec<f64> = (rule.iter())
         .map(|&(tau, w)| {
             let (delta, d1) = edge.delta(tau);
             let v = edge.v(tau);
+            let g = delta + (1.0 - tau) * edge.ends[0] + tau * edge.ends[1];
+            lowest = lower(lowest, Some((g, [0, 1].map(|k| p[k] + tau * (q[k] - p[k])))));
             a += w * delta * delta * dot(grad_s, grad_s);
             b += w * d1 * d1 * dot(v, v);
             c += w * delta * d1 * dot(grad_s, v);
@@ -171,6 +189,7 @@ fn on_edge<'a>(
         grad_norm: super::root(area * (k * a + 2.0 * c + b / k)),
         with_lambda: lambda_c * 2.0 * area * with_lambda,
         range,
+        lowest,
     };
     (on, edge)
 }
@@ -198,6 +217,7 @@ fn corner(mesh: &Mesh, t: usize, edges: [(OnTriangle, EdgeLifting); 2], gap: Opt
         grad_norm,
         with_lambda: 0.0,
         range,
+        lowest: lower(e1.lowest, e2.lowest),
     }
 }
 

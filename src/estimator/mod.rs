@@ -72,6 +72,11 @@ pub struct Estimate {
     pub lambda: f64,
     /// What the case's rule misses of the loads: whether η is a bound for the loads as given.
     pub resolution: Resolution,
+    /// Between two membranes, g < 0 found on ∂ω between the boundary vertices (the least value
+    /// at the points of the boundary lifting's rule, and where): no u1 ≥ u2 takes these boundary
+    /// values, so the continuous problem has no solution and η bounds nothing. (The discrete
+    /// problem takes g_h, ≥ 0 at the boundary vertices.)
+    pub g_below_zero: Option<(f64, [f64; 2])>,
     /// Which membrane each of the per-membrane terms is of.
     which: Vec<Which>,
 }
@@ -291,6 +296,7 @@ impl Estimate {
             contact_total: 0.0,
             lambda: 0.0,
             resolution: loads.resolution,
+            g_below_zero: lifting.below,
             which: membranes.iter().map(|m| m.which).collect(),
         };
         e.indicator = indicators(terms, &e.boundary, &e.contact, m);
@@ -378,13 +384,27 @@ impl Estimate {
             self.contact_total,
             effectivity.map_or(String::new(), |x| format!(", effectivity η/error {x:.3}")),
             self.lambda
-        ) + &self.loads_summary()
+        ) + &self.boundary_summary()
+            + &self.loads_summary()
     }
 
     /// Whether the loads count as resolved by the case's rule (η_data ≤ [`resolution::RESOLVED`] η),
     /// and η therefore as a bound of the error for the loads as given.
     pub fn loads_resolved(&self) -> bool {
         self.resolution.total <= resolution::RESOLVED * self.total
+    }
+
+    /// The summary's line on boundary values below 0 between the boundary vertices, if any.
+    fn boundary_summary(&self) -> String {
+        self.g_below_zero.map_or(String::new(), |(g, at)| {
+            format!(
+                "boundary    g < 0 on ∂ω between boundary vertices (g = {g:.3e} at {}): no u1 ≥ u2 \
+                 takes these boundary values, so the problem has no solution and η is NOT a bound; \
+                 the discrete problem takes g_h (≥ 0 at the vertices): correct g, or refine along \
+                 ∂ω\n",
+                crate::mesh::Point(at)
+            )
+        })
     }
 
     /// The summary's line on the loads' quadrature.
@@ -426,7 +446,13 @@ struct Lifting {
     /// Whether ℓ vanishes on every triangle where the obstacle is above u_h: the bound through
     /// ũ = u_h + z of §14 (Theorem (O')) holds.
     apart: bool,
+    /// Between two membranes, the least g found on ∂ω and where, if it is below 0 beyond
+    /// round-off (see [`Estimate::g_below_zero`]).
+    below: Option<(f64, [f64; 2])>,
 }
+
+/// The relative round-off (of max |g| at the boundary vertices) below which g < 0 counts as 0.
+const G_ROUND_OFF: f64 = 1e-12;
 
 impl Lifting {
     /// z = ℓ between two membranes (§5); z = max(ℓ, ψ − u_h) above a rigid obstacle (§14).
@@ -443,12 +469,14 @@ impl Lifting {
         let Lower::Rigid { psi } = &data.lower else {
             let gap = Some(&solution.obstacle.gap[..]);
             let l = boundary::lifting(mesh, &patches.neighbour, &g, &action.lambda, gap);
+            let size = problem.g_h.iter().fold(0.0_f64, |m, g| m.max(g.abs()));
             return Lifting {
                 grad2: l.iter().map(|l| l.grad_norm.powi(2)).collect(),
                 with_lambda: l.iter().map(|l| l.with_lambda).collect(),
                 contact: None,
                 above: None,
                 apart: false,
+                below: boundary::lowest(&l).filter(|(g, _)| *g < -G_ROUND_OFF * size),
             };
         };
         let l = boundary::lifting(mesh, &patches.neighbour, &g, &action.lambda, None);
@@ -460,6 +488,7 @@ impl Lifting {
         Lifting {
             above: Some(o.iter().map(|o| o.above).collect()),
             apart,
+            below: None,
             grad2: l.iter().map(|l| l.grad_norm.powi(2)).collect(),
             with_lambda: l.iter().map(|l| l.with_lambda).collect(),
             contact: Some(o.iter().map(|o| o.contact).collect()),
@@ -784,6 +813,10 @@ impl Describe for Estimate {
         attrs.push((
             "estimator_loads_resolved",
             usize::from(self.loads_resolved()).into(),
+        ));
+        attrs.push((
+            "estimator_boundary_admissible",
+            usize::from(self.g_below_zero.is_none()).into(),
         ));
         attrs
     }
