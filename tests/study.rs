@@ -260,3 +260,39 @@ fn a_rectangle_with_unequal_sides_is_labelled_by_both() {
         "{table}"
     );
 }
+
+/// An `[exact]` that misses its equation is flagged per level in the CSV and JSON, and the note
+/// names the levels (it said "On a level", and the CSV's effectivities carried no mark).
+#[test]
+fn a_wrong_exact_solution_is_flagged_on_each_level() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string("data/cases/default.toml").unwrap();
+    let wrong = text.replacen("f2 = \"2*pi^2*", "f2 = \"3*pi^2*", 1);
+    assert_ne!(wrong, text);
+    std::fs::write(dir.path().join("wrong.toml"), wrong).unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .args(["-q", "study", "--levels", "8,16", "-o"])
+        .arg(dir.path().join("study"))
+        .arg(dir.path().join("wrong.toml"))
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let md = std::fs::read_to_string(dir.path().join("study/study.md")).unwrap();
+    assert!(
+        md.contains("On every level, [exact] does not solve −μ2Δu2 + λ = f2"),
+        "{md}"
+    );
+    let csv = std::fs::read_to_string(dir.path().join("study/study.csv")).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let column = header
+        .iter()
+        .position(|c| *c == "exact_equation_mismatch")
+        .unwrap();
+    for row in csv.lines().skip(1) {
+        let share: f64 = row.split(',').nth(column).unwrap().parse().unwrap();
+        assert!(share > 0.5, "{row}");
+    }
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("study/study.json")).unwrap()).unwrap();
+    assert!(json[1]["errors"]["exact_equation_mismatch"].as_f64().unwrap() > 0.5);
+}

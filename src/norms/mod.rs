@@ -112,6 +112,15 @@ impl serde::Serialize for Errors {
             ("l2_lambda", Some(self.l2_lambda)),
             ("hminus1_lambda", self.hminus1_lambda),
             ("quadrature", Some(self.quadrature)),
+            // 0 where the exact solution takes the boundary data and solves the equations.
+            (
+                "exact_boundary_mismatch",
+                Some(self.boundary.map_or(0.0, |m| m.relative)),
+            ),
+            (
+                "exact_equation_mismatch",
+                Some(self.unsolved.map_or(0.0, |u| u.share)),
+            ),
         ];
         let mut map = serializer.serialize_map(Some(u.len() + rest.len()))?;
         for (name, value) in u.iter().chain(&rest) {

@@ -389,9 +389,25 @@ pub fn markdown_table(title: &str, levels: &[Level]) -> String {
     if let Some(note) = crate::norms::Mismatch::note(mismatches) {
         s += &format!("\n{note}");
     }
-    let unsolved = levels.iter().filter_map(|l| l.errors.as_ref());
-    if let Some((u, rigid)) = unsolved.filter_map(|e| Some((e.unsolved?, e.rigid))).next() {
-        s += &format!("\nOn a level, [exact] {}.\n", u.describe(rigid));
+    let unsolved: Vec<(String, crate::norms::Unsolved, bool)> = (levels.iter())
+        .filter_map(|l| {
+            l.errors
+                .as_ref()
+                .and_then(|e| Some((l.label(), e.unsolved?, e.rigid)))
+        })
+        .collect();
+    if let Some((_, u, rigid)) = unsolved.first() {
+        let named: Vec<&str> = unsolved.iter().map(|(label, _, _)| label.as_str()).collect();
+        let on = match named.len() {
+            n if n == levels.len() => "On every level".to_string(),
+            1 => format!("On the level {}", named[0]),
+            _ => format!("On the levels {}", named.join(", ")),
+        };
+        s += &format!(
+            "\n{on}, [exact] {} (figures of {}).\n",
+            u.describe(*rigid),
+            named[0]
+        );
     }
     s
 }
@@ -404,7 +420,7 @@ pub fn csv(levels: &[Level]) -> String {
             let _ = write!(s, ",{name},eoc_{name}");
         }
     }
-    s += ",effectivity,iterations,cold_iterations,seconds\n";
+    s += ",effectivity,exact_equation_mismatch,iterations,cold_iterations,seconds\n";
     for (i, l) in levels.iter().enumerate() {
         let size = l.refine.or(l.cells).map_or(String::new(), |k| k.to_string());
         let _ = write!(s, "{size},{:e},{}", l.h, l.vertices);
@@ -421,7 +437,15 @@ pub fn csv(levels: &[Level]) -> String {
         }
         let cold = l.cold_iterations.map_or(String::new(), |c| c.to_string());
         let effectivity = l.effectivity().map_or(String::new(), |x| format!("{x:.4}"));
-        let _ = writeln!(s, ",{effectivity},{},{cold},{:.4}", l.iterations, l.seconds);
+        // The share of the sample points where [exact] misses its equations (0: it solves them).
+        let mismatch = (l.errors.as_ref()).map_or(String::new(), |e| {
+            format!("{}", e.unsolved.map_or(0.0, |u| u.share))
+        });
+        let _ = writeln!(
+            s,
+            ",{effectivity},{mismatch},{},{cold},{:.4}",
+            l.iterations, l.seconds
+        );
     }
     s
 }
