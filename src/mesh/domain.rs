@@ -115,7 +115,7 @@ impl Domain {
     /// Whether coordinates of this domain resolve the mesh size h: h must span at least
     /// 65 536 units in the last place of the largest coordinate, or the mesh's vertices
     /// (rounded to what f64 can hold there) would be too coarse a lattice for its triangles, or
-    /// triangles of size h would have areas outside [`AREAS`].
+    /// triangles of size h would have areas outside 1e-306 … 1e306 (`AREAS`).
     pub fn check_size(&self, h: f64) -> Result<(), String> {
         let largest = match self {
             Domain::Polygon { boundary, .. } => {
