@@ -579,8 +579,9 @@ fn a_load_the_rule_does_not_resolve_is_named() {
 }
 
 /// Boundary values ≥ 0 at the boundary vertices but below 0 between them (so that no u1 ≥ u2
-/// takes them: the problem has no solution) are found on the edges and said: η is not a bound. The
-/// discrete problem, which takes g_h, solves; g ≥ 0 everywhere is not flagged.
+/// takes them: the problem has no solution), or below the obstacle there, are found on the edges
+/// and said: η is not a bound. The discrete problem, which takes g_h, solves; g ≥ 0 everywhere
+/// (g ≥ ψ) is not flagged.
 #[test]
 fn boundary_values_below_zero_between_the_vertices_are_named() {
     let body = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"-5\"\nf2 = \"5\"\ng = \"0.01*(1 - 2*sin(16*pi*x)^2)\"";
@@ -588,11 +589,23 @@ fn boundary_values_below_zero_between_the_vertices_are_named() {
     let r = estimated(&case);
     let e = r.estimate.as_ref().unwrap();
     let (g, [x, y]) = e
-        .g_below_zero
+        .boundary_below
         .expect("g = -0.01 at x = 1/32, 3/32, … on y = 0 and 1");
     assert!(g < -0.0099 && (y == 0.0 || y == 1.0), "{g} at ({x}, {y})");
     assert!(((16.0 * x) - (16.0 * x).floor() - 0.5).abs() < 0.1, "{x}");
     assert!(e.summary(None).contains("η is NOT a bound"));
+    // Above an obstacle: g = 0 ≥ ψ = −0.001 at the vertices, ψ up to 0.009 between them.
+    let obstacle =
+        "problem = \"obstacle\"\nmu = 1.0\nf = \"-1\"\ng = 0\npsi = \"0.01*sin(16*pi*x)^2 - 0.001\"";
+    let case = square(obstacle, 16, "right");
+    let r = estimated(&case);
+    let e = r.estimate.as_ref().unwrap();
+    let (d, _) = e.boundary_below.expect("g < ψ between the boundary vertices");
+    assert!(d < -0.0089, "{d}");
+    assert!(e.summary(None).contains("g < ψ on ∂ω"), "{}", e.summary(None));
+    let case = shipped("ball", 16);
+    let ball = estimated(&case);
+    assert_eq!(ball.estimate.as_ref().unwrap().boundary_below, None);
     for body in [
         body.replace("1 - 2*", "1 - "),
         format!("{}\n", shipped_text("default")),
@@ -604,7 +617,7 @@ fn boundary_values_below_zero_between_the_vertices_are_named() {
         );
         let r = estimated(case.as_ref().unwrap());
         let e = r.estimate.as_ref().unwrap();
-        assert_eq!(e.g_below_zero, None, "{}", e.summary(None));
+        assert_eq!(e.boundary_below, None, "{}", e.summary(None));
     }
 }
 

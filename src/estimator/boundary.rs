@@ -38,7 +38,8 @@ pub struct OnTriangle {
     pub with_lambda: f64,
     /// Bounds of ψ on K: min(0, min δ) and max(0, max δ), summed over K's boundary edges.
     pub range: [f64; 2],
-    /// The least g at the rule's points on K's boundary edges, and where.
+    /// The least g − ψ (g between two membranes) at the rule's points on K's boundary edges, and
+    /// where.
     pub lowest: Option<(f64, [f64; 2])>,
 }
 
@@ -50,7 +51,7 @@ fn lower(a: Option<(f64, [f64; 2])>, b: Option<(f64, [f64; 2])>) -> Option<(f64,
     }
 }
 
-/// The least g over the boundary edges of every triangle of `on`, and where.
+/// The least g − ψ (g) over the boundary edges of every triangle of `on`, and where.
 pub fn lowest(on: &[OnTriangle]) -> Option<(f64, [f64; 2])> {
     on.iter().fold(None, |m, t| lower(m, t.lowest))
 }
@@ -58,11 +59,12 @@ pub fn lowest(on: &[OnTriangle]) -> Option<(f64, [f64; 2])> {
 /// ψ on every triangle of `mesh` (zero on those without a boundary edge). `neighbour[t][j]` is
 /// [`ON_BOUNDARY`] when the edge `(t[j], t[j + 1])` lies on ∂ω; `lambda` is λ_a; `gap` is w_h when
 /// ψ is to keep w_h + ψ ≥ 0 at the corners of ω (between two membranes; `None` above an
-/// obstacle, whose lifting takes care of the constraint itself, §14).
+/// obstacle, whose lifting takes care of the constraint itself, §14); `obstacle` is the obstacle
+/// (whose value g must not fall below on ∂ω; 0 between two membranes).
 pub fn lifting(
     mesh: &Mesh,
     neighbour: &[[u32; 3]],
-    g: &Pieces,
+    (g, obstacle): (&Pieces, Option<&Pieces>),
     lambda: &[f64],
     gap: Option<&[f64]>,
 ) -> Vec<OnTriangle> {
@@ -74,7 +76,8 @@ pub fn lifting(
             let tri = mesh.triangle(t);
             // g of the edge's physical curve (one expression without groups).
             let g = |j: usize| &with_derivatives[g.edge_entry(tri[j], tri[(j + 1) % 3])];
-            let edge = |j: usize| on_edge(mesh, t, j, g(j), lambda, &rule);
+            let below = obstacle.map(|o| o.on_triangle(t));
+            let edge = |j: usize| on_edge(mesh, (t, j), (g(j), below), lambda, &rule);
             match on_boundary[..] {
                 [] => OnTriangle::default(),
                 [j] => edge(j).0,
@@ -135,12 +138,11 @@ fn value_and_gradient(g: &Program, x: [f64; 2]) -> (f64, [f64; 2]) {
     (at[0][0], [at[1][0], at[2][0]])
 }
 
-/// ψ_e on K for the boundary edge j of triangle t.
+/// ψ_e on K for the boundary edge j of triangle t, g on it and the obstacle below it, if any.
 fn on_edge<'a>(
     mesh: &Mesh,
-    t: usize,
-    j: usize,
-    g: &'a Program,
+    (t, j): (usize, usize),
+    (g, obstacle): (&'a Program, Option<&crate::expr::Expr>),
     lambda: &[f64],
     rule: &[(f64, f64)],
 ) -> (OnTriangle, EdgeLifting<'a>) {
@@ -168,8 +170,10 @@ fn on_edge<'a>(
         .map(|&(tau, w)| {
             let (delta, d1) = edge.delta(tau);
             let v = edge.v(tau);
+            let x = [0, 1].map(|k| p[k] + tau * (q[k] - p[k]));
+            let above = obstacle.map_or(0.0, |o| o.eval(x[0], x[1]));
             let g = delta + (1.0 - tau) * edge.ends[0] + tau * edge.ends[1];
-            lowest = lower(lowest, Some((g, [0, 1].map(|k| p[k] + tau * (q[k] - p[k])))));
+            lowest = lower(lowest, Some((g - above, x)));
             a += w * delta * delta * dot(grad_s, grad_s);
             b += w * d1 * d1 * dot(v, v);
             c += w * delta * d1 * dot(grad_s, v);
@@ -322,7 +326,7 @@ mod tests {
         let neighbour = [[ON_BOUNDARY, 0, ON_BOUNDARY]];
         let datum = crate::datum::Datum::from(Expr::parse("x^2 + y^2").unwrap());
         let pieces = datum.pieces("g", &mesh, crate::datum::On::Curves).unwrap();
-        let on = lifting(&mesh, &neighbour, &pieces, &[0.0; 3], None);
+        let on = lifting(&mesh, &neighbour, (&pieces, None), &[0.0; 3], None);
         let k = 14f64.sqrt();
         let leg = |s: f64, tau: f64| {
             if s > 0.0 {
@@ -367,7 +371,7 @@ mod tests {
         let g = Expr::parse("x^2").unwrap();
         let datum = crate::datum::Datum::from(g.clone());
         let pieces = datum.pieces("g", &mesh, crate::datum::On::Curves).unwrap();
-        let on = lifting(&mesh, &neighbour, &pieces, &[0.0, 0.0, 2.0], Some(&[0.0; 3]));
+        let on = lifting(&mesh, &neighbour, (&pieces, None), &[0.0, 0.0, 2.0], Some(&[0.0; 3]));
         assert!(
             (on[0].grad_norm.powi(2) - (2.0 * 14f64.sqrt() + 1.0) / 60.0).abs() < 1e-12,
             "{}",

@@ -72,11 +72,11 @@ pub struct Estimate {
     pub lambda: f64,
     /// What the case's rule misses of the loads: whether η is a bound for the loads as given.
     pub resolution: Resolution,
-    /// Between two membranes, g < 0 found on ∂ω between the boundary vertices (the least value
-    /// at the points of the boundary lifting's rule, and where): no u1 ≥ u2 takes these boundary
-    /// values, so the continuous problem has no solution and η bounds nothing. (The discrete
-    /// problem takes g_h, ≥ 0 at the boundary vertices.)
-    pub g_below_zero: Option<(f64, [f64; 2])>,
+    /// g < 0 found on ∂ω between the boundary vertices (above an obstacle g < ψ; the least g (g −
+    /// ψ) at the points of the boundary lifting's rule, and where): no u1 ≥ u2 (u ≥ ψ) takes these
+    /// boundary values, so the continuous problem has no solution and η bounds nothing. (The
+    /// discrete problem takes g_h, ≥ 0 (≥ ψ_h) at the boundary vertices.)
+    pub boundary_below: Option<(f64, [f64; 2])>,
     /// Which membrane each of the per-membrane terms is of.
     which: Vec<Which>,
 }
@@ -296,7 +296,7 @@ impl Estimate {
             contact_total: 0.0,
             lambda: 0.0,
             resolution: loads.resolution,
-            g_below_zero: lifting.below,
+            boundary_below: lifting.below,
             which: membranes.iter().map(|m| m.which).collect(),
         };
         e.indicator = indicators(terms, &e.boundary, &e.contact, m);
@@ -394,14 +394,20 @@ impl Estimate {
         self.resolution.total <= resolution::RESOLVED * self.total
     }
 
-    /// The summary's line on boundary values below 0 between the boundary vertices, if any.
+    /// The summary's line on boundary values below 0 (below ψ) between the boundary vertices, if
+    /// any.
     fn boundary_summary(&self) -> String {
-        self.g_below_zero.map_or(String::new(), |(g, at)| {
+        let obstacle = self.membranes.len() == 1;
+        let (below, admissible, h) = match obstacle {
+            true => ("g < ψ", "u ≥ ψ", "g − ψ"),
+            false => ("g < 0", "u1 ≥ u2", "g"),
+        };
+        self.boundary_below.map_or(String::new(), |(d, at)| {
             format!(
-                "boundary    g < 0 on ∂ω between boundary vertices (g = {g:.3e} at {}): no u1 ≥ u2 \
-                 takes these boundary values, so the problem has no solution and η is NOT a bound; \
-                 the discrete problem takes g_h (≥ 0 at the vertices): correct g, or refine along \
-                 ∂ω\n",
+                "boundary    {below} on ∂ω between boundary vertices ({h} = {d:.3e} at {}): no \
+                 {admissible} takes these boundary values, so the problem has no solution and η is \
+                 NOT a bound; the discrete problem takes their values at the vertices: correct g, or \
+                 refine along ∂ω\n",
                 crate::mesh::Point(at)
             )
         })
@@ -446,13 +452,29 @@ struct Lifting {
     /// Whether ℓ vanishes on every triangle where the obstacle is above u_h: the bound through
     /// ũ = u_h + z of §14 (Theorem (O')) holds.
     apart: bool,
-    /// Between two membranes, the least g found on ∂ω and where, if it is below 0 beyond
-    /// round-off (see [`Estimate::g_below_zero`]).
+    /// The least g − ψ (g between two membranes) found on ∂ω and where, if it is below 0 beyond
+    /// round-off (see [`Estimate::boundary_below`]).
     below: Option<(f64, [f64; 2])>,
 }
 
-/// The relative round-off (of max |g| at the boundary vertices) below which g < 0 counts as 0.
+/// The relative round-off (of max |g| and |ψ| at the boundary vertices) below which g < 0
+/// (g < ψ) counts as 0.
 const G_ROUND_OFF: f64 = 1e-12;
+
+/// The least g − ψ (g between two membranes) the boundary lifting `l` found on ∂ω and where, if
+/// it is below 0 beyond round-off.
+fn below(problem: &DiscreteProblem, l: &[boundary::OnTriangle]) -> Option<(f64, [f64; 2])> {
+    let mesh = &problem.mesh;
+    let size = (0..mesh.n_vertices())
+        .filter(|&a| mesh.on_boundary[a])
+        .map(|a| {
+            problem.g_h[a]
+                .abs()
+                .max(problem.psi_h.get(a).map_or(0.0, |p| p.abs()))
+        })
+        .fold(0.0_f64, f64::max);
+    boundary::lowest(l).filter(|(d, _)| *d < -G_ROUND_OFF * size)
+}
 
 impl Lifting {
     /// z = ℓ between two membranes (§5); z = max(ℓ, ψ − u_h) above a rigid obstacle (§14).
@@ -468,27 +490,26 @@ impl Lifting {
             .expect("the data fit the mesh's groups (checked by DiscreteProblem::new)");
         let Lower::Rigid { psi } = &data.lower else {
             let gap = Some(&solution.obstacle.gap[..]);
-            let l = boundary::lifting(mesh, &patches.neighbour, &g, &action.lambda, gap);
-            let size = problem.g_h.iter().fold(0.0_f64, |m, g| m.max(g.abs()));
+            let l = boundary::lifting(mesh, &patches.neighbour, (&g, None), &action.lambda, gap);
             return Lifting {
                 grad2: l.iter().map(|l| l.grad_norm.powi(2)).collect(),
                 with_lambda: l.iter().map(|l| l.with_lambda).collect(),
                 contact: None,
                 above: None,
                 apart: false,
-                below: boundary::lowest(&l).filter(|(g, _)| *g < -G_ROUND_OFF * size),
+                below: below(problem, &l),
             };
         };
-        let l = boundary::lifting(mesh, &patches.neighbour, &g, &action.lambda, None);
         let psi = (psi.pieces("psi", mesh, On::Surfaces))
             .expect("the data fit the mesh's groups (checked by DiscreteProblem::new)");
+        let l = boundary::lifting(mesh, &patches.neighbour, (&g, Some(&psi)), &action.lambda, None);
         let o = obstacle::terms(problem, dual, &psi, &solution.u1, &action.lambda, &l);
         let apart =
             (l.iter().zip(&o)).all(|(l, o)| o.above == 0 || (l.grad_norm == 0.0 && l.range == [0.0; 2]));
         Lifting {
             above: Some(o.iter().map(|o| o.above).collect()),
             apart,
-            below: None,
+            below: below(problem, &l),
             grad2: l.iter().map(|l| l.grad_norm.powi(2)).collect(),
             with_lambda: l.iter().map(|l| l.with_lambda).collect(),
             contact: Some(o.iter().map(|o| o.contact).collect()),
@@ -816,7 +837,7 @@ impl Describe for Estimate {
         ));
         attrs.push((
             "estimator_boundary_admissible",
-            usize::from(self.g_below_zero.is_none()).into(),
+            usize::from(self.boundary_below.is_none()).into(),
         ));
         attrs
     }
