@@ -371,7 +371,13 @@ mod tests {
         let g = Expr::parse("x^2").unwrap();
         let datum = crate::datum::Datum::from(g.clone());
         let pieces = datum.pieces("g", &mesh, crate::datum::On::Curves).unwrap();
-        let on = lifting(&mesh, &neighbour, (&pieces, None), &[0.0, 0.0, 2.0], Some(&[0.0; 3]));
+        let on = lifting(
+            &mesh,
+            &neighbour,
+            (&pieces, None),
+            &[0.0, 0.0, 2.0],
+            Some(&[0.0; 3]),
+        );
         assert!(
             (on[0].grad_norm.powi(2) - (2.0 * 14f64.sqrt() + 1.0) / 60.0).abs() < 1e-12,
             "{}",

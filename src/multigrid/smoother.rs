@@ -67,7 +67,12 @@ impl Blocks {
         }
     }
 
-    /// The n / `block_rows` blocks (at least one) of the rows of `a`, of equal sizes.
+    /// The n / `block_rows` blocks (at least one) of the rows of `a`, of equal sizes. A row is
+    /// coupled across if it has an entry in another block's columns or another block's row has
+    /// one in its column: `a` is symmetric in its values but not always in its entries (an entry
+    /// next to [`crate::sparse::NEGLIGIBLE`] times its row's diagonal may be kept in one row and
+    /// left out of the other), and a sweep reads the values before the sweep of every column
+    /// across.
     fn of_size(a: &Csr, block_rows: usize) -> Self {
         let n = a.rows();
         let count = (n / block_rows.max(1)).max(1);
@@ -76,17 +81,23 @@ impl Blocks {
             starts,
             interface: Vec::new(),
         };
-        let interface = parallel::map(n, parallel::PIECE, |rows| {
-            rows.filter(|&i| {
+        let mut interface = parallel::map(n, parallel::PIECE, |rows| {
+            let mut coupled = Vec::new();
+            for i in rows {
                 let own = blocks.of(i, n);
                 let (cols, _) = a.row(i);
-                cols.first().is_some_and(|&j| (j as usize) < own.start)
-                    || cols.last().is_some_and(|&j| j as usize >= own.end)
-            })
-            .map(|i| i as u32)
-            .collect::<Vec<u32>>()
+                let across = cols.iter().filter(|&&j| !own.contains(&(j as usize)));
+                let before = coupled.len();
+                coupled.extend(across);
+                if coupled.len() > before {
+                    coupled.push(i as u32);
+                }
+            }
+            coupled
         })
         .concat();
+        interface.sort_unstable();
+        interface.dedup();
         Blocks { interface, ..blocks }
     }
 
@@ -298,4 +309,48 @@ fn backward<const AX: bool>(
         }
     }
     bx
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The 1D Laplacian on 8 rows in two blocks of 4, with the coupling a_43 left out of row 4
+    /// but a_34 kept in row 3 (as a value next to the threshold of negligible entries may be):
+    /// row 4 is coupled across too, so the sweep of block 0 finds its value (a polygon meshed at
+    /// h = 0.001 panicked with "a row coupled across").
+    #[test]
+    fn a_coupling_kept_in_one_row_only_couples_both_rows_across() {
+        let n: usize = 8;
+        let (mut row_ptr, mut col, mut val) = (vec![0u32], Vec::new(), Vec::new());
+        for i in 0..n {
+            for j in i.saturating_sub(1)..(i + 2).min(n) {
+                if (i, j) != (4, 3) {
+                    col.push(j as u32);
+                    val.push(if i == j { 2.0 } else { -1.0 });
+                }
+            }
+            row_ptr.push(col.len() as u32);
+        }
+        let a = Csr {
+            row_ptr,
+            col,
+            val,
+            cols: n,
+            ..Default::default()
+        }
+        .with_diagonal();
+        let blocks = Blocks::of_size(&a, 4);
+        assert_eq!(blocks.starts, [0, 4]);
+        assert_eq!(blocks.interface, [3, 4]);
+        let level = Level {
+            a: Cow::Owned(a),
+            skip: vec![false; n],
+            blocks,
+        };
+        let (b, mut x, mut ax, mut r) = (vec![1.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+        presmooth(&level, &b, &mut x, &mut r, 1);
+        postsmooth::<true>(&level, &b, &mut x, &mut ax, &mut Vec::new(), 1);
+        assert!(x.iter().all(|v| v.is_finite() && *v > 0.0), "{x:?}");
+    }
 }

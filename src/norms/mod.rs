@@ -697,7 +697,14 @@ mod tests {
             (Some(0.25), Some(0.5))
         );
         assert_eq!(json(false)["h1_u2"], serde_json::Value::Null);
-        let rest = ["energy", "hminus1_lambda", "l2_lambda", "quadrature"];
+        let rest = [
+            "energy",
+            "exact_boundary_mismatch",
+            "exact_equation_mismatch",
+            "hminus1_lambda",
+            "l2_lambda",
+            "quadrature",
+        ];
         fn sorted(mut v: Vec<&'static str>) -> Vec<&'static str> {
             v.sort_unstable();
             v
