@@ -424,13 +424,13 @@ impl Case {
         })
     }
 
-    /// Sets the cells per side of a built-in mesh (of a rectangle, along its longer side, the other
-    /// side's in the case's proportion); an error for the other kinds.
+    /// Sets the cells per side of a built-in mesh (of a rectangle, along the side with more cells in
+    /// the case's n, the other side's in the case's proportion); an error for the other kinds.
     pub fn set_cells(&mut self, cells: usize) -> Result<(), CaseError> {
         match &mut self.mesh {
             _ if cells == 0 => Err(CaseError("the cells per side must be at least 1".into())),
             MeshSpec::Rectangle { n, .. } => {
-                // The longer side gets `cells`, the other as many as keep the case's proportion.
+                // The side with more cells gets `cells`, the other as many as keep the proportion.
                 let long = n[0].max(n[1]) as f64;
                 *n = n.map(|m| ((m as f64 * cells as f64 / long).round() as usize).max(1));
                 Ok(())

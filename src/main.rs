@@ -47,8 +47,9 @@ enum Command {
         /// complete new result, and only if it is a result of this program holding nothing else.
         #[arg(short, long)]
         output: Option<PathBuf>,
-        /// Cells per side of a built-in mesh (of a rectangle, along its longer side, the other in the
-        /// case's proportion; overrides the case; an error for other kinds).
+        /// Cells per side of a built-in mesh (of a rectangle, along the side with more cells in the
+        /// case's n, the other in the case's proportion; overrides the case; an error for other
+        /// kinds).
         #[arg(long)]
         n: Option<usize>,
         /// Uniform refinements of the case's mesh, any kind (overrides `[mesh] refine`).
@@ -116,8 +117,9 @@ enum Command {
     Adapt {
         /// Case file (TOML); the built-in default case when omitted.
         case: Option<PathBuf>,
-        /// Cells per side of a built-in initial mesh (of a rectangle, along its longer side, the other
-        /// in the case's proportion; overrides the case; an error for other kinds).
+        /// Cells per side of a built-in initial mesh (of a rectangle, along the side with more cells
+        /// in the case's n, the other in the case's proportion; overrides the case; an error for
+        /// other kinds).
         #[arg(long)]
         n: Option<usize>,
         /// Uniform refinements of the case's initial mesh, any kind (overrides `[mesh] refine`).

@@ -385,30 +385,31 @@ impl Run<'_> {
         let contact = s.active_sizes.last().copied().unwrap_or(0);
         let failed = (s.multigrid_failed.as_ref())
             .map(|cg| format!("multigrid CG did not converge in {} iterations", cg.iterations));
+        // Why Cholesky ran where multigrid was asked for.
+        let why = match (failed, s.linear, self.case.linear_solver()) {
+            (Some(f), ..) => Some(f),
+            (None, LinearSolver::Direct, LinearSolver::Multigrid) => {
+                Some("not multigrid: this mesh has no coarser levels".into())
+            }
+            (None, LinearSolver::Direct, _) if self.case.solver.linear == LinearSolver::Multigrid => Some(
+                "not multigrid: the coarser levels of a file mesh, meshed from its boundary, give the \
+                 guess only"
+                    .into(),
+            ),
+            _ => None,
+        };
         if !verbose {
             let solver = match s.linear {
                 LinearSolver::Direct => "Cholesky",
                 LinearSolver::Multigrid => "multigrid",
             };
-            let failed = failed.map_or(String::new(), |f| format!("; {f}"));
+            let why = why.map_or(String::new(), |w| format!("; {w}"));
             return format!(
-                "solver      {} active-set iterations ({solver}{failed}); contact at {contact} vertices\n",
+                "solver      {} active-set iterations ({solver}{why}); contact at {contact} vertices\n",
                 s.iterations
             );
         }
-        // Why Cholesky ran where multigrid was asked for.
-        let fallback = match (failed, s.linear, self.case.linear_solver()) {
-            (Some(f), ..) => format!(" ({f})"),
-            (None, LinearSolver::Direct, LinearSolver::Multigrid) => {
-                " (not multigrid: this mesh has no coarser levels)".into()
-            }
-            (None, LinearSolver::Direct, _) if self.case.solver.linear == LinearSolver::Multigrid => {
-                " (not multigrid: the coarser levels of a file mesh, meshed from its boundary, give the \
-                 guess only)"
-                    .into()
-            }
-            _ => String::new(),
-        };
+        let fallback = why.map_or(String::new(), |w| format!(" ({w})"));
         let per = match self.case.data.is_obstacle() {
             true => "",
             false => " per membrane",

@@ -589,3 +589,17 @@ fn nested_iteration_on_stretched_cells_ends_in_a_few_steps() {
         "{stats:?}"
     );
 }
+
+/// Where multigrid was asked for but Cholesky ran (a file mesh without refinement), the short
+/// summary says why, not only "(Cholesky)".
+#[test]
+fn the_short_summary_says_why_cholesky_ran() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases/two_regions.toml");
+    let mut case = Case::read(&path).unwrap();
+    case.refine = 0;
+    let summary = solve(&case, Start::Nested).summary(false);
+    assert!(
+        summary.contains("(Cholesky; not multigrid: the coarser levels of a file mesh"),
+        "{summary}"
+    );
+}
