@@ -86,6 +86,11 @@ impl Blocks {
             for i in rows {
                 let own = blocks.of(i, n);
                 let (cols, _) = a.row(i);
+                // Sorted: all in the own block unless the first or the last is not.
+                let inside = |j: Option<&u32>| j.is_none_or(|&j| own.contains(&(j as usize)));
+                if inside(cols.first()) && inside(cols.last()) {
+                    continue;
+                }
                 let across = cols.iter().filter(|&&j| !own.contains(&(j as usize)));
                 let before = coupled.len();
                 coupled.extend(across);
