@@ -677,8 +677,26 @@ impl Case {
                 return Ok(Mesh::clone(mesh));
             }
         };
-        if let MeshSpec::Domain { domain, h } = &self.mesh {
-            domain.check_size(*h).map_err(|e| err(format!("[mesh] h: {e}")))?;
+        match &self.mesh {
+            MeshSpec::Domain { domain, h } => {
+                domain.check_size(*h).map_err(|e| err(format!("[mesh] h: {e}")))?;
+            }
+            MeshSpec::Rectangle {
+                corners: [c0, c1], n, ..
+            } => {
+                // Each cell is two triangles; each refinement quarters them.
+                let sides = [0, 1].map(|k| (c1[k] - c0[k]) / n[k] as f64);
+                let log10 = sides.map(f64::log10).iter().sum::<f64>()
+                    - 2f64.log10()
+                    - self.refine as f64 * 4f64.log10();
+                mesh::domain::check_area(10f64.powf(log10)).map_err(|e| {
+                    err(format!(
+                        "{keys}: the triangles' areas (about 1e{:.0}) {e}",
+                        log10.floor()
+                    ))
+                })?;
+            }
+            _ => {}
         }
         mesh::check_memory(self.estimated_vertices(), self.bytes_per_vertex(after))
             .map_err(|e| err(format!("{keys}: {e}")))?;

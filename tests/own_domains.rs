@@ -470,6 +470,39 @@ fn disks_far_below_the_unit_mesh_or_say_why_not() {
     }
 }
 
+/// A rectangle (and its refinements) whose triangles' areas leave the range of double precision
+/// is refused for that reason before it is built (it was "triangle 0 has zero area to round-off"
+/// at a side of 1e-170), and one just inside it solves.
+#[test]
+fn rectangles_far_from_the_unit_say_why_not() {
+    let rectangle = |side: &str, refine: usize| {
+        let text = format!(
+            "mu1 = 1.0\nmu2 = 1.0\nf1 = -1\nf2 = 0\ng = 0\n[mesh]\nkind = \"rectangle\"\n\
+             corners = [[0.0, 0.0], [{side}, {side}]]\nn = [8, 8]\nrefine = {refine}\n"
+        );
+        Case::parse(&text, "rectangle", PathBuf::new()).unwrap().mesh()
+    };
+    for (side, refine, area) in [
+        ("1e-170", 0, "1e-343"),
+        ("1e170", 0, "1e337"),
+        ("1e-150", 7, "1e-307"),
+    ] {
+        let Err(e) = rectangle(side, refine).map(|m| m.n_vertices()) else {
+            panic!("{side}, refine {refine}: meshed")
+        };
+        let e = e.to_string();
+        assert!(
+            e.contains(&format!(
+                "the triangles' areas (about {area}) lie outside the range"
+            )),
+            "{side}, refine {refine}: {e}"
+        );
+    }
+    for (side, refine) in [("1e-150", 3), ("1e150", 0)] {
+        assert!(rectangle(side, refine).is_ok(), "{side}, refine {refine}");
+    }
+}
+
 /// A polygon moved by any translation that keeps its coordinates exact (here, across the axes,
 /// where the first vertex's coordinates are not within a factor 2 of the others) gets the same
 /// mesh, moved: it was meshed as given near the origin, so that moving a square of side 2 by

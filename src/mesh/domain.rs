@@ -35,6 +35,20 @@ const RESOLUTION: f64 = 65536.0;
 /// are subnormal or 0: a disk of radius 1e-160 was refused as "overlapping itself").
 const AREAS: std::ops::RangeInclusive<f64> = 1e-306..=1e306;
 
+/// Whether triangles of area about `area` have areas double precision computes to full
+/// precision ([`AREAS`]); the error says why not, after the subject it is given.
+pub fn check_area(area: f64) -> Result<(), String> {
+    match AREAS.contains(&area) {
+        true => Ok(()),
+        false => Err(format!(
+            "lie outside the range double precision computes them in ({:e} to {:e}): state the \
+             case in other units of length",
+            AREAS.start(),
+            AREAS.end()
+        )),
+    }
+}
+
 /// The smallest angle spade's refinement keeps (above 30° it may not terminate).
 const ANGLE_LIMIT_DEG: f64 = 25.0;
 
@@ -124,15 +138,8 @@ impl Domain {
             Domain::Disk { centre, radius, .. } => centre[0].abs().max(centre[1].abs()) + radius,
         };
         let unit = largest * f64::EPSILON;
-        if !(AREAS.contains(&(h * h))) {
-            return Err(format!(
-                "h = {h:e}: the areas of triangles of this size (about h²) lie outside the range \
-                 double precision computes them in ({:e} to {:e}): state the case in other units \
-                 of length",
-                AREAS.start(),
-                AREAS.end()
-            ));
-        }
+        check_area(h * h)
+            .map_err(|e| format!("h = {h:e}: the areas of triangles of this size (about h²) {e}"))?;
         if h < RESOLUTION * unit {
             return Err(format!(
                 "h = {h:e} is too small for coordinates as large as {largest:e}: double precision \

@@ -86,7 +86,11 @@ pub fn read(path: &Path) -> Result<Mesh, FileError> {
     };
     match extension {
         "xdmf" => {
-            let mesh = checked(read_xdmf(path)?)?;
+            let (raw, tags) = read_xdmf(path)?;
+            let mesh = checked(raw)?;
+            if !tags.is_empty() {
+                return with_meshtags(mesh, &tags, path);
+            }
             // The XDMF of a result of this program: its groups are in the one HDF5 file it names.
             let mut heavy = inputs(path).split_off(1);
             heavy.sort();
@@ -193,7 +197,22 @@ struct Heavy {
     dimensions: Vec<usize>,
 }
 
-fn read_xdmf(path: &Path) -> Result<RawMesh, FileError> {
+/// dolfinx's meshtags in an XDMF file (`XDMFFile.write_meshtags`): a grid on the mesh's geometry
+/// whose cells are tagged entities, of the triangles (`nodes` 3) or of the edges (`nodes` 2).
+struct MeshTags {
+    /// The attribute's name (e.g. "cell_tags"), for messages.
+    name: String,
+    nodes: usize,
+    /// The entities' vertices (`nodes` per entity), numbered as the mesh's.
+    entities: Vec<usize>,
+    /// Each entity's tag.
+    values: Vec<i32>,
+}
+
+/// The mesh of an XDMF file (its one grid with a topology and a geometry of its own) and the
+/// meshtags of its triangles and edges (grids on that geometry, `xi:include`d, with a cell
+/// attribute), as dolfinx writes them; grids of other entities (vertex tags) are left aside.
+fn read_xdmf(path: &Path) -> Result<(RawMesh, Vec<MeshTags>), FileError> {
     let err = |m: String| FileError(format!("{}: {m}", path.display()));
     let text = read_xdmf_text(path).map_err(err)?;
     let options = roxmltree::ParsingOptions {
@@ -202,14 +221,28 @@ fn read_xdmf(path: &Path) -> Result<RawMesh, FileError> {
     };
     let doc = roxmltree::Document::parse_with_options(&text, options)
         .map_err(|e| err(format!("not valid XDMF (XML): {e}")))?;
-    let grids: Vec<roxmltree::Node> = (doc.descendants())
-        .filter(|n| n.has_tag_name("Grid") && n.children().any(|c| c.has_tag_name("Topology")))
-        .collect();
+    let has = |n: roxmltree::Node, tag: &str| n.children().any(|c| c.has_tag_name(tag));
+    let (grids, others): (Vec<roxmltree::Node>, Vec<roxmltree::Node>) = (doc.descendants())
+        .filter(|n| n.has_tag_name("Grid") && has(*n, "Topology"))
+        .partition(|n| has(*n, "Geometry"));
     let grid = match grids[..] {
-        [] => return Err(err("no <Grid> with a <Topology> in the XDMF file".into())),
+        [] => {
+            return Err(err(
+                "no <Grid> with a <Topology> and a <Geometry> in the XDMF file".into(),
+            ))
+        }
         [grid] => grid,
         [.., last] => return Err(err(several_meshes(path, grids.len(), last))),
     };
+    let tags = (others.into_iter())
+        .filter_map(|g| meshtags(path, g).transpose())
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok((xdmf_grid(path, grid)?, tags))
+}
+
+/// The points and triangles of the XDMF grid `grid`, checked against the sizes it declares.
+fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<RawMesh, FileError> {
+    let err = |m: String| FileError(format!("{}: {m}", path.display()));
     let child = |tag: &str| {
         grid.children()
             .find(|c| c.has_tag_name(tag))
@@ -240,6 +273,103 @@ fn read_xdmf(path: &Path) -> Result<RawMesh, FileError> {
         }
     }
     Ok((points, cells))
+}
+
+/// The meshtags of the XDMF grid `grid` (a topology on another grid's geometry), if it tags
+/// triangles or edges: its topology's entities and its cell attribute's values.
+fn meshtags(path: &Path, grid: roxmltree::Node) -> Result<Option<MeshTags>, FileError> {
+    let err = |m: String| FileError(format!("{}: {m}", path.display()));
+    let topology = (grid.children().find(|c| c.has_tag_name("Topology"))).expect("a grid with a topology");
+    let kind = (topology.attribute("TopologyType").or(topology.attribute("Type"))).unwrap_or("?");
+    let nodes = match kind.to_ascii_lowercase().as_str() {
+        "triangle" => 3,
+        "polyline" if topology.attribute("NodesPerElement") == Some("2") => 2,
+        _ => return Ok(None),
+    };
+    let Some(attribute) =
+        (grid.children()).find(|c| c.has_tag_name("Attribute") && c.attribute("Center") == Some("Cell"))
+    else {
+        return Ok(None);
+    };
+    let name = attribute.attribute("Name").unwrap_or("?").to_string();
+    let (topology, values) = (heavy(path, topology)?, heavy(path, attribute)?);
+    let entities = read_table::<f64>(&topology.file, &topology.dataset, "entities")?;
+    let values = read_table::<f64>(&values.file, &values.dataset, "tags")?;
+    let whole = |x: &f64, limit: f64| x.fract() == 0.0 && x.abs() <= limit;
+    if entities.ncols() != nodes || values.ncols() != 1 || values.nrows() != entities.nrows() {
+        return Err(err(format!(
+            "meshtags '{name}': {} entities of {} vertices and {} × {} tags, need {nodes} vertices \
+             and one tag per entity",
+            entities.nrows(),
+            entities.ncols(),
+            values.nrows(),
+            values.ncols()
+        )));
+    }
+    if let Some(x) = (entities.iter().find(|x| !(whole(x, 9.0e15) && **x >= 0.0)))
+        .or(values.iter().find(|x| !whole(x, i32::MAX as f64)))
+    {
+        return Err(err(format!(
+            "meshtags '{name}': the number {x} is not a vertex index or a tag (whole numbers)"
+        )));
+    }
+    Ok(Some(MeshTags {
+        name,
+        nodes,
+        entities: entities.iter().map(|&x| x as usize).collect(),
+        values: values.iter().map(|&x| x as i32).collect(),
+    }))
+}
+
+/// `mesh` with the groups of dolfinx's meshtags `tags` (of its triangles and of its edges, one of
+/// each at most), named by their tags as Gmsh's groups without a name are.
+fn with_meshtags(mesh: Mesh, tags: &[MeshTags], path: &Path) -> Result<Mesh, FileError> {
+    let err = |m: String| FileError(format!("{}: {m}", path.display()));
+    let of = |nodes: usize| match tags.iter().filter(|t| t.nodes == nodes).collect::<Vec<_>>()[..] {
+        [] => Ok(None),
+        [t] => Ok(Some(t)),
+        [a, b, ..] => Err(err(format!(
+            "meshtags '{}' and '{}' both tag the {}: data per group take one",
+            a.name,
+            b.name,
+            ["edges", "triangles"][nodes - 2]
+        ))),
+    };
+    let mut triangle = vec![None; mesh.n_triangles()];
+    if let Some(t) = of(3)? {
+        let sorted = |mut v: [usize; 3]| {
+            v.sort_unstable();
+            v
+        };
+        let mut index: Vec<([usize; 3], usize)> = mesh
+            .triangles()
+            .enumerate()
+            .map(|(k, v)| (sorted(v), k))
+            .collect();
+        index.sort_unstable();
+        for (e, (cell, &tag)) in t.entities.chunks(3).zip(&t.values).enumerate() {
+            let v = sorted([cell[0], cell[1], cell[2]]);
+            let k = (index.binary_search_by(|p| p.0.cmp(&v))).map_err(|_| {
+                err(format!(
+                    "meshtags '{}': entity {e} (vertices {cell:?}) is not a triangle of the mesh",
+                    t.name
+                ))
+            })?;
+            triangle[index[k].1] = Some(tag);
+        }
+    }
+    let lines: Vec<([usize; 2], i32)> = of(2)?.map_or(Vec::new(), |t| {
+        (t.entities.chunks(2).zip(&t.values))
+            .map(|(l, &tag)| ([l[0], l[1]], tag))
+            .collect()
+    });
+    Ok(with_physical_groups(
+        mesh,
+        &[],
+        &triangle,
+        &lines,
+        &path.display().to_string(),
+    ))
 }
 
 /// Why an XDMF file of `count` meshes (a time series such as `adapt.xdmf`) is not one mesh, naming
