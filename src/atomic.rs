@@ -290,8 +290,8 @@ fn check_replaceable(target: &Path, inputs: &[PathBuf]) -> Result<(), OutputErro
 
 /// The first entry below `dir` (its path relative to the result, `prefix` the path of `dir`) that
 /// the marker's list `listed` does not hold. A directory is listed as `name/`, and its entries
-/// are then checked too; listed as `name` (a marker that listed the top level alone), it is taken
-/// as it is.
+/// are then checked too; a directory where the list has a file `name` (a user's directory put in
+/// place of a file of the result) is not the result's.
 fn foreign_entry(dir: &Path, prefix: &str, listed: &[&str]) -> std::io::Result<Option<String>> {
     for entry in std::fs::read_dir(dir)? {
         let entry = entry?;
@@ -305,6 +305,8 @@ fn foreign_entry(dir: &Path, prefix: &str, listed: &[&str]) -> std::io::Result<O
             if let Some(inside) = foreign_entry(&entry.path(), &as_dir, listed)? {
                 return Ok(Some(inside));
             }
+        } else if is_dir {
+            return Ok(Some(as_dir));
         } else if !listed.contains(&path.as_str()) {
             return Ok(Some(path));
         }
@@ -491,8 +493,12 @@ mod tests {
                 _ => std::fs::write(&path, "mine").unwrap(),
             }
             let e = write().unwrap_err();
+            let shown = match path.is_dir() {
+                true => format!("{added}/"),
+                false => added.to_string(),
+            };
             assert!(
-                e.0.contains(&format!("holds {added}, which is not part of the result")),
+                e.0.contains(&format!("holds {shown}, which is not part of the result")),
                 "{}",
                 e.0
             );
@@ -502,15 +508,17 @@ mod tests {
                 .unwrap();
         }
         write().unwrap();
-        // A marker that lists the top level alone (an earlier version's) takes its directories
-        // as they are.
-        std::fs::write(
-            target.join(MARKER),
-            "membrane-contact solution\nsolution.h5\nstep-001\n",
-        )
-        .unwrap();
-        std::fs::write(target.join("step-001/older.txt"), "older").unwrap();
-        write().unwrap();
+        // A directory in place of a file of the result, with what it holds.
+        std::fs::remove_file(target.join("solution.h5")).unwrap();
+        std::fs::create_dir(target.join("solution.h5")).unwrap();
+        std::fs::write(target.join("solution.h5/mine.txt"), "mine").unwrap();
+        let e = write().unwrap_err();
+        assert!(
+            e.0.contains("holds solution.h5/, which is not part of the result"),
+            "{}",
+            e.0
+        );
+        assert!(target.join("solution.h5/mine.txt").exists());
     }
 
     #[test]
