@@ -691,8 +691,16 @@ impl Case {
                     - self.refine as f64 * 4f64.log10();
                 mesh::domain::check_area(10f64.powf(log10)).map_err(|e| {
                     err(format!(
-                        "{keys}: the triangles' areas (about 1e{:.0}) {e}",
+                        "{keys}: the triangles' areas (about 1e{:.0}) lie {e}",
                         log10.floor()
+                    ))
+                })?;
+                // The mesh's checks compare areas with the diameter squared.
+                let diameter = (c1[0] - c0[0]).hypot(c1[1] - c0[1]);
+                mesh::domain::check_area(diameter * diameter).map_err(|e| {
+                    err(format!(
+                        "{keys}: the square of the rectangle's diameter (about 1e{:.0}) lies {e}",
+                        (2.0 * diameter.log10()).floor()
                     ))
                 })?;
             }

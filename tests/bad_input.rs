@@ -911,6 +911,19 @@ fn polygon_fails(keys: &str) -> String {
     case_fails(&format!("{GOOD}[mesh]\nkind = \"polygon\"\n{keys}"))
 }
 
+/// A needle (a vertex 1e-9 off the opposite side) meshes into a vertex on another triangle's edge
+/// in double precision: said as a feature of the polygon, not as "a hanging node" of a mesh the
+/// user never gave.
+#[test]
+fn a_needle_is_a_feature_too_small() {
+    let e = polygon_fails("boundary = [[0, 0], [1, 0], [0.5, 1e-9]]\nh = 0.01\n");
+    contains(&e, "the domain has a feature near (");
+    contains(
+        &e,
+        "too small to mesh at its size (a vertex there lies on another triangle's edge",
+    );
+}
+
 #[test]
 fn bad_polygons() {
     let e = polygon_fails("boundary = [[0, 0], [1, 1], [1, 0], [0, 1]]\nh = 0.1\n");

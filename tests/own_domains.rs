@@ -498,6 +498,20 @@ fn rectangles_far_from_the_unit_say_why_not() {
             "{side}, refine {refine}: {e}"
         );
     }
+    let text = "mu1 = 1.0\nmu2 = 1.0\nf1 = -1\nf2 = 0\ng = 0\n[mesh]\nkind = \"rectangle\"\n\
+                corners = [[-1e300, 0.0], [1e300, 1.0]]\nn = [8, 8]\n";
+    let Err(e) = Case::parse(text, "long", PathBuf::new())
+        .unwrap()
+        .mesh()
+        .map(|m| m.n_vertices())
+    else {
+        panic!("a rectangle of 2e300 × 1 meshed")
+    };
+    let e = e.to_string();
+    assert!(
+        e.contains("the square of the rectangle's diameter (about 1e600) lies outside the range"),
+        "{e}"
+    );
     for (side, refine) in [("1e-150", 3), ("1e150", 0)] {
         assert!(rectangle(side, refine).is_ok(), "{side}, refine {refine}");
     }

@@ -35,13 +35,13 @@ const RESOLUTION: f64 = 65536.0;
 /// are subnormal or 0: a disk of radius 1e-160 was refused as "overlapping itself").
 const AREAS: std::ops::RangeInclusive<f64> = 1e-306..=1e306;
 
-/// Whether triangles of area about `area` have areas double precision computes to full
-/// precision ([`AREAS`]); the error says why not, after the subject it is given.
+/// Whether an area (or a length squared) lies where double precision computes areas to full
+/// precision ([`AREAS`]); the error says why not, after "lie" or "lies".
 pub fn check_area(area: f64) -> Result<(), String> {
     match AREAS.contains(&area) {
         true => Ok(()),
         false => Err(format!(
-            "lie outside the range double precision computes them in ({:e} to {:e}): state the \
+            "outside the range double precision computes areas in ({:e} to {:e}): state the \
              case in other units of length",
             AREAS.start(),
             AREAS.end()
@@ -139,7 +139,7 @@ impl Domain {
         };
         let unit = largest * f64::EPSILON;
         check_area(h * h)
-            .map_err(|e| format!("h = {h:e}: the areas of triangles of this size (about h²) {e}"))?;
+            .map_err(|e| format!("h = {h:e}: the areas of triangles of this size (about h²) lie {e}"))?;
         if h < RESOLUTION * unit {
             return Err(format!(
                 "h = {h:e} is too small for coordinates as large as {largest:e}: double precision \
@@ -357,17 +357,27 @@ impl Domain {
         let (points, triangles) = compact(points, triangles);
         // What the checks of a mesh find here is a feature of the domain or a size h it cannot have.
         Mesh::new(points, triangles).map_err(|e| match e {
-            MeshError::Degenerate { at, .. } => MeshError::Generation(format!(
-                "the domain has a feature near {} too small to mesh at its size (a triangle \
-                 there has no area in double precision): remove the vertex or widen the feature",
-                super::Point(at)
-            )),
+            MeshError::Degenerate { at, .. } => feature(at, "a triangle there is flat"),
+            MeshError::HangingNode { at, .. } => {
+                feature(at, "a vertex there lies on another triangle's edge")
+            }
+            MeshError::Overlap { at, .. } => feature(at, "the triangles there overlap"),
             MeshError::NoInteriorVertex => MeshError::Generation(
                 "h is too coarse for the domain: its mesh has no interior vertex; use a smaller h".into(),
             ),
             e => e,
         })
     }
+}
+
+/// What a generated mesh's check found at `at`: a feature of the domain too small to mesh at its
+/// size (`why`: what double precision made of the triangles there).
+fn feature(at: [f64; 2], why: &str) -> MeshError {
+    MeshError::Generation(format!(
+        "the domain has a feature near {} too small to mesh at its size ({why} to round-off): \
+         remove the vertex or widen the feature",
+        super::Point(at)
+    ))
 }
 
 /// The constrained triangulation of the boundary rings.

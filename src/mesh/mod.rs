@@ -77,9 +77,11 @@ pub enum MeshError {
     },
     HangingNode {
         vertex: usize,
+        at: [f64; 2],
     },
     Overlap {
         vertex: usize,
+        at: [f64; 2],
         turns: f64,
     },
     BoundaryCrossing {
@@ -203,13 +205,15 @@ impl MeshError {
                 t(*triangle),
                 t(*neighbour)
             ),
-            MeshError::HangingNode { vertex } => format!(
-                "{} lies inside an edge of another triangle: a hanging node (non-conforming mesh)",
-                v(*vertex)
+            MeshError::HangingNode { vertex, at } => format!(
+                "{} (at {}) lies inside an edge of another triangle: a hanging node (non-conforming mesh)",
+                v(*vertex),
+                Point(*at)
             ),
-            MeshError::Overlap { vertex, turns } => format!(
-                "the triangles around {} turn {turns:.3} times around it: the mesh overlaps itself",
-                v(*vertex)
+            MeshError::Overlap { vertex, at, turns } => format!(
+                "the triangles around {} (at {}) turn {turns:.3} times around it: the mesh overlaps itself",
+                v(*vertex),
+                Point(*at)
             ),
             MeshError::BoundaryCrossing { first, second } => format!(
                 "the boundary edges {}–{} and {}–{} meet away from a shared vertex: the mesh \
@@ -395,7 +399,10 @@ impl Mesh {
         let (on_boundary, boundary_edges, (components, joined_at)) = match_edges(points.len(), &triangles)?;
         // A hanging node is a vertex lying inside a boundary edge of the triangle set.
         if let Some(vertex) = hanging_node(&points, &boundary_edges, diameter) {
-            return Err(MeshError::HangingNode { vertex });
+            return Err(MeshError::HangingNode {
+                vertex,
+                at: points[vertex],
+            });
         }
         if components > 1 {
             return Err(MeshError::Disconnected {
@@ -737,6 +744,7 @@ fn turns_once(points: &[[f64; 2]], triangles: &[[usize; 3]], on_boundary: &[bool
     match angle.iter().enumerate().find(bad) {
         Some((vertex, &s)) => Err(MeshError::Overlap {
             vertex,
+            at: points[vertex],
             turns: s / full,
         }),
         None => Ok(()),
@@ -1009,7 +1017,7 @@ mod tests {
         let tris = vec![[0, 1, 3], [1, 2, 3], [1, 4, 5], [5, 4, 2]];
         assert!(matches!(
             Mesh::new(pts, tris),
-            Err(MeshError::HangingNode { vertex: 5 })
+            Err(MeshError::HangingNode { vertex: 5, .. })
         ));
         assert!(matches!(
             Mesh::new(sq[..4].to_vec(), vec![[0, 1, 2], [0, 2, 3]]),
