@@ -392,8 +392,8 @@ impl Run<'_> {
                 Some("not multigrid: this mesh has no coarser levels".into())
             }
             (None, LinearSolver::Direct, _) if self.case.solver.linear == LinearSolver::Multigrid => Some(
-                "not multigrid: the coarser levels of a file mesh, meshed from its boundary, give the \
-                 guess only"
+                "not multigrid: the coarser levels of a mesh read from a file or given, meshed from \
+                 its boundary, give the guess only"
                     .into(),
             ),
             _ => None,

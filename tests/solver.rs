@@ -599,7 +599,7 @@ fn the_short_summary_says_why_cholesky_ran() {
     case.refine = 0;
     let summary = solve(&case, Start::Nested).summary(false);
     assert!(
-        summary.contains("(Cholesky; not multigrid: the coarser levels of a file mesh"),
+        summary.contains("(Cholesky; not multigrid: the coarser levels of a mesh read from a file or given"),
         "{summary}"
     );
 }
