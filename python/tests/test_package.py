@@ -177,6 +177,37 @@ def test_a_meshio_mesh_read_from_gmsh_keeps_its_physical_groups():
         mc.solve(case, meshio.read(msh))
 
 
+def test_dolfinx_meshtags_written_by_dolfinx_are_groups(tmp_path):
+    # dolfinx's own XDMFFile writes the mesh with cell tags (1: x < 1/2, 2: the rest) and facet
+    # tags (5: x = 0, 7: the other sides); tables keyed by the tags give the fields of the same
+    # data written with `if`, whose jump x = 1/2 lies on mesh edges.
+    from dolfinx import io
+    from dolfinx import mesh as dmesh
+    from mpi4py import MPI
+
+    msh = dmesh.create_unit_square(MPI.COMM_WORLD, 8, 8)
+    cells = np.arange(msh.topology.index_map(2).size_local, dtype=np.int32)
+    mid = msh.geometry.x[msh.geometry.dofmap.array.reshape(-1, 3)].mean(axis=1)
+    cell_tags = dmesh.meshtags(msh, 2, cells, np.where(mid[:, 0] < 0.5, 1, 2).astype(np.int32))
+    cell_tags.name = "cell_tags"
+    msh.topology.create_connectivity(1, 2)
+    facets = dmesh.exterior_facet_indices(msh.topology)
+    left = dmesh.locate_entities_boundary(msh, 1, lambda x: np.isclose(x[0], 0.0))
+    facet_tags = dmesh.meshtags(msh, 1, facets, np.where(np.isin(facets, left), 5, 7).astype(np.int32))
+    facet_tags.name = "facet_tags"
+    with io.XDMFFile(MPI.COMM_WORLD, str(tmp_path / "tagged.xdmf"), "w") as f:
+        f.write_mesh(msh)
+        f.write_meshtags(cell_tags)
+        f.write_meshtags(facet_tags)
+    mesh = {"kind": "file", "path": str(tmp_path / "tagged.xdmf")}
+    case = {"mu1": 1.0, "mu2": 2.0, "f2": 5, "mesh": mesh}
+    tabled = mc.solve(dict(case, f1={"1": -30, "2": "-5*y"}, g={"5": 0.05, "7": "0.05 + x*y"}))
+    by_if = mc.solve(dict(case, f1="if(x < 0.5, -30, -5*y)", g="if(x > 0, 0.05 + x*y, 0.05)"))
+    assert json.loads(tabled.surface_groups) == ["1", "2"] and json.loads(tabled.curve_groups) == ["5", "7"]
+    assert np.allclose(tabled.u1, by_if.u1, rtol=0, atol=1e-14) and tabled.u1.min() < by_if.u1.max()
+    assert np.allclose(tabled.fields["lambda"], by_if.fields["lambda"], rtol=0, atol=1e-12)
+
+
 def test_what_is_not_a_result_directory_is_named(tmp_path):
     r = mc.solve(n=4)
     r.write(tmp_path / "out")
