@@ -178,6 +178,41 @@ fn no_contact_with_g2_equals_two_poisson_solves() {
     );
 }
 
+/// On ∂ω the membranes take their boundary values as given: u1 = g and u2 = 0 to the bit (u2 was
+/// v − μ1/(μ1 + μ2) w, 1e-17 there), u2 = g2 to an ulp of g − (g − g2).
+#[test]
+fn the_membranes_take_their_boundary_values_exactly() {
+    for (g2, n) in [("", 12), ("\ng2 = \"-0.3 + 0.2*x*x*y\"", 24)] {
+        let c = case(
+            &format!("mu1 = 1.0\nmu2 = 3.0\nf1 = -40\nf2 = 5\ng = \"0.1 + x*y\"{g2}"),
+            n,
+        );
+        let r = solve(&c, Start::Cold);
+        let (p, u) = (&r.problem, &r.solution);
+        assert!(u.obstacle.contact.iter().any(|&c| c));
+        for (a, q) in p
+            .mesh
+            .points
+            .iter()
+            .enumerate()
+            .filter(|(a, _)| p.mesh.on_boundary[*a])
+        {
+            assert_eq!(u.u1[a].to_bits(), (0.1 + q[0] * q[1]).to_bits(), "u1 at {q:?}");
+            match g2 {
+                "" => assert_eq!(u.u2[a].to_bits(), 0f64.to_bits(), "u2 at {q:?}"),
+                _ => {
+                    let g2 = -0.3 + 0.2 * q[0] * q[0] * q[1];
+                    assert!(
+                        (u.u2[a] - g2).abs() <= f64::EPSILON,
+                        "u2 at {q:?}: {} for {g2}",
+                        u.u2[a]
+                    );
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn raising_both_boundary_values_by_a_constant_raises_both_membranes() {
     // Constants are harmonic: (g + c, g2 = c) has the solution (u1 + c, u2 + c) and the same λ.

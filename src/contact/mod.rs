@@ -247,7 +247,8 @@ fn solve_w(
 }
 
 impl Solution {
-    /// u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w; below a rigid obstacle u1 = ψ_h + w, u2 = ψ_h.
+    /// u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w (g_h and g_h − w on ∂ω); below a rigid
+    /// obstacle u1 = ψ_h + w, u2 = ψ_h.
     fn of(problem: &DiscreteProblem, v: Vec<f64>, obstacle: Obstacle, transfers: Vec<Prolongation>) -> Self {
         let w = &obstacle.gap;
         let Some(mu2) = problem.data.mu2() else {
@@ -263,8 +264,12 @@ impl Solution {
         };
         let mu1 = problem.data.mu1;
         let (c1, c2) = (mu2 / (mu1 + mu2), mu1 / (mu1 + mu2));
-        let u1 = v.iter().zip(w).map(|(v, w)| v + c1 * w).collect();
-        let u2 = v.iter().zip(w).map(|(v, w)| v - c2 * w).collect();
+        let mut u1: Vec<f64> = v.iter().zip(w).map(|(v, w)| v + c1 * w).collect();
+        let mut u2: Vec<f64> = v.iter().zip(w).map(|(v, w)| v - c2 * w).collect();
+        // The boundary values as given, not as v and w round them (u2 = g2 = 0 exactly, say).
+        for a in (0..u1.len()).filter(|&a| problem.mesh.on_boundary[a]) {
+            (u1[a], u2[a]) = (problem.g_h[a], problem.g_h[a] - problem.gap_h[a]);
+        }
         Solution {
             u1,
             u2,
