@@ -266,7 +266,8 @@ fn check_replaceable(target: &Path, inputs: &[PathBuf]) -> Result<(), OutputErro
     let listed: Vec<&str> = marker.lines().skip(1).collect();
     // A result written before the marker listed its contents is taken as it is.
     if !listed.is_empty() {
-        let foreign = foreign_entry(target, "", &listed).map_err(|e| err(format!("cannot read: {e}")))?;
+        let foreign = foreign_entry(target, "", &listed, listed.contains(&EVERY_DIRECTORY))
+            .map_err(|e| err(format!("cannot read: {e}")))?;
         if let Some(name) = foreign {
             return Err(err(format!(
                 "holds {name}, which is not part of the result; replacing the result would delete \
@@ -288,11 +289,16 @@ fn check_replaceable(target: &Path, inputs: &[PathBuf]) -> Result<(), OutputErro
     Ok(())
 }
 
+/// The line of a marker's list saying that it lists every directory of the result as `name/`
+/// (markers before it listed the top level alone, directories as `name`).
+const EVERY_DIRECTORY: &str = "./";
+
 /// The first entry below `dir` (its path relative to the result, `prefix` the path of `dir`) that
 /// the marker's list `listed` does not hold. A directory is listed as `name/`, and its entries
-/// are then checked too; a directory where the list has a file `name` (a user's directory put in
-/// place of a file of the result) is not the result's.
-fn foreign_entry(dir: &Path, prefix: &str, listed: &[&str]) -> std::io::Result<Option<String>> {
+/// are then checked too; a directory where the list has a file `name` is a user's, put in place
+/// of a file of the result, if the list names `every` directory as `name/` (else, an earlier
+/// marker's directory, it is taken as it is).
+fn foreign_entry(dir: &Path, prefix: &str, listed: &[&str], every: bool) -> std::io::Result<Option<String>> {
     for entry in std::fs::read_dir(dir)? {
         let entry = entry?;
         let path = format!("{prefix}{}", entry.file_name().to_string_lossy());
@@ -302,10 +308,10 @@ fn foreign_entry(dir: &Path, prefix: &str, listed: &[&str]) -> std::io::Result<O
         let is_dir = entry.file_type()?.is_dir();
         let as_dir = format!("{path}/");
         if is_dir && listed.contains(&as_dir.as_str()) {
-            if let Some(inside) = foreign_entry(&entry.path(), &as_dir, listed)? {
+            if let Some(inside) = foreign_entry(&entry.path(), &as_dir, listed, every)? {
                 return Ok(Some(inside));
             }
-        } else if is_dir {
+        } else if is_dir && (every || !listed.contains(&path.as_str())) {
             return Ok(Some(as_dir));
         } else if !listed.contains(&path.as_str()) {
             return Ok(Some(path));
@@ -336,6 +342,7 @@ fn entries(dir: &Path, prefix: &str) -> std::io::Result<Vec<String>> {
 /// after the kind: what a later run may replace, and nothing a user put there since.
 fn list_contents(dir: &Path) -> std::io::Result<()> {
     let mut names = entries(dir, "")?;
+    names.push(EVERY_DIRECTORY.into());
     names.sort();
     let mut marker = std::fs::read_to_string(dir.join(MARKER))?;
     names.iter().for_each(|n| marker += &format!("{n}\n"));
@@ -519,6 +526,18 @@ mod tests {
             e.0
         );
         assert!(target.join("solution.h5/mine.txt").exists());
+        std::fs::remove_dir_all(target.join("solution.h5")).unwrap();
+        std::fs::write(target.join("solution.h5"), "data").unwrap();
+        write().unwrap();
+        // A marker that lists the top level alone (an earlier version's) takes its directories
+        // as they are.
+        std::fs::write(
+            target.join(MARKER),
+            "membrane-contact solution\nsolution.h5\nstep-001\n",
+        )
+        .unwrap();
+        std::fs::write(target.join("step-001/older.txt"), "older").unwrap();
+        write().unwrap();
     }
 
     #[test]

@@ -681,28 +681,9 @@ impl Case {
             MeshSpec::Domain { domain, h } => {
                 domain.check_size(*h).map_err(|e| err(format!("[mesh] h: {e}")))?;
             }
-            MeshSpec::Rectangle {
-                corners: [c0, c1], n, ..
-            } => {
-                // Each cell is two triangles; each refinement quarters them.
-                let sides = [0, 1].map(|k| (c1[k] - c0[k]) / n[k] as f64);
-                let log10 = sides.map(f64::log10).iter().sum::<f64>()
-                    - 2f64.log10()
-                    - self.refine as f64 * 4f64.log10();
-                mesh::domain::check_area(10f64.powf(log10)).map_err(|e| {
-                    err(format!(
-                        "{keys}: the triangles' areas (about 1e{:.0}) lie {e}",
-                        log10.floor()
-                    ))
-                })?;
-                // The mesh's checks compare areas with the diameter squared.
-                let diameter = (c1[0] - c0[0]).hypot(c1[1] - c0[1]);
-                mesh::domain::check_area(diameter * diameter).map_err(|e| {
-                    err(format!(
-                        "{keys}: the square of the rectangle's diameter (about 1e{:.0}) lies {e}",
-                        (2.0 * diameter.log10()).floor()
-                    ))
-                })?;
+            MeshSpec::Rectangle { corners, n, diagonal } => {
+                rectangle_in_range(*corners, *n, *diagonal, self.refine)
+                    .map_err(|e| err(format!("{keys}: {e}")))?;
             }
             _ => {}
         }
@@ -1279,6 +1260,34 @@ fn rectangle_spec(t: &MeshTable, need: impl Fn(&str) -> String) -> Result<MeshSp
     }
     let diagonal = t.diagonal.unwrap_or(Diagonal::Right);
     Ok(MeshSpec::Rectangle { corners, n, diagonal })
+}
+
+/// Whether double precision computes the areas of the triangles of the rectangle `corners` in
+/// `n` cells cut along `diagonal`, refined `refine` times, and its diameter squared, which the
+/// mesh's checks compare them with ([`mesh::domain::check_area`]); in logarithms, as the products
+/// may leave the range.
+fn rectangle_in_range(
+    [c0, c1]: [[f64; 2]; 2],
+    n: [usize; 2],
+    diagonal: Diagonal,
+    refine: usize,
+) -> Result<(), String> {
+    let per_cell = match diagonal {
+        Diagonal::Crossed => 4.0,
+        _ => 2.0,
+    };
+    let sides = [0, 1].map(|k| (c1[k] - c0[k]) / n[k] as f64);
+    let log10 =
+        sides.map(f64::log10).iter().sum::<f64>() - f64::log10(per_cell) - refine as f64 * 4f64.log10();
+    mesh::domain::check_area(10f64.powf(log10))
+        .map_err(|e| format!("the triangles' areas (about 1e{:.0}) lie {e}", log10.floor()))?;
+    let diameter = (c1[0] - c0[0]).hypot(c1[1] - c0[1]);
+    mesh::domain::check_area(diameter * diameter).map_err(|e| {
+        format!(
+            "the square of the rectangle's diameter (about 1e{:.0}) lies {e}",
+            (2.0 * diameter.log10()).floor()
+        )
+    })
 }
 
 /// Why the L-shape's n must be even.

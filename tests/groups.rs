@@ -417,11 +417,22 @@ fn keys_of_repeated_unused_and_missing_names_are_told_apart() {
     assert!(e.contains("(it has no physical curves)"), "{e}");
 }
 
+/// How [`write_dolfinx_xdmf`] departs from what dolfinx writes.
+#[derive(Clone, Copy, PartialEq)]
+enum Variant {
+    AsDolfinx,
+    /// The values of the tags in a dataset of one dimension (dolfinx writes (n, 1)).
+    Flat,
+    CellTagsTwice,
+    CellTaggedTwice,
+    FacetNotAnEdge,
+}
+
 /// Writes `mesh` as dolfinx 0.5 writes a mesh and its meshtags (`XDMFFile.write_mesh`, then
 /// `write_meshtags` of the cells, of the facets and of some vertices): the groups of
 /// two_regions.msh as tags (loaded 1, free 2; clamped 5, rim 7), the cells tagged in reverse order
-/// and reoriented, an interior edge tagged 9 as well. `cell_tags` twice with `twice`.
-fn write_dolfinx_xdmf(dir: &Path, mesh: &Mesh, twice: bool) -> std::path::PathBuf {
+/// and reoriented, an interior edge tagged 9 as well; or with the `variant`'s departure.
+fn write_dolfinx_xdmf(dir: &Path, mesh: &Mesh, variant: Variant) -> std::path::PathBuf {
     let groups = mesh.groups().unwrap();
     let f = hdf5::File::create(dir.join("mesh.h5")).unwrap();
     let write_f64 = |name: &str, rows: Vec<Vec<f64>>| {
@@ -432,6 +443,13 @@ fn write_dolfinx_xdmf(dir: &Path, mesh: &Mesh, twice: bool) -> std::path::PathBu
         let a = ndarray::Array2::from_shape_fn((rows.len(), rows[0].len()), |(i, k)| rows[i][k]);
         f.new_dataset_builder().with_data(&a).create(name).unwrap();
     };
+    let write_values = |name: &str, values: Vec<i64>| match variant {
+        Variant::Flat => {
+            let a = ndarray::Array1::from(values);
+            f.new_dataset_builder().with_data(&a).create(name).unwrap();
+        }
+        _ => write_i64(name, values.into_iter().map(|v| vec![v]).collect()),
+    };
     write_f64(
         "/Mesh/mesh/geometry",
         mesh.points.iter().map(|p| p.to_vec()).collect(),
@@ -441,39 +459,56 @@ fn write_dolfinx_xdmf(dir: &Path, mesh: &Mesh, twice: bool) -> std::path::PathBu
         "/Mesh/mesh/topology",
         cells.iter().map(|c| c.map(|v| v as i64).to_vec()).collect(),
     );
-    let tagged: Vec<usize> = (0..cells.len()).rev().collect();
+    let mut tagged: Vec<usize> = (0..cells.len()).rev().collect();
+    if variant == Variant::CellTaggedTwice {
+        tagged.push(tagged[0]);
+    }
     let cell_tag = |t: usize| [1, 2][groups.surface(t).unwrap()];
     write_i64(
         "/MeshTags/cell_tags/topology",
-        tagged
-            .iter()
+        (tagged.iter())
             .map(|&t| [cells[t][1], cells[t][0], cells[t][2]].map(|v| v as i64).to_vec())
             .collect(),
     );
-    write_i64(
+    write_values(
         "/MeshTags/cell_tags/Values",
-        tagged.iter().map(|&t| vec![cell_tag(t)]).collect(),
+        tagged.iter().map(|&t| cell_tag(t)).collect(),
     );
     let mut facets: Vec<([usize; 2], i64)> = (mesh.boundary_edges().into_iter())
         .map(|(a, b)| ([b, a], [5, 7][groups.curve(a, b).unwrap()]))
         .collect();
-    facets.push(([cells[0][0], cells[0][1]], 9));
+    let boundary = mesh.boundary_edges();
+    let interior = (cells.iter())
+        .map(|c| (c[0].min(c[1]), c[0].max(c[1])))
+        .find(|e| !boundary.contains(e))
+        .unwrap();
+    facets.push(([interior.0, interior.1], 9));
+    if variant == Variant::FacetNotAnEdge {
+        // The corners (0, 0) and (2, 1) of the rectangle: no edge joins them.
+        let corner = |q: [f64; 2]| mesh.points.iter().position(|p| *p == q).unwrap();
+        facets.push(([corner([0.0, 0.0]), corner([2.0, 1.0])], 5));
+    }
     write_i64(
         "/MeshTags/facet_tags/topology",
         facets.iter().map(|(e, _)| e.map(|v| v as i64).to_vec()).collect(),
     );
-    write_i64(
+    write_values(
         "/MeshTags/facet_tags/Values",
-        facets.iter().map(|(_, t)| vec![*t]).collect(),
+        facets.iter().map(|(_, t)| *t).collect(),
     );
     write_i64("/MeshTags/vertex_tags/topology", vec![vec![0], vec![1]]);
-    write_i64("/MeshTags/vertex_tags/Values", vec![vec![3], vec![3]]);
-    let (n, m, k) = (mesh.n_vertices(), cells.len(), facets.len());
+    write_values("/MeshTags/vertex_tags/Values", vec![3, 3]);
+    let (n, m, k) = (mesh.n_vertices(), tagged.len(), facets.len());
+    let values = |count: usize| match variant {
+        Variant::Flat => format!("{count}"),
+        _ => format!("{count} 1"),
+    };
     let tags = |name: &str, kind: &str, count: usize, nodes: usize| {
         format!(
             r#"<Grid Name="{name}" GridType="Uniform"><xi:include xpointer="xpointer(/Xdmf/Domain/Grid/Geometry)" />
       <Topology TopologyType="{kind}" NumberOfElements="{count}" NodesPerElement="{nodes}"><DataItem Dimensions="{count} {nodes}" NumberType="Int" Format="HDF">mesh.h5:/MeshTags/{name}/topology</DataItem></Topology>
-      <Attribute Name="{name}" AttributeType="Scalar" Center="Cell"><DataItem Dimensions="{count} 1" Format="HDF">mesh.h5:/MeshTags/{name}/Values</DataItem></Attribute></Grid>"#
+      <Attribute Name="{name}" AttributeType="Scalar" Center="Cell"><DataItem Dimensions="{}" Format="HDF">mesh.h5:/MeshTags/{name}/Values</DataItem></Attribute></Grid>"#,
+            values(count)
         )
     };
     let xdmf = format!(
@@ -481,18 +516,19 @@ fn write_dolfinx_xdmf(dir: &Path, mesh: &Mesh, twice: bool) -> std::path::PathBu
 <!DOCTYPE Xdmf SYSTEM "Xdmf.dtd" []>
 <Xdmf Version="3.0" xmlns:xi="http://www.w3.org/2001/XInclude"><Domain>
     <Grid Name="mesh" GridType="Uniform">
-      <Topology TopologyType="Triangle" NumberOfElements="{m}" NodesPerElement="3"><DataItem Dimensions="{m} 3" NumberType="Int" Format="HDF">mesh.h5:/Mesh/mesh/topology</DataItem></Topology>
+      <Topology TopologyType="Triangle" NumberOfElements="{}" NodesPerElement="3"><DataItem Dimensions="{} 3" NumberType="Int" Format="HDF">mesh.h5:/Mesh/mesh/topology</DataItem></Topology>
       <Geometry GeometryType="XY"><DataItem Dimensions="{n} 2" Format="HDF">mesh.h5:/Mesh/mesh/geometry</DataItem></Geometry>
     </Grid>
     {}{}{}{}
 </Domain></Xdmf>"#,
+        cells.len(),
+        cells.len(),
         tags("cell_tags", "Triangle", m, 3),
         tags("facet_tags", "PolyLine", k, 2),
         tags("vertex_tags", "Polyvertex", 2, 1),
-        if twice {
-            tags("cell_tags", "Triangle", m, 3)
-        } else {
-            String::new()
+        match variant {
+            Variant::CellTagsTwice => tags("cell_tags", "Triangle", m, 3),
+            _ => String::new(),
         },
     );
     let path = dir.join("mesh.xdmf");
@@ -501,34 +537,47 @@ fn write_dolfinx_xdmf(dir: &Path, mesh: &Mesh, twice: bool) -> std::path::PathBu
 }
 
 /// A dolfinx XDMF file with meshtags (cells, facets, vertices) is one mesh, not a collection of
-/// three: its cell and facet tags are its groups, named by their tags, as on the .msh file.
+/// three: its cell and facet tags are its groups, named by their tags, as on the .msh file; tags
+/// that are not the mesh's, or ambiguous, are refused.
 #[test]
 fn dolfinx_meshtags_are_groups_named_by_their_tags() {
-    let dir = tempfile::tempdir().unwrap();
     let msh = two_regions();
-    let mesh = file::read(&write_dolfinx_xdmf(dir.path(), &msh, false)).unwrap();
-    assert_eq!(mesh.points, msh.points);
-    let groups = mesh.groups().expect("groups from the meshtags");
-    assert_eq!(groups.surfaces, ["1", "2"]);
-    // The interior edge's tag is a curve as an interior physical curve of a .msh file is.
-    assert_eq!(groups.curves, ["5", "7", "9"]);
-    let named = |t: usize| groups.surfaces[groups.surface(t).unwrap()] == "1";
-    assert!((0..mesh.n_triangles()).all(|t| named(t) == (centroid(&mesh, t)[0] < 1.0)));
-    for (a, b) in mesh.boundary_edges() {
-        let rim = mesh.points[a][0] == 2.0 && mesh.points[b][0] == 2.0;
-        assert_eq!(groups.curves[groups.curve(a, b).unwrap()] == "7", rim);
+    let read = |variant: Variant| {
+        let dir = tempfile::tempdir().unwrap();
+        file::read(&write_dolfinx_xdmf(dir.path(), &msh, variant))
+    };
+    for variant in [Variant::AsDolfinx, Variant::Flat] {
+        let mesh = read(variant).unwrap();
+        assert_eq!(mesh.points, msh.points);
+        let groups = mesh.groups().expect("groups from the meshtags");
+        assert_eq!(groups.surfaces, ["1", "2"]);
+        // The interior edge's tag is a curve as an interior physical curve of a .msh file is.
+        assert_eq!(groups.curves, ["5", "7", "9"]);
+        let named = |t: usize| groups.surfaces[groups.surface(t).unwrap()] == "1";
+        assert!((0..mesh.n_triangles()).all(|t| named(t) == (centroid(&mesh, t)[0] < 1.0)));
+        for (a, b) in mesh.boundary_edges() {
+            let rim = mesh.points[a][0] == 2.0 && mesh.points[b][0] == 2.0;
+            assert_eq!(groups.curves[groups.curve(a, b).unwrap()] == "7", rim);
+        }
+        // The tables keyed by tags give the .msh file's loads by name.
+        let by_tag = loads(&mesh, table(&[("1", "-20"), ("2", "3*x")]), 4);
+        let by_name = loads(&msh, table(&[("loaded", "-20"), ("free", "3*x")]), 4);
+        assert_eq!(by_tag, by_name);
     }
-    // The tables keyed by tags give the .msh file's loads by name.
-    let by_tag = loads(&mesh, table(&[("1", "-20"), ("2", "3*x")]), 4);
-    let by_name = loads(&msh, table(&[("loaded", "-20"), ("free", "3*x")]), 4);
-    assert_eq!(by_tag, by_name);
-
-    let twice = tempfile::tempdir().unwrap();
-    let e = file::read(&write_dolfinx_xdmf(twice.path(), &msh, true))
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("meshtags 'cell_tags' and 'cell_tags' both tag the triangles"),
-        "{e}"
-    );
+    for (variant, message) in [
+        (
+            Variant::CellTagsTwice,
+            "meshtags 'cell_tags' and 'cell_tags' both tag the triangles",
+        ),
+        (
+            Variant::CellTaggedTwice,
+            "meshtags 'cell_tags': entity 256 (vertices",
+        ),
+        (Variant::FacetNotAnEdge, "is not an edge of the mesh"),
+    ] {
+        let Err(e) = read(variant).map(|m| m.n_vertices()) else {
+            panic!("{message}: read")
+        };
+        assert!(e.to_string().contains(message), "{e}");
+    }
 }

@@ -512,6 +512,21 @@ fn rectangles_far_from_the_unit_say_why_not() {
         e.contains("the square of the rectangle's diameter (about 1e600) lies outside the range"),
         "{e}"
     );
+    // Crossed diagonals cut a cell into four triangles, not two.
+    let crossed = "mu1 = 1.0\nmu2 = 1.0\nf1 = -1\nf2 = 0\ng = 0\n[mesh]\nkind = \"rectangle\"\n\
+                   corners = [[0.0, 0.0], [1.732e-153, 1.732e-153]]\nn = [1, 1]\ndiagonal = \"crossed\"\n";
+    let Err(e) = Case::parse(crossed, "crossed", PathBuf::new())
+        .unwrap()
+        .mesh()
+        .map(|m| m.n_vertices())
+    else {
+        panic!("a crossed square of side 1.732e-153 meshed")
+    };
+    assert!(
+        e.to_string()
+            .contains("the triangles' areas (about 1e-307) lie outside"),
+        "{e}"
+    );
     for (side, refine) in [("1e-150", 3), ("1e150", 0)] {
         assert!(rectangle(side, refine).is_ok(), "{side}, refine {refine}");
     }

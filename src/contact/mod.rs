@@ -248,12 +248,16 @@ fn solve_w(
 
 impl Solution {
     /// u1 = v + μ2/(μ1+μ2) w, u2 = v − μ1/(μ1+μ2) w (g_h and g_h − w on ∂ω); below a rigid
-    /// obstacle u1 = ψ_h + w, u2 = ψ_h.
+    /// obstacle u1 = ψ_h + w (g_h on ∂ω), u2 = ψ_h.
     fn of(problem: &DiscreteProblem, v: Vec<f64>, obstacle: Obstacle, transfers: Vec<Prolongation>) -> Self {
         let w = &obstacle.gap;
         let Some(mu2) = problem.data.mu2() else {
             let psi = &problem.psi_h;
-            let u1 = psi.iter().zip(w).map(|(p, w)| p + w).collect();
+            let on_boundary = &problem.mesh.on_boundary;
+            // On ∂ω g as given, not as ψ_h + (g − ψ_h) rounds it.
+            let u1 = (psi.iter().zip(w).enumerate())
+                .map(|(a, (p, w))| if on_boundary[a] { problem.g_h[a] } else { p + w })
+                .collect();
             return Solution {
                 u1,
                 u2: psi.clone(),

@@ -150,6 +150,26 @@ impl Domain {
         Ok(())
     }
 
+    /// What a generated mesh's check found at `at`: a feature of the domain too small to mesh at
+    /// its size (`why`: what double precision made of the triangles there), with a polygon's
+    /// vertex nearest it.
+    fn feature(&self, at: [f64; 2], why: &str) -> MeshError {
+        let distance = |p: &[f64; 2]| (p[0] - at[0]).hypot(p[1] - at[1]);
+        let remove = match self {
+            Domain::Polygon { boundary, holes } => (std::iter::once(boundary).chain(holes).flatten())
+                .min_by(|p, q| distance(p).total_cmp(&distance(q)))
+                .map_or("remove the vertex".into(), |p| {
+                    format!("remove the polygon's vertex nearest it, {},", super::Point(*p))
+                }),
+            Domain::Disk { .. } => "use a smaller h".into(),
+        };
+        MeshError::Generation(format!(
+            "the domain has a feature near {} too small to mesh at its size ({why} to round-off): \
+             {remove} or widen the feature",
+            super::Point(at)
+        ))
+    }
+
     /// The circles ∂ω lies on (none for a polygon).
     pub fn curves(&self) -> Curves {
         match self {
@@ -356,6 +376,7 @@ impl Domain {
             .collect();
         let (points, triangles) = compact(points, triangles);
         // What the checks of a mesh find here is a feature of the domain or a size h it cannot have.
+        let feature = |at: [f64; 2], why: &str| self.feature(at, why);
         Mesh::new(points, triangles).map_err(|e| match e {
             MeshError::Degenerate { at, .. } => feature(at, "a triangle there is flat"),
             MeshError::HangingNode { at, .. } => {
@@ -368,16 +389,6 @@ impl Domain {
             e => e,
         })
     }
-}
-
-/// What a generated mesh's check found at `at`: a feature of the domain too small to mesh at its
-/// size (`why`: what double precision made of the triangles there).
-fn feature(at: [f64; 2], why: &str) -> MeshError {
-    MeshError::Generation(format!(
-        "the domain has a feature near {} too small to mesh at its size ({why} to round-off): \
-         remove the vertex or widen the feature",
-        super::Point(at)
-    ))
 }
 
 /// The constrained triangulation of the boundary rings.

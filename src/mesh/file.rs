@@ -221,10 +221,18 @@ fn read_xdmf(path: &Path) -> Result<(RawMesh, Vec<MeshTags>), FileError> {
     };
     let doc = roxmltree::Document::parse_with_options(&text, options)
         .map_err(|e| err(format!("not valid XDMF (XML): {e}")))?;
-    let has = |n: roxmltree::Node, tag: &str| n.children().any(|c| c.has_tag_name(tag));
-    let (grids, others): (Vec<roxmltree::Node>, Vec<roxmltree::Node>) = (doc.descendants())
-        .filter(|n| n.has_tag_name("Grid") && has(*n, "Topology"))
-        .partition(|n| has(*n, "Geometry"));
+    let has = |n: &roxmltree::Node, tag: &str| n.children().any(|c| c.tag_name().name() == tag);
+    let with_topology = |n: &roxmltree::Node| n.has_tag_name("Grid") && has(n, "Topology");
+    let grids: Vec<roxmltree::Node> = (doc.descendants())
+        .filter(|n| with_topology(n) && has(n, "Geometry"))
+        .collect();
+    // dolfinx's meshtags: grids of the domain itself on the mesh's geometry (`xi:include`).
+    let others = (doc.descendants()).filter(|n| {
+        with_topology(n)
+            && has(n, "include")
+            && !has(n, "Geometry")
+            && n.parent().is_some_and(|d| d.has_tag_name("Domain"))
+    });
     let grid = match grids[..] {
         [] => {
             return Err(err(
@@ -234,7 +242,7 @@ fn read_xdmf(path: &Path) -> Result<(RawMesh, Vec<MeshTags>), FileError> {
         [grid] => grid,
         [.., last] => return Err(err(several_meshes(path, grids.len(), last))),
     };
-    let tags = (others.into_iter())
+    let tags = others
         .filter_map(|g| meshtags(path, g).transpose())
         .collect::<Result<Vec<_>, _>>()?;
     Ok((xdmf_grid(path, grid)?, tags))
@@ -249,10 +257,7 @@ fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<RawMesh, FileError> {
             .ok_or_else(|| err(format!("no <{tag}> in the XDMF grid")))
     };
     let topology = child("Topology")?;
-    let kind = topology
-        .attribute("TopologyType")
-        .or(topology.attribute("Type"))
-        .unwrap_or("?");
+    let kind = topology_type(topology);
     if !kind.eq_ignore_ascii_case("triangle") {
         return Err(err(format!(
             "cell type '{kind}' is not supported: the mesh must be made of triangles"
@@ -276,12 +281,11 @@ fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<RawMesh, FileError> {
 }
 
 /// The meshtags of the XDMF grid `grid` (a topology on another grid's geometry), if it tags
-/// triangles or edges: its topology's entities and its cell attribute's values.
+/// triangles or edges: its topology's entities and its cell attribute's values, checked against
+/// the sizes the file declares.
 fn meshtags(path: &Path, grid: roxmltree::Node) -> Result<Option<MeshTags>, FileError> {
-    let err = |m: String| FileError(format!("{}: {m}", path.display()));
     let topology = (grid.children().find(|c| c.has_tag_name("Topology"))).expect("a grid with a topology");
-    let kind = (topology.attribute("TopologyType").or(topology.attribute("Type"))).unwrap_or("?");
-    let nodes = match kind.to_ascii_lowercase().as_str() {
+    let nodes = match topology_type(topology).to_ascii_lowercase().as_str() {
         "triangle" => 3,
         "polyline" if topology.attribute("NodesPerElement") == Some("2") => 2,
         _ => return Ok(None),
@@ -292,32 +296,42 @@ fn meshtags(path: &Path, grid: roxmltree::Node) -> Result<Option<MeshTags>, File
         return Ok(None);
     };
     let name = attribute.attribute("Name").unwrap_or("?").to_string();
-    let (topology, values) = (heavy(path, topology)?, heavy(path, attribute)?);
+    let err = |m: String| FileError(format!("{}: meshtags '{name}': {m}", path.display()));
+    let (topology, values_item) = (heavy(path, topology)?, heavy(path, attribute)?);
     let entities = read_table::<f64>(&topology.file, &topology.dataset, "entities")?;
-    let values = read_table::<f64>(&values.file, &values.dataset, "tags")?;
-    let whole = |x: &f64, limit: f64| x.fract() == 0.0 && x.abs() <= limit;
-    if entities.ncols() != nodes || values.ncols() != 1 || values.nrows() != entities.nrows() {
+    let values = read_column(&values_item.file, &values_item.dataset)?;
+    if entities.ncols() != nodes || values.len() != entities.nrows() {
         return Err(err(format!(
-            "meshtags '{name}': {} entities of {} vertices and {} × {} tags, need {nodes} vertices \
-             and one tag per entity",
+            "{} entities of {} vertices and {} tags, need {nodes} vertices and one tag per entity",
             entities.nrows(),
             entities.ncols(),
-            values.nrows(),
-            values.ncols()
+            values.len(),
         )));
     }
-    if let Some(x) = (entities.iter().find(|x| !(whole(x, 9.0e15) && **x >= 0.0)))
-        .or(values.iter().find(|x| !whole(x, i32::MAX as f64)))
-    {
-        return Err(err(format!(
-            "meshtags '{name}': the number {x} is not a vertex index or a tag (whole numbers)"
-        )));
+    for (item, rows) in [(&topology, entities.nrows()), (&values_item, values.len())] {
+        if item.dimensions.first().is_some_and(|&d| d != rows) {
+            return Err(err(format!(
+                "the DataItem of {} declares Dimensions {:?}, but the dataset has {rows} rows",
+                item.dataset, item.dimensions
+            )));
+        }
     }
+    let entities = (entities.iter().map(|&x| vertex_index(x).ok_or(x)))
+        .collect::<Result<Vec<usize>, f64>>()
+        .map_err(|x| err(format!("the vertex index {x} is not a whole number from 0")))?;
+    let values = (values.iter())
+        .map(|&x| {
+            (x.fract() == 0.0 && x.abs() <= i32::MAX as f64)
+                .then_some(x as i32)
+                .ok_or(x)
+        })
+        .collect::<Result<Vec<i32>, f64>>()
+        .map_err(|x| err(format!("the tag {x} is not a whole number of 32 bits")))?;
     Ok(Some(MeshTags {
         name,
         nodes,
-        entities: entities.iter().map(|&x| x as usize).collect(),
-        values: values.iter().map(|&x| x as i32).collect(),
+        entities,
+        values,
     }))
 }
 
@@ -337,32 +351,23 @@ fn with_meshtags(mesh: Mesh, tags: &[MeshTags], path: &Path) -> Result<Mesh, Fil
     };
     let mut triangle = vec![None; mesh.n_triangles()];
     if let Some(t) = of(3)? {
-        let sorted = |mut v: [usize; 3]| {
-            v.sort_unstable();
-            v
-        };
-        let mut index: Vec<([usize; 3], usize)> = mesh
-            .triangles()
-            .enumerate()
-            .map(|(k, v)| (sorted(v), k))
-            .collect();
-        index.sort_unstable();
-        for (e, (cell, &tag)) in t.entities.chunks(3).zip(&t.values).enumerate() {
-            let v = sorted([cell[0], cell[1], cell[2]]);
-            let k = (index.binary_search_by(|p| p.0.cmp(&v))).map_err(|_| {
-                err(format!(
-                    "meshtags '{}': entity {e} (vertices {cell:?}) is not a triangle of the mesh",
-                    t.name
-                ))
-            })?;
-            triangle[index[k].1] = Some(tag);
+        let cells: Vec<[usize; 3]> = mesh.triangles().collect();
+        for (k, tag) in tagged_entities(t, &cells).map_err(err)? {
+            triangle[k] = Some(tag);
         }
     }
-    let lines: Vec<([usize; 2], i32)> = of(2)?.map_or(Vec::new(), |t| {
-        (t.entities.chunks(2).zip(&t.values))
-            .map(|(l, &tag)| ([l[0], l[1]], tag))
-            .collect()
-    });
+    let mut lines = Vec::new();
+    if let Some(t) = of(2)? {
+        let mut edges: Vec<[usize; 2]> = (mesh.triangles())
+            .flat_map(|[a, b, c]| [[a, b], [b, c], [c, a]])
+            .collect();
+        edges.iter_mut().for_each(|e| e.sort_unstable());
+        edges.sort_unstable();
+        edges.dedup();
+        for (k, tag) in tagged_entities(t, &edges).map_err(err)? {
+            lines.push((edges[k], tag));
+        }
+    }
     Ok(with_physical_groups(
         mesh,
         &[],
@@ -370,6 +375,43 @@ fn with_meshtags(mesh: Mesh, tags: &[MeshTags], path: &Path) -> Result<Mesh, Fil
         &lines,
         &path.display().to_string(),
     ))
+}
+
+/// The entities of `tags` as indices into `entities` (the mesh's, each by its vertices) with their
+/// tags; an entity that is not one of the mesh's, or one tagged twice, is an error.
+fn tagged_entities<const N: usize>(
+    tags: &MeshTags,
+    entities: &[[usize; N]],
+) -> Result<Vec<(usize, i32)>, String> {
+    let sorted = |mut v: [usize; N]| {
+        v.sort_unstable();
+        v
+    };
+    let mut index: Vec<([usize; N], usize)> = (entities.iter().enumerate())
+        .map(|(k, &v)| (sorted(v), k))
+        .collect();
+    index.sort_unstable();
+    let mut seen = vec![false; entities.len()];
+    let kind = ["", "", "an edge", "a triangle"][N];
+    (tags.entities.chunks(N).zip(&tags.values).enumerate())
+        .map(|(e, (vertices, &tag))| {
+            let v = sorted(std::array::from_fn(|j| vertices[j]));
+            let i = (index.binary_search_by(|p| p.0.cmp(&v))).map_err(|_| {
+                format!(
+                    "meshtags '{}': entity {e} (vertices {vertices:?}) is not {kind} of the mesh",
+                    tags.name
+                )
+            })?;
+            let k = index[i].1;
+            if std::mem::replace(&mut seen[k], true) {
+                return Err(format!(
+                    "meshtags '{}': entity {e} (vertices {vertices:?}) is tagged twice",
+                    tags.name
+                ));
+            }
+            Ok((k, tag))
+        })
+        .collect()
 }
 
 /// Why an XDMF file of `count` meshes (a time series such as `adapt.xdmf`) is not one mesh, naming
@@ -580,10 +622,7 @@ fn read_cells(path: &Path, dataset: &str) -> Result<Vec<[usize; 3]>, FileError> 
         .enumerate()
         .map(|(i, r)| {
             let v = [r[0], r[1], r[2]];
-            match v
-                .iter()
-                .find(|x| !(x.fract() == 0.0 && **x >= 0.0 && **x < 9.0e15))
-            {
+            match v.iter().find(|x| vertex_index(**x).is_none()) {
                 Some(x) => Err(err(format!(
                     "cell {i} has the vertex index {x}: indices are whole numbers from 0"
                 ))),
@@ -591,6 +630,31 @@ fn read_cells(path: &Path, dataset: &str) -> Result<Vec<[usize; 3]>, FileError> 
             }
         })
         .collect()
+}
+
+/// A vertex index read as a number: a whole number from 0 (below 9e15, exact in f64).
+fn vertex_index(x: f64) -> Option<usize> {
+    (x.fract() == 0.0 && (0.0..9.0e15).contains(&x)).then_some(x as usize)
+}
+
+/// The cell type of an XDMF `Topology` (its `TopologyType`, or `Type`).
+fn topology_type<'a>(topology: roxmltree::Node<'a, '_>) -> &'a str {
+    (topology.attribute("TopologyType").or(topology.attribute("Type"))).unwrap_or("?")
+}
+
+/// A dataset of one column, of shape (n) or (n, 1) (dolfinx writes meshtags' values as (n, 1)),
+/// after the memory check on its rows.
+fn read_column(path: &Path, dataset: &str) -> Result<Vec<f64>, FileError> {
+    let err = |m: String| FileError(format!("{}:{dataset}: {m}", path.display()));
+    let file = open_h5(path)?;
+    let data = (file.dataset(dataset)).map_err(|e| err(format!("no such dataset: {}", hdf5_error(&e))))?;
+    let shape = data.shape();
+    if !(shape.len() == 1 || (shape.len() == 2 && shape[1] == 1)) {
+        return Err(err(format!("of shape {shape:?}, need one column")));
+    }
+    super::check_memory(shape[0], super::MULTIGRID_BYTES_PER_VERTEX).map_err(|e| err(e.to_string()))?;
+    data.read_raw::<f64>()
+        .map_err(|e| err(format!("cannot read: {}", hdf5_error(&e))))
 }
 
 #[cfg(test)]
