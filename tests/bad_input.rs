@@ -918,7 +918,10 @@ fn polygon_fails(keys: &str) -> String {
 fn a_needle_is_a_feature_too_small() {
     let e = polygon_fails("boundary = [[0, 0], [1, 0], [0.5, 1e-9]]\nh = 0.01\n");
     contains(&e, "the domain has a feature near (");
-    contains(&e, "remove the polygon's vertex nearest it, (0, 0), or widen the feature");
+    contains(
+        &e,
+        "remove the polygon's vertex nearest it, (0, 0), or widen the feature",
+    );
     contains(
         &e,
         "too small to mesh at its size (a vertex there lies on another triangle's edge",

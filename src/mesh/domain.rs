@@ -36,7 +36,7 @@ const RESOLUTION: f64 = 65536.0;
 const AREAS: std::ops::RangeInclusive<f64> = 1e-306..=1e306;
 
 /// Whether an area (or a length squared) lies where double precision computes areas to full
-/// precision ([`AREAS`]); the error says why not, after "lie" or "lies".
+/// precision (1e-306 … 1e306); the error says why not, after "lie" or "lies".
 pub fn check_area(area: f64) -> Result<(), String> {
     match AREAS.contains(&area) {
         true => Ok(()),
