@@ -293,6 +293,7 @@ def solve(
     n=None,
     start=None,
     verbose=False,
+    threads=None,
 ):
     """Solves a case (the built-in default case without one) and returns its `Result`.
 
@@ -305,7 +306,8 @@ def solve(
     a meshio.Mesh that no triangle uses, dropped) and is checked as a mesh file is. estimate, flux, dual, hminus1: as the command line's --estimate, --flux, --dual,
     --hminus1. linear: "multigrid" or "direct". refine: uniform refinements (K). n: cells per side
     of a built-in mesh. start: "nested" (the default) or "cold". verbose: the solver's details in
-    `summary()`.
+    `summary()`. threads: the threads to compute on (default: RAYON_NUM_THREADS, else one per
+    core); the results are the same bit for bit on any number.
     """
     (source, origin), (points, triangles, groups) = _case(case), _mesh(mesh)
     parts = _core.solve(
@@ -323,6 +325,7 @@ def solve(
         n=_count("n", n),
         start=start,
         verbose=verbose,
+        threads=_count("threads", threads),
     )
     return Result(parts)
 
@@ -346,12 +349,14 @@ def study(
     grading=None,
     hminus1_max=512,
     linear=None,
+    threads=None,
 ):
     """A convergence study, as `membrane-contact study` computes it (nothing is written).
 
     levels: cells per side of a built-in mesh on each level; refine: refinements of the case's
     (or the given) mesh on each level; neither: the case's [validation] levels, else 8, 16, 32, 64
-    or 0, 1, 2, 3. Each level starts from the one before (nested iteration).
+    or 0, 1, 2, 3. Each level starts from the one before (nested iteration). threads: as in
+    `solve`.
 
     Returns (table, results): one dict per level (cells or refine, h, vertices, the error norms,
     estimator, effectivity, iterations, cold_iterations, seconds; with several gradings also
@@ -370,6 +375,7 @@ def study(
         grading=None if grading is None else [float(g) for g in grading],
         hminus1_max=_count("hminus1_max", hminus1_max),
         linear=linear,
+        threads=_count("threads", threads),
     )
     table, results = [], []
     for label, levels_json, parts in series:
@@ -394,12 +400,13 @@ def adapt(
     target=None,
     max_vertices=None,
     steps=None,
+    threads=None,
 ):
     """Adaptive refinement, as `membrane-contact adapt` computes it (nothing is written): solve,
     estimate, refine the triangles with the largest indicators (Dörfler's θ), solve again, … until
     η ≤ target, the vertex budget or the step count (each default: the case's [adapt]). n: cells
     per side of a built-in initial mesh; refine: uniform refinements of the initial mesh (K), any
-    kind.
+    kind. threads: as in `solve`.
 
     Returns (table, results): one dict per step (vertices, triangles, marked, estimator, error,
     effectivity, iterations, seconds) and the `Result` of each step.
@@ -417,6 +424,7 @@ def adapt(
         target=target,
         max_vertices=_count("max_vertices", max_vertices),
         steps=_count("steps", steps),
+        threads=_count("threads", threads),
     )
     table = json.loads(steps_json)
     for row in table:

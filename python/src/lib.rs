@@ -64,9 +64,26 @@ fn run_error(e: RunError) -> PyErr {
     }
 }
 
-/// Runs `work` on a thread of its own, the GIL released, checking for Ctrl-C meanwhile.
+/// The thread pool of a run on `threads` threads (rayon's global pool for `None`: the
+/// `RAYON_NUM_THREADS` of the process, else one per core).
+fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
+    let Some(t) = threads else { return Ok(None) };
+    if !(1..=membrane_contact::parallel::MAX_THREADS).contains(&t) {
+        return Err(InputError::new_err(format!(
+            "threads = {t}: need 1 to {}",
+            membrane_contact::parallel::MAX_THREADS
+        )));
+    }
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build();
+    pool.map(Some)
+        .map_err(|e| SolverError::new_err(format!("threads = {t}: {e}")))
+}
+
+/// Runs `work` on a thread of its own (its parallel parts in `pool`, else in rayon's global
+/// pool), the GIL released, checking for Ctrl-C meanwhile.
 fn wait<T: Send + 'static>(
     py: Python<'_>,
+    pool: Option<rayon::ThreadPool>,
     work: impl FnOnce() -> Result<T, RunError> + Send + 'static,
 ) -> PyResult<T> {
     progress::resume();
@@ -74,7 +91,11 @@ fn wait<T: Send + 'static>(
     let handle = std::thread::Builder::new()
         .name("membrane-contact".into())
         .spawn(move || {
-            let _ = send.send(work());
+            let result = match pool {
+                Some(pool) => pool.install(work),
+                None => work(),
+            };
+            let _ = send.send(result);
         })
         .map_err(|e| SolverError::new_err(format!("cannot start the run's thread: {e}")))?;
     loop {
@@ -365,14 +386,14 @@ impl PyParts {
     /// Writes the whole result directory `directory`, as the command line does (an earlier result
     /// there is replaced only once this one is complete).
     fn write(slf: Py<Self>, py: Python<'_>, directory: PathBuf) -> PyResult<()> {
-        wait(py, move || slf.get().parts.write(&directory))
+        wait(py, None, move || slf.get().parts.write(&directory))
     }
 }
 
 /// Solves a case: the `Parts` of its result.
 #[pyfunction]
 #[pyo3(signature = (case, origin, points=None, triangles=None, groups=None, *, estimate=false, flux=false,
-    dual=false, hminus1=false, linear=None, refine=None, n=None, start=None, verbose=false))]
+    dual=false, hminus1=false, linear=None, refine=None, n=None, start=None, verbose=false, threads=None))]
 #[allow(clippy::too_many_arguments)]
 fn solve(
     py: Python<'_>,
@@ -390,6 +411,7 @@ fn solve(
     n: Option<usize>,
     start: Option<String>,
     verbose: bool,
+    threads: Option<usize>,
 ) -> PyResult<PyParts> {
     let (source, mesh) = inputs(case, origin, points, triangles, groups)?;
     let start = match start.as_deref() {
@@ -401,7 +423,7 @@ fn solve(
             )))
         }
     };
-    let parts = wait(py, move || {
+    let parts = wait(py, pool(threads)?, move || {
         let mut case = source.case(mesh)?;
         override_case(&mut case, n, refine, linear.as_deref())?;
         let options = run::Options {
@@ -420,7 +442,7 @@ fn solve(
 /// `Parts` of each level.
 #[pyfunction]
 #[pyo3(signature = (case, origin, points=None, triangles=None, groups=None, *, levels=None, refine=None,
-    cold=false, grading=None, hminus1_max=512, linear=None))]
+    cold=false, grading=None, hminus1_max=512, linear=None, threads=None))]
 #[pyo3(name = "study")]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn run_study(
@@ -436,12 +458,13 @@ fn run_study(
     grading: Option<Vec<f64>>,
     hminus1_max: usize,
     linear: Option<String>,
+    threads: Option<usize>,
 ) -> PyResult<Vec<(String, String, Vec<PyParts>)>> {
     let (source, mesh) = inputs(case, origin, points, triangles, groups)?;
     if levels.is_some() && refine.is_some() {
         return Err(InputError::new_err("give levels or refine, not both"));
     }
-    let series = wait(py, move || {
+    let series = wait(py, pool(threads)?, move || {
         let mut case = source.case(mesh)?;
         override_case(&mut case, None, None, linear.as_deref())?;
         let levels = (levels.map(Levels::Cells))
@@ -472,7 +495,7 @@ fn run_study(
 /// The adaptive loop: its steps as JSON and the `Parts` of each step.
 #[pyfunction]
 #[pyo3(signature = (case, origin, points=None, triangles=None, groups=None, *, n=None, refine=None, theta=None,
-    target=None, max_vertices=None, steps=None))]
+    target=None, max_vertices=None, steps=None, threads=None))]
 #[pyo3(name = "adapt")]
 #[allow(clippy::too_many_arguments)]
 fn run_adapt(
@@ -488,9 +511,10 @@ fn run_adapt(
     target: Option<f64>,
     max_vertices: Option<usize>,
     steps: Option<usize>,
+    threads: Option<usize>,
 ) -> PyResult<(String, Vec<PyParts>)> {
     let (source, mesh) = inputs(case, origin, points, triangles, groups)?;
-    wait(py, move || {
+    wait(py, pool(threads)?, move || {
         let mut case = source.case(mesh)?;
         override_case(&mut case, n, refine, None)?;
         let mut settings = case.adapt;

@@ -211,6 +211,20 @@ def test_dolfinx_meshtags_written_by_dolfinx_are_groups(tmp_path):
     assert np.abs(swapped.u1 - tabled.u1).max() > 1e-2
 
 
+def test_threads_are_a_value_of_the_call_and_change_no_bit():
+    # Large enough for the parallel paths (multigrid, blocks of the smoother, the norms' pieces).
+    runs = {t: mc.solve(n=128, estimate=True, threads=t, verbose=True) for t in (1, 3)}
+    for name in ("u1", "u2", "lambda", "estimator"):
+        assert same_bits(runs[1].fields[name], runs[3].fields[name]), name
+    assert runs[1].eta == runs[3].eta
+    assert "on 1 thread," in runs[1].summary() and "on 3 threads," in runs[3].summary()
+    for bad in (0, 1025):
+        with pytest.raises(mc.InputError, match=f"threads = {bad}: need 1 to 1024"):
+            mc.solve(n=8, threads=bad)
+    table, _ = mc.study(levels=[8, 16], threads=2)
+    assert [row["vertices"] for row in table] == [81, 289]
+
+
 def test_what_is_not_a_result_directory_is_named(tmp_path):
     r = mc.solve(n=4)
     r.write(tmp_path / "out")
