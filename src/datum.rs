@@ -134,8 +134,8 @@ fn group_names<'g>(groups: &'g Groups, table: &[(String, Expr)], on: On) -> Resu
         }
         if count == 0 && groups.unused[k].contains(key) {
             return Err(format!(
-                "'{key}' is declared in $PhysicalNames of {source}, but no element carries it \
-                 (an entity without its physical tag?)"
+                "'{key}' is a name {source} declares (in $PhysicalNames, or a meshio mesh's \
+                 field_data), but no element carries it (an entity without its physical tag?)"
             ));
         }
         if count == 0 {

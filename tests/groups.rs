@@ -400,7 +400,9 @@ fn keys_of_repeated_unused_and_missing_names_are_told_apart() {
     );
     let e = refused(untagged, "f1 = { loaded = -20, free = 0 }\ng = 0.05");
     assert!(
-        e.contains("'free' is declared in $PhysicalNames of") && e.contains("no element carries it"),
+        e.contains("'free' is a name")
+            && e.contains("declares (in $PhysicalNames")
+            && e.contains("no element carries it"),
         "{e}"
     );
     let mesh = two_regions();
