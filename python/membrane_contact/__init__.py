@@ -359,8 +359,9 @@ def study(
     `solve`.
 
     Returns (table, results): one dict per level (cells or refine, h, vertices, the error norms,
-    estimator, effectivity, iterations, cold_iterations, seconds; with several gradings also
-    `variant`), and the `Result` of each level, in the same order.
+    estimator, effectivity, iterations, cold_iterations, seconds, the norms' estimated quadrature
+    error and the exact solution's mismatches; with several gradings also `variant`), and the
+    `Result` of each level, in the same order.
     """
     (source, origin), (points, triangles, groups) = _case(case), _mesh(mesh)
     series = _core.study(
@@ -409,7 +410,8 @@ def adapt(
     kind. threads: as in `solve`.
 
     Returns (table, results): one dict per step (vertices, triangles, marked, estimator, error,
-    effectivity, iterations, seconds) and the `Result` of each step.
+    mismatch, effectivity, iterations, seconds; mismatch: where the case's exact solution misses
+    its boundary data on ∂ω_h, relative, else None) and the `Result` of each step.
     """
     (source, origin), (points, triangles, groups) = _case(case), _mesh(mesh)
     steps_json, parts = _core.adapt(
