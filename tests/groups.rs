@@ -566,11 +566,26 @@ fn dolfinx_meshtags_are_groups_named_by_their_tags() {
         let by_name = loads(&msh, table(&[("loaded", "-20"), ("free", "3*x")]), 4);
         assert_eq!(by_tag, by_name);
     }
+    // Two meshtags of the cells: data without groups solve, tables of the surfaces are refused.
+    let twice = read(Variant::CellTagsTwice).unwrap();
+    assert_eq!(loads(&twice, e("-20"), 4), loads(&msh, e("-20"), 4));
+    let data = Data::new(
+        [1.0, 1.0],
+        table(&[("1", "-20"), ("2", "0")]),
+        e("0"),
+        e("0"),
+        Quadrature { degree: 4 },
+    )
+    .unwrap();
+    let Err(refused) = DiscreteProblem::new(twice, &data).map(|p| p.load1.len()) else {
+        panic!("a table on two meshtags of the cells")
+    };
+    let refused = refused.to_string();
+    assert!(
+        refused.contains("meshtags 'cell_tags', 'cell_tags' all tag the triangles"),
+        "{refused}"
+    );
     for (variant, message) in [
-        (
-            Variant::CellTagsTwice,
-            "meshtags 'cell_tags' and 'cell_tags' both tag the triangles",
-        ),
         (
             Variant::CellTaggedTwice,
             "meshtags 'cell_tags': entity 256 (vertices",

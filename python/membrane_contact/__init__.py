@@ -182,14 +182,14 @@ def _used_points(points, triangles):
     return points[used], np.searchsorted(used, triangles), used
 
 
-def _count(name, value):
-    """`value` if it is None or a whole number ≥ 0 (as the command line's options take), else an
-    InputError naming the argument."""
+def _count(name, value, least=0):
+    """`value` if it is None or a whole number ≥ `least` (as the command line's options take),
+    else an InputError naming the argument."""
     if value is None:
         return None
     whole = isinstance(value, numbers.Integral) and not isinstance(value, bool)
-    if not whole or value < 0 or value >= 2**64:
-        raise InputError(f"{name} = {value!r}: need a whole number ≥ 0")
+    if not whole or value < least or value >= 2**64:
+        raise InputError(f"{name} = {value!r}: need a whole number ≥ {least}")
     return int(value)
 
 
@@ -325,7 +325,7 @@ def solve(
         n=_count("n", n),
         start=start,
         verbose=verbose,
-        threads=_count("threads", threads),
+        threads=_count("threads", threads, least=1),
     )
     return Result(parts)
 
@@ -376,7 +376,7 @@ def study(
         grading=None if grading is None else [float(g) for g in grading],
         hminus1_max=_count("hminus1_max", hminus1_max),
         linear=linear,
-        threads=_count("threads", threads),
+        threads=_count("threads", threads, least=1),
     )
     table, results = [], []
     for label, levels_json, parts in series:
@@ -426,7 +426,7 @@ def adapt(
         target=target,
         max_vertices=_count("max_vertices", max_vertices),
         steps=_count("steps", steps),
-        threads=_count("threads", threads),
+        threads=_count("threads", threads, least=1),
     )
     table = json.loads(steps_json)
     for row in table:

@@ -218,8 +218,8 @@ def test_threads_are_a_value_of_the_call_and_change_no_bit():
         assert same_bits(runs[1].fields[name], runs[3].fields[name]), name
     assert runs[1].eta == runs[3].eta
     assert "on 1 thread," in runs[1].summary() and "on 3 threads," in runs[3].summary()
-    for bad in (0, 1025):
-        with pytest.raises(mc.InputError, match=f"threads = {bad}: need 1 to 1024"):
+    for bad, need in ((0, "a whole number ≥ 1"), (-1, "a whole number ≥ 1"), (1025, "1 to 1024")):
+        with pytest.raises(mc.InputError, match=f"threads = {bad}: need {need}"):
             mc.solve(n=8, threads=bad)
     table, _ = mc.study(levels=[8, 16], threads=2)
     assert [row["vertices"] for row in table] == [81, 289]

@@ -339,25 +339,31 @@ fn meshtags(path: &Path, grid: roxmltree::Node) -> Result<Option<MeshTags>, File
 /// each at most), named by their tags as Gmsh's groups without a name are.
 fn with_meshtags(mesh: Mesh, tags: &[MeshTags], path: &Path) -> Result<Mesh, FileError> {
     let err = |m: String| FileError(format!("{}: {m}", path.display()));
-    let of = |nodes: usize| match tags.iter().filter(|t| t.nodes == nodes).collect::<Vec<_>>()[..] {
-        [] => Ok(None),
-        [t] => Ok(Some(t)),
-        [a, b, ..] => Err(err(format!(
-            "meshtags '{}' and '{}' both tag the {}: data per group take one",
-            a.name,
-            b.name,
-            ["edges", "triangles"][nodes - 2]
-        ))),
+    // The first meshtags of each kind; a second makes data per group of that kind ambiguous.
+    let of = |nodes: usize| {
+        let all: Vec<&MeshTags> = tags.iter().filter(|t| t.nodes == nodes).collect();
+        let ambiguous = (all.len() > 1).then(|| {
+            let names: Vec<String> = all.iter().map(|t| format!("'{}'", t.name)).collect();
+            format!(
+                "meshtags {} all tag the {}: data per group take one meshtags of each kind \
+                 (write the others to another file)",
+                names.join(", "),
+                ["edges", "triangles"][nodes - 2]
+            )
+        });
+        (all.first().copied(), ambiguous)
     };
+    let (cell_tags, surfaces) = of(3);
+    let (facet_tags, curves) = of(2);
     let mut triangle = vec![None; mesh.n_triangles()];
-    if let Some(t) = of(3)? {
+    if let Some(t) = cell_tags {
         let cells: Vec<[usize; 3]> = mesh.triangles().collect();
         for (k, tag) in tagged_entities(t, &cells).map_err(err)? {
             triangle[k] = Some(tag);
         }
     }
     let mut lines = Vec::new();
-    if let Some(t) = of(2)? {
+    if let Some(t) = facet_tags {
         let mut edges: Vec<[usize; 2]> = (mesh.triangles())
             .flat_map(|[a, b, c]| [[a, b], [b, c], [c, a]])
             .collect();
@@ -365,16 +371,15 @@ fn with_meshtags(mesh: Mesh, tags: &[MeshTags], path: &Path) -> Result<Mesh, Fil
         edges.sort_unstable();
         edges.dedup();
         for (k, tag) in tagged_entities(t, &edges).map_err(err)? {
-            lines.push((edges[k], tag));
+            lines.push((edges[k].map(|v| v as u64), tag));
         }
     }
-    Ok(with_physical_groups(
-        mesh,
-        &[],
-        &triangle,
-        &lines,
-        &path.display().to_string(),
-    ))
+    let n = mesh.n_vertices();
+    let mut raw = super::msh::raw_groups(&[], &triangle, &lines, |v| {
+        usize::try_from(v).ok().filter(|&v| v < n)
+    });
+    raw.ambiguous = [surfaces, curves];
+    Ok(with_msh_groups(mesh, raw, path))
 }
 
 /// The entities of `tags` as indices into `entities` (the mesh's, each by its vertices) with their
