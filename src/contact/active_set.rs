@@ -142,7 +142,7 @@ pub(super) fn obstacle(
     }
 }
 
-/// A fingerprint of an active set (the same on every run and machine).
+/// A fingerprint of an active set (the same on every run of a build, whatever the threads).
 fn fingerprint(active: &[bool]) -> u64 {
     use std::hash::{DefaultHasher, Hash, Hasher};
     let mut hasher = DefaultHasher::new();

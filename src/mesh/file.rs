@@ -1,4 +1,5 @@
-//! Triangle meshes read from files: XDMF with HDF5 heavy data (as meshio and dolfinx write it),
+//! Triangle meshes read from files: XDMF with HDF5 heavy data (as meshio and dolfinx write it,
+//! dolfinx's meshtags of the cells and facets as groups named by their tags),
 //! an HDF5 file with `/mesh/geometry` and `/mesh/topology` (a result of this program, or dolfinx's
 //! `/Mesh/mesh/…`), or a Gmsh MSH 4.1 file (read by the private module `msh`). Every number is
 //! checked: coordinates finite and planar, vertex indices whole numbers in range, the sizes an
@@ -335,8 +336,9 @@ fn meshtags(path: &Path, grid: roxmltree::Node) -> Result<Option<MeshTags>, File
     }))
 }
 
-/// `mesh` with the groups of dolfinx's meshtags `tags` (of its triangles and of its edges, one of
-/// each at most), named by their tags as Gmsh's groups without a name are.
+/// `mesh` with the groups of dolfinx's meshtags `tags` (the first of its triangles and the first of
+/// its edges; with another of the same kind, data per group of that kind are refused as
+/// ambiguous), named by their tags as Gmsh's groups without a name are.
 fn with_meshtags(mesh: Mesh, tags: &[MeshTags], path: &Path) -> Result<Mesh, FileError> {
     let err = |m: String| FileError(format!("{}: {m}", path.display()));
     // The first meshtags of each kind; a second makes data per group of that kind ambiguous.
