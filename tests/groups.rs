@@ -550,6 +550,16 @@ fn dolfinx_meshtags_are_groups_named_by_their_tags() {
     };
     for variant in [Variant::AsDolfinx, Variant::Flat] {
         let mesh = read(variant).unwrap();
+        // Its HDF5 file read alone holds the same mesh and groups.
+        let dir = tempfile::tempdir().unwrap();
+        write_dolfinx_xdmf(dir.path(), &msh, variant);
+        let h5 = file::read(&dir.path().join("mesh.h5")).unwrap();
+        let (a, b) = (
+            mesh.groups().unwrap(),
+            h5.groups().expect("groups from /MeshTags"),
+        );
+        assert_eq!((&a.surfaces, &a.curves), (&b.surfaces, &b.curves));
+        assert!((0..mesh.n_triangles()).all(|t| a.surface(t) == b.surface(t)));
         assert_eq!(mesh.points, msh.points);
         let groups = mesh.groups().expect("groups from the meshtags");
         assert_eq!(groups.surfaces, ["1", "2"]);

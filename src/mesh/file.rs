@@ -104,6 +104,10 @@ pub fn read(path: &Path) -> Result<Mesh, FileError> {
         }
         "h5" | "hdf5" => {
             let mesh = checked(read_h5_mesh(path)?)?;
+            let tags = read_h5_meshtags(path)?;
+            if !tags.is_empty() {
+                return with_meshtags(mesh, &tags, path);
+            }
             let groups = read_h5_groups(path, &mesh)?;
             Ok(with(mesh, groups))
         }
@@ -301,14 +305,6 @@ fn meshtags(path: &Path, grid: roxmltree::Node) -> Result<Option<MeshTags>, File
     let (topology, values_item) = (heavy(path, topology)?, heavy(path, attribute)?);
     let entities = read_table::<f64>(&topology.file, &topology.dataset, "entities")?;
     let values = read_column(&values_item.file, &values_item.dataset)?;
-    if entities.ncols() != nodes || values.len() != entities.nrows() {
-        return Err(err(format!(
-            "{} entities of {} vertices and {} tags, need {nodes} vertices and one tag per entity",
-            entities.nrows(),
-            entities.ncols(),
-            values.len(),
-        )));
-    }
     for (item, rows) in [(&topology, entities.nrows()), (&values_item, values.len())] {
         if item.dimensions.first().is_some_and(|&d| d != rows) {
             return Err(err(format!(
@@ -317,23 +313,74 @@ fn meshtags(path: &Path, grid: roxmltree::Node) -> Result<Option<MeshTags>, File
             )));
         }
     }
-    let entities = (entities.iter().map(|&x| vertex_index(x).ok_or(x)))
-        .collect::<Result<Vec<usize>, f64>>()
-        .map_err(|x| err(format!("the vertex index {x} is not a whole number from 0")))?;
-    let values = (values.iter())
-        .map(|&x| {
-            (x.fract() == 0.0 && x.abs() <= i32::MAX as f64)
-                .then_some(x as i32)
-                .ok_or(x)
+    MeshTags::new(name.clone(), nodes, &entities, &values)
+        .map(Some)
+        .map_err(|m| FileError(format!("{}: {m}", path.display())))
+}
+
+impl MeshTags {
+    /// The meshtags `name` of entities of `nodes` vertices, each row of `entities` with its tag in
+    /// `values`, checked: whole vertex indices from 0, whole tags of 32 bits, one per entity.
+    fn new(
+        name: String,
+        nodes: usize,
+        entities: &ndarray::Array2<f64>,
+        values: &[f64],
+    ) -> Result<Self, String> {
+        let err = |m: String| format!("meshtags '{name}': {m}");
+        if entities.ncols() != nodes || values.len() != entities.nrows() {
+            return Err(err(format!(
+                "{} entities of {} vertices and {} tags, need {nodes} vertices and one tag per entity",
+                entities.nrows(),
+                entities.ncols(),
+                values.len(),
+            )));
+        }
+        let entities = (entities.iter().map(|&x| vertex_index(x).ok_or(x)))
+            .collect::<Result<Vec<usize>, f64>>()
+            .map_err(|x| err(format!("the vertex index {x} is not a whole number from 0")))?;
+        let values = (values.iter())
+            .map(|&x| {
+                (x.fract() == 0.0 && x.abs() <= i32::MAX as f64)
+                    .then_some(x as i32)
+                    .ok_or(x)
+            })
+            .collect::<Result<Vec<i32>, f64>>()
+            .map_err(|x| err(format!("the tag {x} is not a whole number of 32 bits")))?;
+        Ok(MeshTags {
+            name,
+            nodes,
+            entities,
+            values,
         })
-        .collect::<Result<Vec<i32>, f64>>()
-        .map_err(|x| err(format!("the tag {x} is not a whole number of 32 bits")))?;
-    Ok(Some(MeshTags {
-        name,
-        nodes,
-        entities,
-        values,
-    }))
+    }
+}
+
+/// dolfinx's meshtags of the cells and of the facets in its HDF5 mesh file (`/MeshTags/NAME/topology`
+/// and `Values`, as `XDMFFile.write_meshtags` writes them beside its XDMF file); other entities
+/// (vertex tags) are left aside.
+fn read_h5_meshtags(path: &Path) -> Result<Vec<MeshTags>, FileError> {
+    let file = open_h5(path)?;
+    let Ok(group) = file.group("/MeshTags") else {
+        return Ok(Vec::new());
+    };
+    let names = (group.member_names())
+        .map_err(|e| FileError(format!("{}:/MeshTags: {}", path.display(), hdf5_error(&e))))?;
+    drop(file);
+    let mut tags = Vec::new();
+    for name in names {
+        let entities = read_table::<f64>(path, &format!("/MeshTags/{name}/topology"), "entities")?;
+        if !(2..=3).contains(&entities.ncols()) {
+            continue;
+        }
+        let values = read_column(path, &format!("/MeshTags/{name}/Values"))?;
+        let nodes = entities.ncols();
+        tags.push(
+            MeshTags::new(name, nodes, &entities, &values)
+                .map_err(|m| FileError(format!("{}: {m}", path.display())))?,
+        );
+    }
+    Ok(tags)
 }
 
 /// `mesh` with the groups of dolfinx's meshtags `tags` (the first of its triangles and the first of
