@@ -497,16 +497,14 @@ impl Case {
         }
     }
 
-    /// Replaces the case's mesh by `mesh`, checked already ([`Mesh::new`]), as a mesh file of
-    /// the same triangles would: it keeps its vertex numbering, the coarser levels of nested
-    /// iteration are its domain meshed coarser, and the `[mesh]` table's `refine` no longer
-    /// applies (set [`Case::refine`] after to refine it).
+    /// Replaces the mesh the case's `[mesh]` table names by `mesh`, checked already
+    /// ([`Mesh::new`]), as a mesh file of the same triangles would: it keeps its vertex
+    /// numbering, the coarser levels of nested iteration are its domain meshed coarser, and the
+    /// table's `refine` ([`Case::refine`]) refines it.
     pub fn set_mesh(&mut self, mesh: Mesh) {
         self.mesh = MeshSpec::Given {
             mesh: std::sync::Arc::new(mesh),
         };
-        // The [mesh] table's refinements were of the mesh it named.
-        self.refine = 0;
     }
 
     /// Sets the grading exponent of an L-shaped mesh.

@@ -302,8 +302,10 @@ def solve(
     mesh: a meshio.Mesh (its "triangle" cells; read from a Gmsh file, its physical groups too:
     gmsh:physical and field_data), a (points, triangles) pair (points (N, 2), or
     (N, 3) with z = 0; triangles (M, 3) of any integer type) or a dolfinx mesh; it replaces the
-    case's [mesh] (which may then be left out), keeps its vertex numbering (but for the points of
-    a meshio.Mesh that no triangle uses, dropped) and is checked as a mesh file is. estimate, flux, dual, hminus1: as the command line's --estimate, --flux, --dual,
+    mesh the case's [mesh] names (the table may then be left out, or hold `refine` alone), is
+    refined as the table's `refine` says (refine= overrides it), keeps its vertex numbering (but
+    for the points of a meshio.Mesh that no triangle uses, dropped) and is checked as a mesh file
+    is. estimate, flux, dual, hminus1: as the command line's --estimate, --flux, --dual,
     --hminus1. linear: "multigrid" or "direct". refine: uniform refinements (K). n: cells per side
     of a built-in mesh. start: "nested" (the default) or "cold". verbose: the solver's details in
     `summary()`. threads: the threads to compute on (default: RAYON_NUM_THREADS, else one per

@@ -149,38 +149,57 @@ type GroupLists = (Vec<(i32, i32, String)>, Vec<i64>, Vec<[i64; 2]>, Vec<i64>);
 /// Where the groups of a mesh given from Python come from, for messages.
 const GIVEN_GROUPS: &str = "the given mesh";
 
-/// The placeholder `[mesh]` table of a case given without one beside a mesh: replaced by the
-/// mesh at once, and left out of the case text the result stores.
+/// The placeholder `[mesh]` table of a case given beside a mesh without a table of its own:
+/// replaced by the mesh at once, and left out of the case text the result stores.
 const PLACEHOLDER_MESH: &str = "\n[mesh]\nkind = \"rectangle\"\nn = 1\n";
 
+/// The text to parse of a case given beside a mesh: its `[mesh]` table, if any, replaced by the
+/// placeholder with the table's `refine` (the parse checks it); `None` where the text is not TOML,
+/// which the parse then reports.
+fn beside_mesh(text: &str) -> Option<String> {
+    let mut table = text.parse::<toml::Table>().ok()?;
+    let Some(named) = table.remove("mesh") else {
+        return Some(text.to_owned() + PLACEHOLDER_MESH);
+    };
+    let mut mesh = toml::Table::new();
+    mesh.insert("kind".into(), "rectangle".into());
+    mesh.insert("n".into(), 1.into());
+    if let Some(refine) = named.get("refine") {
+        mesh.insert("refine".into(), refine.clone());
+    }
+    table.insert("mesh".into(), mesh.into());
+    Some(toml::to_string(&table).expect("a TOML table serializes"))
+}
+
 impl CaseSource {
-    /// The case, on the given mesh if any (which replaces the case's `[mesh]`, or stands for it
-    /// when the case has none).
+    /// The case, on the given mesh if any, which replaces the mesh the case's `[mesh]` names (the
+    /// table may then be left out, or hold `refine` alone); the table's `refine` refines it.
     fn case(&self, mesh: Option<Arrays>) -> Result<Case, CaseError> {
-        let without_mesh =
-            |text: &str| mesh.is_some() && text.parse::<toml::Table>().is_ok_and(|t| !t.contains_key("mesh"));
+        let beside_mesh = |text: &str| mesh.as_ref().and(beside_mesh(text));
         let mut case = match self.kind.as_str() {
             "default" => Case::default_case(),
             "path" => {
                 let path = Path::new(&self.value);
                 let text = Case::read_text(path)?;
-                if without_mesh(&text) {
-                    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-                    let origin = path.display().to_string();
-                    let mut case = Case::parse(&(text.clone() + PLACEHOLDER_MESH), &origin, base)?;
-                    case.text = text;
-                    case
-                } else {
-                    Case::read(path)?
+                match beside_mesh(&text) {
+                    Some(parsed) => {
+                        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+                        let origin = path.display().to_string();
+                        let mut case = Case::parse(&parsed, &origin, base)?;
+                        case.text = text;
+                        case
+                    }
+                    None => Case::read(path)?,
                 }
             }
-            _ if without_mesh(&self.value) => {
-                let text = self.value.clone() + PLACEHOLDER_MESH;
-                let mut case = Case::parse(&text, &self.origin, PathBuf::new())?;
-                case.text.clone_from(&self.value);
-                case
-            }
-            _ => Case::parse(&self.value, &self.origin, PathBuf::new())?,
+            _ => match beside_mesh(&self.value) {
+                Some(parsed) => {
+                    let mut case = Case::parse(&parsed, &self.origin, PathBuf::new())?;
+                    case.text.clone_from(&self.value);
+                    case
+                }
+                None => Case::parse(&self.value, &self.origin, PathBuf::new())?,
+            },
         };
         if let Some((points, triangles, groups)) = mesh {
             let n = points.len();

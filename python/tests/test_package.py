@@ -370,11 +370,17 @@ def test_meshes_of_other_cells_are_refused(small):
         mc.solve(small, curved)
 
 
-def test_a_given_mesh_replaces_the_whole_mesh_table(small):
+def test_a_given_mesh_replaces_the_named_mesh_and_the_tables_refine_refines_it(small):
+    # As `[mesh] refine` refines a mesh file: a case written for the file, given the same mesh
+    # in memory, solves on the same refined mesh (it was solved unrefined, silently).
     points, triangles = unit_square(4)
-    r = mc.solve({**small, "mesh": {"kind": "file", "path": "x.msh", "refine": 2}}, (points, triangles))
-    assert len(r.points) == len(points)
-    assert len(mc.solve(small, (points, triangles), refine=1).points) == 81
+    named = mc.solve({**small, "mesh": {"kind": "file", "path": "x.msh", "refine": 1}}, (points, triangles))
+    alone = mc.solve({**small, "mesh": {"refine": 1}}, (points, triangles))
+    assert len(named.points) == len(alone.points) == 81
+    assert same_bits(named.u1, mc.solve(small, (points, triangles), refine=1).u1)
+    assert len(mc.solve({**small, "mesh": {"refine": 1}}, (points, triangles), refine=0).points) == 25
+    with pytest.raises(mc.InputError, match="refine = -1.*whole number"):
+        mc.solve({**small, "mesh": {"kind": "file", "path": "x.msh", "refine": -1}}, (points, triangles))
 
 
 def test_result_arrays_are_read_only(small):
