@@ -320,14 +320,15 @@ pub(crate) fn loglog(
     guides: &[Guide],
 ) -> Result<(), String> {
     register_font()?;
-    if series.is_empty() {
+    let decades: Vec<Vec<(f64, f64)>> = series.iter().map(|s| decades(&s.1)).collect();
+    if decades.iter().all(Vec::is_empty) {
         return Ok(());
     }
-    let decades: Vec<Vec<(f64, f64)>> = series
-        .iter()
-        .map(|s| s.1.iter().map(|p| (p.0.log10(), p.1.log10())).collect())
+    let guides: Vec<Guide> = (guides.iter())
+        .filter(|g| !decades[g.beside].is_empty())
+        .cloned()
         .collect();
-    let anchors = guide_anchors(&decades, guides);
+    let anchors = guide_anchors(&decades, &guides);
     let frame = Frame::around(
         decades
             .iter()
@@ -386,6 +387,15 @@ pub(crate) fn loglog(
         entries.push((g.label.clone(), color, true));
     }
     legend(&side, &entries).map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The points (x, y) at their decades (log10), but those a log axis has no place for: 0 (η of a
+/// solution exact in P1) and what is not finite.
+fn decades(points: &[(f64, f64)]) -> Vec<(f64, f64)> {
+    (points.iter())
+        .filter(|p| [p.0, p.1].iter().all(|v| v.is_finite() && *v > 0.0))
+        .map(|p| (p.0.log10(), p.1.log10()))
+        .collect()
 }
 
 /// Where each guide starts, and the x at which it ends (in decades): over its series' x range,
@@ -474,6 +484,20 @@ fn root_n(level: &Level) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Zeros and what is not finite are left out of a log axis (a zero η made its range start at
+    /// 10^-∞, a tick per decade, and an `adapt` run took all the machine's memory).
+    #[test]
+    fn a_log_axis_leaves_out_what_it_cannot_show() {
+        let points = [
+            (1.0, 0.0),
+            (0.1, 1e-3),
+            (f64::NAN, 1.0),
+            (0.01, f64::INFINITY),
+            (0.5, -1.0),
+        ];
+        assert_eq!(decades(&points), [(-1.0, -3.0)]);
+    }
 
     fn slope(s: [(f64, f64); 2]) -> f64 {
         (s[1].1 - s[0].1) / (s[1].0 - s[0].0)
