@@ -35,8 +35,13 @@ pub struct Step {
     pub marked: usize,
     /// η.
     pub estimator: f64,
+    /// Whether η is a guaranteed bound at this step: the loads resolved by the case's rule and the
+    /// boundary data admissible ([`crate::estimator::Estimate::is_bound`]).
+    pub bound: bool,
     /// |||u − u_h|||, for a case with an exact solution.
     pub error: Option<f64>,
+    /// η / |||u − u_h|||.
+    pub effectivity: Option<f64>,
     /// Where the exact solution misses the boundary data on ∂ω_h (a curved ω) most, relative.
     pub mismatch: Option<crate::norms::Mismatch>,
     /// Active-set iterations.
@@ -47,28 +52,30 @@ pub struct Step {
 
 impl Step {
     fn new(r: &Run, marked: usize, seconds: f64) -> Step {
-        let mesh = &r.problem.mesh;
+        let (mesh, estimate) = (&r.problem.mesh, r.estimate.as_ref().expect("estimated"));
+        let error = r.errors.as_ref().and_then(|e| e.energy);
         Step {
             vertices: mesh.n_vertices(),
             triangles: mesh.n_triangles(),
             marked,
-            estimator: r.estimate.as_ref().expect("estimated").total,
-            error: r.errors.as_ref().and_then(|e| e.energy),
+            estimator: estimate.total,
+            bound: estimate.is_bound(),
+            error,
+            effectivity: error.map(|e| estimate.total / e),
             mismatch: r.errors.as_ref().and_then(|e| e.boundary),
             iterations: r.solution.obstacle.stats.iterations,
             seconds,
         }
-    }
-
-    /// η / |||u − u_h|||.
-    pub fn effectivity(&self) -> Option<f64> {
-        Some(self.estimator / self.error?)
     }
 }
 
 /// The adaptive steps and the uniform levels of a run of `adapt`.
 #[derive(Debug, Clone, Serialize)]
 pub struct Adapted {
+    /// The case, as its origin names it (a file's path).
+    pub case: String,
+    /// Dörfler's θ.
+    pub theta: f64,
     /// The steps of the adaptive loop.
     pub adaptive: Vec<Step>,
     /// Uniform refinement of the initial mesh, up to about the final adaptive N.
@@ -118,6 +125,8 @@ pub fn adapt(case: &Case, settings: &Adaptivity, dual: bool, target: &Path) -> R
     result::time_series(&dir.join("adapt.xdmf"), &grids).map_err(OutputError)?;
     let stopped = stopped(settings, &adaptive);
     let adapted = Adapted {
+        case: case.origin.clone(),
+        theta: settings.theta,
         adaptive,
         uniform,
         stopped,
@@ -174,7 +183,13 @@ fn check_memory(case: &Case, settings: &Adaptivity) -> Result<(), RunError> {
 fn stopped(settings: &Adaptivity, steps: &[Step]) -> String {
     let (first, last) = (&steps[0], &steps[steps.len() - 1]);
     match settings.target {
-        Some(t) if last.estimator <= t => return format!("η = {:.4e} ≤ the target {t:e}", last.estimator),
+        Some(t) if last.estimator <= t => {
+            let caveat = match last.bound {
+                true => "",
+                false => ", but η is NOT a guaranteed bound at that step (its summary says why)",
+            };
+            return format!("η = {:.4e} ≤ the target {t:e}{caveat}", last.estimator);
+        }
         _ if steps.len() > settings.steps => return format!("the step count, {}", settings.steps),
         _ => {}
     }
@@ -321,10 +336,11 @@ fn progress(steps: &[Step]) {
     let s = steps.last().expect("a step");
     crate::progress::suspend(|| {
         crate::progress::print(&format!(
-            "step {:3}  N = {:8}  η = {:.4e}{}  iterations {}  marked {}  {:.2} s\n",
+            "step {:3}  N = {:8}  η = {:.4e}{}{}  iterations {}  marked {}  {:.2} s\n",
             steps.len() - 1,
             s.vertices,
             s.estimator,
+            if s.bound { "" } else { " (NOT a bound)" },
             s.error.map_or(String::new(), |e| format!(
                 "  error {e:.4e}  η/error {:.3}",
                 s.estimator / e
@@ -368,26 +384,35 @@ pub fn rate(steps: &[Step], value: impl Fn(&Step) -> Option<f64>) -> Option<f64>
 }
 
 fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted) -> String {
+    let bound = match a.adaptive.iter().chain(&a.uniform).all(|st| st.bound) {
+        true => "η is the guaranteed bound of the energy error (docs/a-posteriori.md)",
+        false => {
+            "η is the guaranteed bound of the energy error (docs/a-posteriori.md) **only at the \
+             steps with \"yes\" under \"bound\"**: at the others the case's rule does not resolve \
+             the loads, or the boundary data admit no solution (each step's summary says which)"
+        }
+    };
     let mut s = format!(
         "# Adaptive refinement: {} ({})\n\nDörfler marking with θ = {}, newest-vertex bisection; \
-         η is the guaranteed bound of the energy error (docs/a-posteriori.md). Stopped by {}.\n\n",
+         {bound}. Stopped by {}.\n\n",
         case.title, case.origin, settings.theta, a.stopped
     );
     for (title, steps) in [("Adaptive", &a.adaptive), ("Uniform", &a.uniform)] {
         let _ = writeln!(
             s,
-            "## {title}\n\n| step | vertices | triangles | marked | η | error | η/error | iterations | seconds |\n|---|---|---|---|---|---|---|---|---|"
+            "## {title}\n\n| step | vertices | triangles | marked | η | bound | error | η/error | iterations | seconds |\n|---|---|---|---|---|---|---|---|---|---|"
         );
         for (k, st) in steps.iter().enumerate() {
             let _ = writeln!(
                 s,
-                "| {k} | {} | {} | {} | {:.4e} | {} | {} | {} | {:.3} |",
+                "| {k} | {} | {} | {} | {:.4e} | {} | {} | {} | {} | {:.3} |",
                 st.vertices,
                 st.triangles,
                 st.marked,
                 st.estimator,
+                if st.bound { "yes" } else { "NO" },
                 st.error.map_or("—".into(), |e| format!("{e:.4e}")),
-                st.effectivity().map_or("—".into(), |x| format!("{x:.3}")),
+                st.effectivity.map_or("—".into(), |x| format!("{x:.3}")),
                 st.iterations,
                 st.seconds
             );
@@ -423,20 +448,22 @@ fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted) -> String {
 
 fn csv(a: &Adapted) -> String {
     let mut s = String::from(
-        "refinement,step,vertices,triangles,marked,estimator,error,effectivity,iterations,seconds\n",
+        "refinement,step,vertices,triangles,marked,estimator,bound,error,effectivity,mismatch,iterations,seconds\n",
     );
     for (name, steps) in [("adaptive", &a.adaptive), ("uniform", &a.uniform)] {
         for (k, st) in steps.iter().enumerate() {
             let opt = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:e}"));
             let _ = writeln!(
                 s,
-                "{name},{k},{},{},{},{:e},{},{},{},{:.4}",
+                "{name},{k},{},{},{},{:e},{},{},{},{},{},{:.4}",
                 st.vertices,
                 st.triangles,
                 st.marked,
                 st.estimator,
+                u8::from(st.bound),
                 opt(st.error),
-                opt(st.effectivity()),
+                opt(st.effectivity),
+                opt(st.mismatch.map(|m| m.relative)),
                 st.iterations,
                 st.seconds
             );

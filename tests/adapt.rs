@@ -275,6 +275,37 @@ fn a_solution_exact_in_p1_adapts_to_a_whole_result() {
     }
 }
 
+/// A load the case's rule does not resolve (a layer of width 3e-3 on an 8² mesh): η is not a
+/// bound, and adapt says so at the step, in the tables and where it stops by its target (it
+/// presented η as "the guaranteed bound" at every step).
+#[test]
+fn adapt_says_at_which_steps_eta_is_not_a_bound() {
+    let text = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"-1 - 50*exp(-(x - 0.3)^2/1e-5)\"\nf2 = \"0\"\ng = \"0\"\n\
+                [mesh]\nkind = \"rectangle\"\nn = 8\n";
+    let case = Case::parse(text, "layer.toml", std::env::temp_dir()).unwrap();
+    let settings = Adaptivity {
+        theta: 0.5,
+        target: Some(1e9),
+        max_vertices: 2000,
+        steps: 3,
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let a = adapt(&case, &settings, false, &dir.path().join("adapt")).unwrap();
+    assert!(!a.adaptive[0].bound, "{:?}", a.adaptive[0]);
+    assert!(
+        a.stopped
+            .contains("≤ the target 1e9, but η is NOT a guaranteed bound"),
+        "{}",
+        a.stopped
+    );
+    let read = |name: &str| std::fs::read_to_string(dir.path().join("adapt").join(name)).unwrap();
+    assert!(read("adapt.md").contains("**only at the steps with \"yes\" under \"bound\"**"));
+    let csv = read("adapt.csv");
+    let row: Vec<&str> = csv.lines().nth(1).unwrap().split(',').collect();
+    assert_eq!((row[0], row[6]), ("adaptive", "0"), "{csv}");
+    assert!(read("adapt.json").contains("\"bound\": false"));
+}
+
 /// A datum that fails only on a refined mesh (g dips below g2 = 0 around x = 0.55 on the bottom
 /// side, between the first mesh's boundary vertices) is named with the mesh it failed on, and
 /// nothing is written.

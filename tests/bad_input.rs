@@ -674,6 +674,12 @@ fn output_named_like_a_file_is_refused() {
         Some(PathBuf::from("out.xdmf")),
     );
     contains(&e, "a result is a directory");
+    // adapt and study too (adapt made a directory out.h5 holding adapt.xdmf).
+    for command in ["adapt", "study"] {
+        let out = Some(PathBuf::from("out.h5"));
+        let e = command_fails(command, &format!("{GOOD}{SQUARE}"), |_| {}, &[], out);
+        contains(&e, "out.h5: a result is a directory");
+    }
 }
 
 #[test]

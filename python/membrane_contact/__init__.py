@@ -411,8 +411,10 @@ def adapt(
     per side of a built-in initial mesh; refine: uniform refinements of the initial mesh (K), any
     kind. threads: as in `solve`.
 
-    Returns (table, results): one dict per step (vertices, triangles, marked, estimator, error,
-    mismatch, effectivity, iterations, seconds; mismatch: where the case's exact solution misses
+    Returns (table, results): one dict per step (vertices, triangles, marked, estimator, bound,
+    error, effectivity, mismatch, iterations, seconds; bound: whether η is a guaranteed bound at
+    that step — False where the case's rule does not resolve the loads or the boundary data admit
+    no solution, as the step's summary() says; mismatch: where the case's exact solution misses
     its boundary data on ∂ω_h, relative, else None) and the `Result` of each step.
     """
     (source, origin), (points, triangles, groups) = _case(case), _mesh(mesh)
@@ -430,10 +432,7 @@ def adapt(
         steps=_count("steps", steps),
         threads=_count("threads", threads, least=1),
     )
-    table = json.loads(steps_json)
-    for row in table:
-        row["effectivity"] = row["estimator"] / row["error"] if row.get("error") else None
-    return table, [Result(p) for p in parts]
+    return json.loads(steps_json), [Result(p) for p in parts]
 
 
 def read(directory):

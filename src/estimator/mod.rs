@@ -388,6 +388,13 @@ impl Estimate {
             + &self.loads_summary()
     }
 
+    /// Whether η is a guaranteed bound of the error of this run: the loads resolved by the case's
+    /// rule ([`Estimate::loads_resolved`]) and the boundary data such that the problem has a
+    /// solution (no [`Estimate::boundary_below`]).
+    pub fn is_bound(&self) -> bool {
+        self.loads_resolved() && self.boundary_below.is_none()
+    }
+
     /// Whether the loads count as resolved by the case's rule (η_data ≤ [`resolution::RESOLVED`] η),
     /// and η therefore as a bound of the error for the loads as given.
     pub fn loads_resolved(&self) -> bool {
