@@ -1313,6 +1313,33 @@ fn endless_mesh_files_are_refused() {
     }
 }
 
+/// A process limited to 1.5 GB of address space (`ulimit -v`, as a batch job or a shell may set)
+/// is refused a mesh of 4.2 M vertices by the memory guard, which read only the machine's free
+/// memory: the run aborted on an allocation, with no error line.
+#[test]
+fn the_memory_guard_knows_the_process_limit() {
+    use std::os::unix::process::CommandExt;
+    let limit = |cmd: &mut Command| {
+        // SAFETY: setrlimit is async-signal-safe.
+        unsafe {
+            cmd.pre_exec(|| {
+                let limit = libc::rlimit {
+                    rlim_cur: 1_500_000_000,
+                    rlim_max: 1_500_000_000,
+                };
+                match libc::setrlimit(libc::RLIMIT_AS, &limit) {
+                    0 => Ok(()),
+                    _ => Err(std::io::Error::last_os_error()),
+                }
+            });
+        }
+    };
+    let case = format!("{GOOD}[mesh]\nkind = \"rectangle\"\nn = 2048\n");
+    let e = limited_command_fails("solve", &case, |_| {}, &[], None, limit);
+    contains(&e, "4198401 vertices need about");
+    contains(&e, "GB are available (ulimit -v): use a coarser mesh");
+}
+
 /// Runs the good case with every file it writes limited to `bytes` (RLIMIT_FSIZE, with SIGXFSZ
 /// ignored): a write beyond the limit fails with EFBIG, as one on a full disk fails with ENOSPC.
 /// Checks the failure as [`fails`] does (one line, nothing left, the earlier result untouched).

@@ -99,6 +99,8 @@ pub enum MeshError {
         vertices: usize,
         needed_gb: f64,
         available_gb: f64,
+        /// What bounds the memory available ([`available_memory`]).
+        limit: &'static str,
     },
 }
 
@@ -249,9 +251,10 @@ impl MeshError {
                 vertices,
                 needed_gb,
                 available_gb,
+                limit,
             } => format!(
                 "{vertices} vertices need about {needed_gb:.1} GB of memory, but only {available_gb:.1} GB \
-                 are available: use a coarser mesh"
+                 are available ({limit}): use a coarser mesh"
             ),
         }
     }
@@ -294,27 +297,81 @@ impl Postprocess {
 }
 
 /// Fails early, with an estimate, when a mesh of `vertices` vertices would not fit in the memory
-/// available now at `bytes_per_vertex` (`MemAvailable` of /proc/meminfo; no check where that
-/// cannot be read).
+/// this process may still use at `bytes_per_vertex` ([`available_memory`]; no check where none
+/// of its bounds can be read).
 pub fn check_memory(vertices: usize, bytes_per_vertex: f64) -> Result<(), MeshError> {
-    let available = available_memory().map(|bytes| bytes as f64);
     let needed = vertices as f64 * bytes_per_vertex;
-    match available {
-        Some(available) if needed > available => Err(MeshError::TooLarge {
+    match available_memory() {
+        Some((available, limit)) if needed > available as f64 => Err(MeshError::TooLarge {
             vertices,
             needed_gb: needed / 1e9,
-            available_gb: available / 1e9,
+            available_gb: available as f64 / 1e9,
+            limit,
         }),
         _ => Ok(()),
     }
 }
 
-/// The memory available now, in bytes (`MemAvailable` of /proc/meminfo), when it can be read.
-pub fn available_memory() -> Option<u64> {
-    let meminfo = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = meminfo.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb.saturating_mul(1024))
+/// The memory this process may still use, in bytes, and what bounds it: the least of the memory
+/// available now (`MemAvailable` of /proc/meminfo), what the process's limits on its address space
+/// and its data leave of them (`ulimit -v`, `ulimit -d`), and what its cgroup's limit leaves (a
+/// container's or a batch job's: `memory.max` of cgroup v2, `memory.limit_in_bytes` of v1);
+/// `None` where none can be read.
+pub fn available_memory() -> Option<(u64, &'static str)> {
+    let kb = |text: &str, key: &str| -> Option<u64> {
+        let line = text.lines().find(|l| l.starts_with(key))?;
+        Some(
+            line.split_whitespace()
+                .nth(1)?
+                .parse::<u64>()
+                .ok()?
+                .saturating_mul(1024),
+        )
+    };
+    let meminfo = std::fs::read_to_string("/proc/meminfo").ok();
+    let status = std::fs::read_to_string("/proc/self/status").ok();
+    let status = status.as_deref().unwrap_or("");
+    let left = |resource, used: Option<u64>| {
+        let limit = nix::sys::resource::getrlimit(resource).ok()?.0;
+        (limit != nix::sys::resource::RLIM_INFINITY).then(|| limit.saturating_sub(used.unwrap_or(0)))
+    };
+    use nix::sys::resource::Resource;
+    [
+        (
+            meminfo.as_deref().and_then(|m| kb(m, "MemAvailable:")),
+            "free memory",
+        ),
+        (left(Resource::RLIMIT_AS, kb(status, "VmSize:")), "ulimit -v"),
+        (left(Resource::RLIMIT_DATA, kb(status, "VmData:")), "ulimit -d"),
+        (cgroup_left(), "the cgroup's memory limit"),
+    ]
+    .into_iter()
+    .filter_map(|(bytes, limit)| Some((bytes?, limit)))
+    .min_by_key(|&(bytes, _)| bytes)
+}
+
+/// What the memory limit of this process's cgroup leaves, if it has one: cgroup v2's
+/// `memory.max` less `memory.current`, or v1's `memory.limit_in_bytes` less
+/// `memory.usage_in_bytes`.
+fn cgroup_left() -> Option<u64> {
+    let groups = std::fs::read_to_string("/proc/self/cgroup").ok()?;
+    let number = |path: String| std::fs::read_to_string(path).ok()?.trim().parse::<u64>().ok();
+    groups.lines().find_map(|line| {
+        let mut parts = line.splitn(3, ':');
+        let (id, controllers, path) = (parts.next()?, parts.next()?, parts.next()?);
+        let (limit, used) = match (id, controllers.split(',').any(|c| c == "memory")) {
+            ("0", _) => ("memory.max", "memory.current"),
+            (_, true) => ("memory/memory.limit_in_bytes", "memory/memory.usage_in_bytes"),
+            _ => return None,
+        };
+        let dir = |file: &str| match file.split_once('/') {
+            Some((v1, file)) => format!("/sys/fs/cgroup/{v1}{path}/{file}"),
+            None => format!("/sys/fs/cgroup{path}/{file}"),
+        };
+        // v1 writes "no limit" as a huge number, v2 as "max" (not a number).
+        let limit = number(dir(limit)).filter(|&l| l < 1 << 60)?;
+        Some(limit.saturating_sub(number(dir(used)).unwrap_or(0)))
+    })
 }
 
 /// Twice the signed area of the triangle (p, q, r).

@@ -36,7 +36,7 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>, Tags), Fi
     let err = |m: String| FileError(format!("{}: {m}", path.display()));
     // A file larger than the memory available could not be read, let alone solved on; the header
     // is checked first, so that a file of another format is not read whole.
-    let cap = super::available_memory().map_or(u64::MAX, |bytes| bytes / 2);
+    let cap = super::available_memory().map_or(u64::MAX, |(bytes, _)| bytes / 2);
     let why = "half the memory available: a mesh from a larger file would not fit in memory";
     let bytes = super::file::read_capped(path, cap, why, check_version).map_err(err)?;
     let msh = mshio::parse_msh_bytes(&bytes).map_err(|e| {
