@@ -62,6 +62,9 @@ pub struct Staging {
     made: Vec<PathBuf>,
 }
 
+/// The longest file name, in bytes, of the file systems of Linux.
+const NAME_MAX: usize = 255;
+
 impl Staging {
     /// Prepares the result directory `target`, whose `kind` ("solution" or "study") the marker
     /// records. Refuses a `target` that exists and is not a result of this program, that holds
@@ -69,10 +72,26 @@ impl Staging {
     /// `mkdir -p` would); clears stale temporaries of earlier runs for the same `target`.
     pub fn new(target: &Path, inputs: &[PathBuf], kind: &str) -> Result<Staging, OutputError> {
         let err = |m: String| OutputError(format!("{}: {m}", target.display()));
+        // `Path::file_name` reads "r1/." as "r1"; the rename into "r1/." would fail after the run.
+        let last = target
+            .as_os_str()
+            .as_encoded_bytes()
+            .rsplit(|&b| b == b'/')
+            .next();
         let name = target
             .file_name()
-            .filter(|n| !n.is_empty() && *n != "." && *n != "..")
+            .filter(|n| !n.is_empty() && !matches!(last, Some(b".") | Some(b"..")))
             .ok_or_else(|| err("not a directory name".into()))?;
+        if name.len() > NAME_MAX {
+            return Err(err(format!("a name of {} bytes: at most {NAME_MAX}", name.len())));
+        }
+        if let (Ok(target), Ok(here)) = (target.canonicalize(), std::env::current_dir()) {
+            if here.starts_with(&target) {
+                return Err(err(
+                    "the current directory is inside it: run from another one".into()
+                ));
+            }
+        }
         let parent = match target.parent() {
             Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
             _ => PathBuf::from("."),

@@ -1313,6 +1313,30 @@ fn endless_mesh_files_are_refused() {
     }
 }
 
+/// Outputs the run could not put in place, refused before it as `-o .` is: the rename into
+/// "out/." or "new/." or to a name of 256 bytes failed after the whole solve (EBUSY, ENOENT,
+/// ENAMETOOLONG), and "../out" run from inside out replaced the current directory under the user.
+#[test]
+fn an_output_the_run_could_not_put_in_place_is_refused_before_it() {
+    let long = "n".repeat(256);
+    for (cwd, out, error) in [
+        ("", "out/.", "out/.: not a directory name"),
+        ("", "new/.", "new/.: not a directory name"),
+        ("", "out/..", "out/..: not a directory name"),
+        ("", &long[..], "a name of 256 bytes: at most 255"),
+        ("out", "../out", "the current directory is inside it"),
+    ] {
+        let dir = Mutex::new(PathBuf::new());
+        let setup = |d: &Path| *dir.lock().unwrap() = d.join(cwd);
+        let inside = |cmd: &mut Command| {
+            cmd.current_dir(&*dir.lock().unwrap());
+        };
+        let case = format!("{GOOD}{SQUARE}");
+        let e = limited_command_fails("solve", &case, setup, &[], Some(PathBuf::from(out)), inside);
+        contains(&e, error);
+    }
+}
+
 /// A process limited to 1.5 GB of address space (`ulimit -v`, as a batch job or a shell may set)
 /// is refused a mesh of 4.2 M vertices by the memory guard, which read only the machine's free
 /// memory: the run aborted on an allocation, with no error line.
