@@ -1035,7 +1035,21 @@ fn gmsh_files_without_triangles_or_of_old_versions() {
     );
     contains(
         &msh_fails("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 2"),
-        "mesh.msh: not a readable MSH 4.1 file",
+        "mesh.msh: not a readable MSH 4.1 file: node section",
+    );
+    // Gmsh's parametric nodes (u, v after x, y, z), which mshio does not read: said how to save.
+    contains(
+        &msh_fails(concat!(
+            "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 4 1 4\n2 1 1 4\n1\n2\n3\n4\n",
+            "0 0 0 0 0\n1 0 0 1 0\n1 1 0 1 1\n0 1 0 0 1\n$EndNodes\n"
+        )),
+        "parametric nodes (Mesh.SaveParametric = 1) are not read: save the mesh without them",
+    );
+    // Cut before its last line: the parser gave no reason ("not a readable MSH 4.1 file: ").
+    let cut = QUADS.strip_suffix("$EndElements\n").unwrap();
+    contains(
+        &msh_fails(cut),
+        "not a readable MSH 4.1 file: the file ends inside $Elements, before $EndElements (cut short?)",
     );
     contains(&msh_fails("solid cube\n"), "mesh.msh: not a Gmsh MSH file");
 }

@@ -30,6 +30,20 @@ pub(super) struct RawGroups {
     pub unused: [Vec<String>; 2],
 }
 
+/// The section the file `bytes` ends in, if it ends before its `$End` line.
+fn unclosed(bytes: &[u8]) -> Option<String> {
+    let mut open: Option<&[u8]> = None;
+    for line in bytes.split(|&b| b == b'\n') {
+        let line = line.trim_ascii();
+        match (line.strip_prefix(b"$End"), line.strip_prefix(b"$")) {
+            (Some(_), _) => open = None,
+            (None, Some(name)) if !name.is_empty() => open = Some(name),
+            _ => {}
+        }
+    }
+    open.map(|name| String::from_utf8_lossy(name).into_owned())
+}
+
 /// Reads the triangles of a MSH 4.1 file and the nodes they use (in the order of their tags), the
 /// physical groups, if the file has any, and the tags of the nodes and triangles, for messages.
 pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>, Tags), FileError> {
@@ -42,7 +56,19 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>, Tags), Fi
     let msh = mshio::parse_msh_bytes(&bytes).map_err(|e| {
         let trace = e.filtered_backtrace();
         let kinds: Vec<String> = trace.iter().rev().map(|(_, k)| k.to_string()).collect();
-        err(format!("not a readable MSH {VERSION} file: {}", kinds.join(": ")))
+        let why = match kinds.is_empty() {
+            // The parser says no more where a section is cut short.
+            true => unclosed(&bytes).map_or("a malformed section".into(), |s| {
+                format!("the file ends inside ${s}, before $End{s} (cut short?)")
+            }),
+            false if kinds.iter().any(|k| k.contains("parametric")) => {
+                "Gmsh's parametric nodes (Mesh.SaveParametric = 1) are not read: save the mesh \
+                 without them (Mesh.SaveParametric = 0, the default)"
+                    .into()
+            }
+            false => kinds.join(": "),
+        };
+        err(format!("not a readable MSH {VERSION} file: {why}"))
     })?;
     let Elements {
         triangles,
