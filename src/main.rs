@@ -26,7 +26,7 @@ struct Cli {
     /// Threads to compute on, at most 1024 (default: RAYON_NUM_THREADS, else one per core). The
     /// results are the same bit for bit on any number.
     #[arg(long, global = true)]
-    threads: Option<std::num::NonZeroUsize>,
+    threads: Option<usize>,
     /// Show no progress on stderr (by default the phases are shown as they happen: a live line
     /// on a terminal, one line per phase otherwise). Stdout holds the summary either way.
     #[arg(long, short, global = true)]
@@ -149,7 +149,7 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    if let Err(e) = membrane_contact::parallel::use_threads(cli.threads.map(|t| t.get())) {
+    if let Err(e) = membrane_contact::parallel::use_threads(cli.threads) {
         let _ = writeln!(std::io::stderr(), "error: {e}");
         return ExitCode::FAILURE;
     }

@@ -168,16 +168,28 @@ pub fn join<A: Send, B: Send>(a: impl FnOnce() -> A + Send, b: impl FnOnce() -> 
 pub const MAX_THREADS: usize = 1024;
 
 /// Sets the number of threads of the pool, before its first use: `threads` (the `--threads`
-/// option), or else rayon's default, `RAYON_NUM_THREADS` or one per core. More than
-/// [`MAX_THREADS`], from either, is an error naming where it came from.
+/// option), or else rayon's default, `RAYON_NUM_THREADS` or one per core (where it is 0 or
+/// empty). None or more than [`MAX_THREADS`], from either, or a `RAYON_NUM_THREADS` that is not
+/// a whole number (which rayon ignores), is an error naming where it came from.
 pub fn use_threads(threads: Option<usize>) -> Result<(), String> {
     let (threads, from) = match threads {
         Some(t) => (t, format!("--threads {t}")),
-        None => match std::env::var("RAYON_NUM_THREADS").map(|v| v.trim().parse::<usize>()) {
-            Ok(Ok(t)) => (t, format!("RAYON_NUM_THREADS={t}")),
-            _ => return Ok(()),
+        None => match std::env::var_os("RAYON_NUM_THREADS") {
+            None => return Ok(()),
+            Some(v) => match v.to_string_lossy().trim() {
+                "" | "0" => return Ok(()),
+                t => match t.parse::<usize>() {
+                    Ok(t) => (t, format!("RAYON_NUM_THREADS={t}")),
+                    Err(_) => return Err(format!(
+                        "RAYON_NUM_THREADS={t}: need a whole number of threads, 1 to {MAX_THREADS} (0: one per core)"
+                    )),
+                },
+            },
         },
     };
+    if threads == 0 {
+        return Err(format!("{from}: need 1 thread at least"));
+    }
     if threads > MAX_THREADS {
         return Err(format!("{from}: at most {MAX_THREADS} threads"));
     }

@@ -211,6 +211,19 @@ fn too_many_threads() {
         },
     );
     contains(&err, "RAYON_NUM_THREADS=100000: at most 1024 threads");
+    // None, and what rayon would ignore silently (a run on one per core), are errors too.
+    let err = fails(&case, |_| {}, &["--threads", "0"], None);
+    contains(&err, "--threads 0: need 1 thread at least");
+    for value in ["abc", "-1", "1e3"] {
+        let env = |c: &mut Command| {
+            c.env("RAYON_NUM_THREADS", value);
+        };
+        let err = limited_command_fails("solve", &case, |_| {}, &[], None, env);
+        contains(
+            &err,
+            &format!("RAYON_NUM_THREADS={value}: need a whole number of threads"),
+        );
+    }
 }
 
 #[test]
