@@ -39,6 +39,9 @@ pub(super) trait LinearSolve {
     /// where the solver iterates from a start.
     fn start_at(&mut self, _values: &[(usize, f64)]) {}
 
+    /// Solves the next right-hand side, unrelated to the last, from 0 to `stop`.
+    fn restart(&mut self, _stop: Stop) {}
+
     /// What it did so far.
     fn work(&self) -> Work;
 }
@@ -170,6 +173,11 @@ impl LinearSolve for MultigridCg<'_> {
 
     fn tighten(&mut self) -> bool {
         self.loose.take().is_some()
+    }
+
+    fn restart(&mut self, stop: Stop) {
+        (self.stop, self.loose) = (stop, None);
+        self.x.fill(0.0);
     }
 
     fn refines(&self) -> bool {

@@ -144,34 +144,44 @@ pub fn solve(
     Ok(Solution::of(problem, v, obstacle, transfers))
 }
 
-/// z_k with K z_k = `loads[k]` at the interior vertices and z_k = 0 on ∂ω: CG with V-cycles on
-/// `transfers` (a [`Solution`]'s) until max_a |r_a|/m_a ≤ `residual` · max_a |b_a|/m_a, or
-/// Cholesky without them; one analysis serves every load, and none is made for no load.
-pub fn poisson(
+/// A solver of Poisson problems handed out by [`with_poisson`]: z for the load b (at every
+/// vertex) to a residual (see there).
+pub type PoissonSolve<'a> = dyn FnMut(&[f64], f64) -> Result<Vec<f64>, SolveError> + 'a;
+
+/// Hands `work` the solver of the Poisson problems K z = b at the interior vertices, z = 0 on
+/// ∂ω: CG with V-cycles on `transfers` (a [`Solution`]'s), each from z = 0 until
+/// max_a |r_a|/m_a ≤ `residual` · max_a |b_a|/m_a, or Cholesky without them. One analysis serves
+/// every load of `work`, and none is made if it solves none.
+pub fn with_poisson<R>(
     problem: &DiscreteProblem,
     transfers: &[Prolongation],
-    loads: &[&[f64]],
-    residual: f64,
-) -> Result<Vec<Vec<f64>>, SolveError> {
-    if loads.is_empty() {
-        return Ok(Vec::new());
-    }
-    let (system, hierarchy) = analysed(problem, (!transfers.is_empty()).then_some(transfers));
-    let sizes = Loads {
-        density: 0.0,
-        problem,
-        scale: 1.0,
-    };
-    let multigrid = hierarchy.as_ref().map(|h| (h, Stop::Residual(residual)));
-    let mut solver = backend::solver(&system, multigrid, None, sizes);
-    solver.prepare(&vec![false; system.n()])?;
+    work: impl FnOnce(&mut PoissonSolve) -> R,
+) -> R {
+    let analysis = std::cell::OnceCell::new();
+    let mut solver: Option<Box<dyn backend::LinearSolve + '_>> = None;
     let zero = vec![0.0; problem.mesh.n_vertices()];
-    (loads.iter())
-        .map(|load| {
-            let rhs = system.lifted_rhs(&problem.stiffness, |a| load[a], 1.0, |_| 0.0);
-            Ok(system.scatter(&solver.solve(Cow::Owned(rhs))?, &zero))
-        })
-        .collect()
+    let mut solve = |load: &[f64], residual: f64| {
+        let (system, hierarchy) =
+            analysis.get_or_init(|| analysed(problem, (!transfers.is_empty()).then_some(transfers)));
+        let solver = match &mut solver {
+            Some(solver) => solver,
+            None => {
+                let sizes = Loads {
+                    density: 0.0,
+                    problem,
+                    scale: 1.0,
+                };
+                let multigrid = hierarchy.as_ref().map(|h| (h, Stop::Residual(residual)));
+                let mut made = backend::solver(system, multigrid, None, sizes);
+                made.prepare(&vec![false; system.n()])?;
+                solver.insert(made)
+            }
+        };
+        solver.restart(Stop::Residual(residual));
+        let rhs = system.lifted_rhs(&problem.stiffness, |a| load[a], 1.0, |_| 0.0);
+        Ok(system.scatter(&solver.solve(Cow::Owned(rhs))?, &zero))
+    };
+    work(&mut solve)
 }
 
 /// What the v and w solves on the final mesh share: the unknowns with the Cholesky analysis of

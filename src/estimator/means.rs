@@ -13,14 +13,14 @@
 //! leaves the bound but for ρ_i, the solve's round-off, still bounded by Friedrichs.
 
 use crate::contact;
-use crate::mesh::{DualMesh, Mesh, Prolongation};
+use crate::mesh::{DualMesh, Mesh};
 use crate::parallel;
 use crate::problem::DiscreteProblem;
 
 /// Σ_a |c_a| m_a below this fraction of Σ_a |(f, φ_a)| is round-off: no lift.
 const ROUND_OFF: f64 = 1e-13;
 
-/// The lifts' residual, relative to their loads' (see [`contact::poisson`]): what it leaves, ρ_i,
+/// The lifts' residual, relative to their loads' (see [`contact::with_poisson`]): what it leaves, ρ_i,
 /// enters η by Friedrichs, at most this part of what the whole defect would have added (§4(c)),
 /// and η agrees with a direct solve's to round-off (`make validate` compares them at 1e-9).
 const LIFT_RESIDUAL: f64 = 1e-12;
@@ -33,14 +33,14 @@ pub struct Lifted {
     pub rest: Vec<Vec<f64>>,
 }
 
-/// Lifts each of `defects` (c_i per vertex, 0 at the boundary vertices) by [`contact::poisson`]
-/// on the solve's `transfers`; none where every defect is round-off of the loads (a load the rule
+/// Lifts each of `defects` (c_i per vertex, 0 at the boundary vertices) by `solve` (of
+/// [`contact::with_poisson`]); none where the defect is round-off of the loads (a load the rule
 /// integrates exactly), which is then left to Friedrichs as it is.
 pub fn lift(
     problem: &DiscreteProblem,
     dual: &DualMesh,
-    transfers: &[Prolongation],
     defects: &[Vec<f64>],
+    solve: &mut contact::PoissonSolve,
 ) -> Lifted {
     let (mesh, k) = (&problem.mesh, &problem.stiffness);
     let loads: f64 = (0..mesh.n_vertices()).map(|a| problem.load_size(a)).sum();
@@ -48,19 +48,13 @@ pub fn lift(
         let defect: f64 = c.iter().zip(&problem.mass).map(|(c, m)| (c * m).abs()).sum();
         defect <= ROUND_OFF * loads
     };
-    let pairings: Vec<Vec<f64>> = defects.iter().map(|c| pairing(mesh, dual, c)).collect();
-    let lifted: Vec<&[f64]> = (defects.iter().zip(&pairings))
-        .filter(|(c, _)| !round_off(c))
-        .map(|(_, load)| &load[..])
-        .collect();
-    let mut solved = contact::poisson(problem, transfers, &lifted, LIFT_RESIDUAL)
-        .expect("the stiffness matrix of a valid mesh is positive definite")
-        .into_iter();
-    let (z, rest) = (defects.iter().zip(&pairings))
-        .map(|(c, load)| {
+    let (z, rest) = (defects.iter())
+        .map(|c| {
+            let load = pairing(mesh, dual, c);
             let z = match round_off(c) {
                 true => vec![0.0; mesh.n_vertices()],
-                false => solved.next().expect("one lift per defect not round-off"),
+                false => (solve(&load, LIFT_RESIDUAL))
+                    .expect("the stiffness matrix of a valid mesh is positive definite"),
             };
             let rest = parallel::collect(mesh.n_vertices(), |a| match mesh.on_boundary[a] {
                 true => 0.0,
@@ -154,7 +148,9 @@ mod tests {
         for a in 0..mesh.n_vertices() {
             assert!((per_cell[a] - c[a] * problem.mass[a]).abs() < 1e-15, "vertex {a}");
         }
-        let lifted = lift(&problem, &dual, &[], std::slice::from_ref(&c));
+        let lifted = contact::with_poisson(&problem, &[], |solve| {
+            lift(&problem, &dual, std::slice::from_ref(&c), solve)
+        });
         assert!(lifted.z[0].iter().any(|z| z.abs() > 1e-3));
         assert!(
             lifted.rest[0].iter().all(|r| r.abs() < 1e-11),

@@ -28,7 +28,7 @@ pub mod resolution;
 
 use crate::action::Action;
 use crate::assembly::gradients;
-use crate::contact::Solution;
+use crate::contact::{self, Solution};
 use crate::datum::{self, On, Pieces};
 use crate::mesh::{DualMesh, Mesh};
 use crate::parallel::{self, PIECE};
@@ -159,15 +159,18 @@ impl LoadData {
         let (alpha, _) = weights(membranes);
         let sums = triangle_loads(problem, dual, f, alpha);
         let mu: Vec<f64> = membranes.iter().map(|m| m.mu).collect();
-        let resolution = Resolution::check((problem, dual, &solution.transfers), f, &mu, &sums);
-        let defects = quadrature_defects(problem, membranes, &sums);
-        drop(sums);
-        let lifted = means::lift(problem, dual, &solution.transfers, &defects);
-        LoadData {
-            resolution,
-            defects,
-            lifted,
-        }
+        // The check's lifts and the defects' on one analysis of K.
+        contact::with_poisson(problem, &solution.transfers, move |solve| {
+            let resolution = Resolution::check((problem, dual), f, &mu, &sums, solve);
+            let defects = quadrature_defects(problem, membranes, &sums);
+            drop(sums);
+            let lifted = means::lift(problem, dual, &defects, solve);
+            LoadData {
+                resolution,
+                defects,
+                lifted,
+            }
+        })
     }
 }
 

@@ -19,7 +19,6 @@ use super::TriangleLoads;
 use crate::assembly::{gradients, Quadrature};
 use crate::contact;
 use crate::datum::{self, Pieces};
-use crate::mesh::transfer::Prolongation;
 use crate::mesh::{DualMesh, Mesh};
 use crate::parallel::{self, PIECE};
 use crate::problem::DiscreteProblem;
@@ -59,10 +58,11 @@ impl Resolution {
     /// pairings on the cells of S_h by the case's rule, summed over each triangle, are `sums` (for the
     /// vertices j of s's triangle); the lifts on the solve's `transfers`.
     pub(super) fn check(
-        (problem, dual, transfers): (&DiscreteProblem, &DualMesh, &[Prolongation]),
+        (problem, dual): (&DiscreteProblem, &DualMesh),
         f: [&Pieces; 2],
         mu: &[f64],
         sums: &[TriangleLoads],
+        solve: &mut contact::PoissonSolve,
     ) -> Resolution {
         let mesh = &problem.mesh;
         let changes: Vec<Option<Change>> =
@@ -84,7 +84,7 @@ impl Resolution {
                     },
                 )
             });
-        let z = lifts(problem, transfers, &changes, mu.len());
+        let z = lifts(problem, solve, &changes, mu.len());
         let squares = parallel::collect(mesh.n_triangles(), |t| {
             let (g, tri, area) = (gradients(mesh.corners(t)), mesh.triangle(t), mesh.area(t));
             let grad2 = |z: &[f64]| {
@@ -124,7 +124,7 @@ fn agreement(corners: [[f64; 2]; 3]) -> f64 {
 /// nothing changed.
 fn lifts(
     problem: &DiscreteProblem,
-    transfers: &[Prolongation],
+    solve: &mut contact::PoissonSolve,
     changes: &[Option<Change>],
     m: usize,
 ) -> Vec<Vec<f64>> {
@@ -142,9 +142,9 @@ fn lifts(
     if changes.iter().all(Option::is_none) {
         return delta;
     }
-    let loads: Vec<&[f64]> = delta.iter().map(|d| &d[..]).collect();
-    contact::poisson(problem, transfers, &loads, LIFT_RESIDUAL)
-        .expect("the stiffness matrix of a valid mesh is positive definite")
+    (delta.iter())
+        .map(|d| solve(d, LIFT_RESIDUAL).expect("the stiffness matrix of a valid mesh is positive definite"))
+        .collect()
 }
 
 /// δ on the triangle t: (f_i, φ_j) on its six cells by the highest rule on each cell's four
