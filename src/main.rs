@@ -237,9 +237,10 @@ type Failure = Box<dyn std::error::Error>;
 fn read_case(path: &Option<PathBuf>, linear: Option<String>) -> Result<(Case, String), Failure> {
     let (mut case, name) = match path {
         Some(p) => {
-            let name = p
-                .file_stem()
-                .map_or("case".into(), |s| s.to_string_lossy().to_string());
+            // The stem of "..toml" is ".": a name that is not one names "case".
+            let name = (p.file_stem().map(|s| s.to_string_lossy().to_string()))
+                .filter(|s| !matches!(s.as_str(), "" | "." | ".."))
+                .unwrap_or_else(|| "case".into());
             (Case::read(p)?, name)
         }
         None => (Case::default_case(), "default".into()),

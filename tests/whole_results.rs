@@ -125,6 +125,21 @@ fn any_file_name_works() {
     }
 }
 
+/// The default result directory is named after the case file's stem, "case" where the stem
+/// names none ("..toml": it was results/., refused as "not a result").
+#[test]
+fn a_case_file_without_a_stem_names_its_result_case() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("..toml"), membrane_contact::case::DEFAULT_CASE).unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .args(["solve", "..toml", "--n", "8", "--quiet"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert_eq!(read_whole(&dir.path().join("results/case")), 81);
+}
+
 #[test]
 fn a_result_reads_back_as_a_mesh() {
     let dir = tempfile::tempdir().unwrap();
