@@ -82,6 +82,13 @@ impl Staging {
             .file_name()
             .filter(|n| !n.is_empty() && !matches!(last, Some(b".") | Some(b"..")))
             .ok_or_else(|| err("not a directory name".into()))?;
+        let extension = target.extension().map(|e| e.to_string_lossy().to_lowercase());
+        if let Some(ext) = extension.filter(|e| e == "h5" || e == "xdmf") {
+            return Err(err(format!(
+                "a result is a directory (of .h5 and .xdmf files), not a .{ext} file: give a \
+                 directory name"
+            )));
+        }
         if name.len() > NAME_MAX {
             return Err(err(format!("a name of {} bytes: at most {NAME_MAX}", name.len())));
         }

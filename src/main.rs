@@ -253,20 +253,13 @@ fn read_case(path: &Option<PathBuf>, linear: Option<String>) -> Result<(Case, St
 
 /// The given output directory, or `default/name` (creating `default`).
 fn output_dir(output: Option<PathBuf>, default: &str, name: &str) -> Result<PathBuf, Failure> {
-    let Some(output) = output else {
-        std::fs::create_dir_all(default)
-            .map_err(|e| format!("{default}: cannot create the directory: {e}"))?;
-        return Ok(PathBuf::from(default).join(name));
-    };
-    match output.extension().filter(|e| *e == "h5" || *e == "xdmf") {
-        Some(ext) => Err(format!(
-            "{}: a result is a directory (of .h5 and .xdmf files), not a .{} file: give a \
-             directory name",
-            output.display(),
-            ext.to_string_lossy()
-        )
-        .into()),
-        None => Ok(output),
+    match output {
+        Some(o) => Ok(o),
+        None => {
+            std::fs::create_dir_all(default)
+                .map_err(|e| format!("{default}: cannot create the directory: {e}"))?;
+            Ok(PathBuf::from(default).join(name))
+        }
     }
 }
 

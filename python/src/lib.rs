@@ -80,7 +80,10 @@ fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
 }
 
 /// Runs `work` on a thread of its own (its parallel parts in `pool`, else in rayon's global
-/// pool), the GIL released, checking for Ctrl-C meanwhile.
+/// pool), the GIL released, checking for Ctrl-C meanwhile when called from the main thread (only
+/// it receives signals). Another thread waits without the GIL until the run ends: one that took
+/// it back every few milliseconds while the interpreter exits is ended by the interpreter
+/// (`pthread_exit`), and unwinding through the extension aborts the process.
 fn wait<T: Send + 'static>(
     py: Python<'_>,
     pool: Option<rayon::ThreadPool>,
@@ -98,6 +101,15 @@ fn wait<T: Send + 'static>(
             let _ = send.send(result);
         })
         .map_err(|e| SolverError::new_err(format!("cannot start the run's thread: {e}")))?;
+    let panicked =
+        || SolverError::new_err("the run failed on an internal error (a panic, printed on stderr)");
+    let threading = py.import_bound("threading")?;
+    let main = threading.call_method0("main_thread")?;
+    if !threading.call_method0("current_thread")?.is(&main) {
+        let result = py.allow_threads(move || receive.recv());
+        let _ = handle.join();
+        return result.map_err(|_| panicked())?.map_err(run_error);
+    }
     loop {
         // The receiver goes in and out of the GIL-free closure (it is not Sync).
         let (got, back) = py.allow_threads(move || (receive.recv_timeout(POLL), receive));
@@ -120,9 +132,7 @@ fn wait<T: Send + 'static>(
             }
             Err(RecvTimeoutError::Disconnected) => {
                 let _ = handle.join();
-                return Err(SolverError::new_err(
-                    "the run failed on an internal error (a panic, printed on stderr)",
-                ));
+                return Err(panicked());
             }
         }
     }

@@ -389,3 +389,26 @@ def test_result_arrays_are_read_only(small):
         r.u1[:] = 7.0
     with pytest.raises(ValueError):
         r.points[0, 0] = 1.0
+
+
+def test_the_interpreter_exits_cleanly_during_a_solve_in_another_thread():
+    # A solve in a daemon thread when the script ends (or after Ctrl-C in the main thread): the
+    # thread that waited for it took the GIL back every 50 ms, was ended by the exiting
+    # interpreter (pthread_exit) and the process aborted ("FATAL: exception not rethrown").
+    script = (
+        "import membrane_contact as mc, threading, time\n"
+        "threading.Thread(target=lambda: mc.solve(n=1024, threads=1), daemon=True).start()\n"
+        "time.sleep(0.5)\n"
+    )
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0 and "FATAL" not in run.stderr, run.stderr
+
+
+def test_a_result_is_written_to_a_directory_name_only(tmp_path, small):
+    # As the command line refuses it: write("out.xdmf") made a directory named so.
+    r = mc.solve(small, threads=1)
+    for name in ("out.xdmf", "b.h5", "a.XDMF"):
+        with pytest.raises(mc.OutputError, match="a result is a directory .*give a directory name"):
+            r.write(tmp_path / name)
+        assert not (tmp_path / name).exists()
+
