@@ -173,23 +173,13 @@ pub const MAX_THREADS: usize = 1024;
 /// a whole number (which rayon ignores), is an error naming where it came from.
 pub fn use_threads(threads: Option<usize>) -> Result<(), String> {
     let (threads, from) = match threads {
+        Some(0) => return Err(format!("--threads 0: need 1 thread at least")),
         Some(t) => (t, format!("--threads {t}")),
-        None => match std::env::var_os("RAYON_NUM_THREADS") {
+        None => match env_threads()? {
+            Some(t) => (t, format!("RAYON_NUM_THREADS={t}")),
             None => return Ok(()),
-            Some(v) => match v.to_string_lossy().trim() {
-                "" | "0" => return Ok(()),
-                t => match t.parse::<usize>() {
-                    Ok(t) => (t, format!("RAYON_NUM_THREADS={t}")),
-                    Err(_) => return Err(format!(
-                        "RAYON_NUM_THREADS={t}: need a whole number of threads, 1 to {MAX_THREADS} (0: one per core)"
-                    )),
-                },
-            },
         },
     };
-    if threads == 0 {
-        return Err(format!("{from}: need 1 thread at least"));
-    }
     if threads > MAX_THREADS {
         return Err(format!("{from}: at most {MAX_THREADS} threads"));
     }
@@ -197,6 +187,22 @@ pub fn use_threads(threads: Option<usize>) -> Result<(), String> {
         .num_threads(threads)
         .build_global())
     .map_err(|e| format!("{from}: {e}"))
+}
+
+/// The threads `RAYON_NUM_THREADS` asks for: `None` where it is unset, empty or 0 (one per core);
+/// an error naming it where it is not a whole number (which rayon would ignore).
+pub fn env_threads() -> Result<Option<usize>, String> {
+    let Some(v) = std::env::var_os("RAYON_NUM_THREADS") else {
+        return Ok(None);
+    };
+    match v.to_string_lossy().trim() {
+        "" | "0" => Ok(None),
+        t => t.parse::<usize>().map(Some).map_err(|_| {
+            format!(
+                "RAYON_NUM_THREADS={t}: need a whole number of threads, 1 to {MAX_THREADS} (0: one per core)"
+            )
+        }),
+    }
 }
 
 /// The number of threads the pool has.

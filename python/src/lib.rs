@@ -64,19 +64,25 @@ fn run_error(e: RunError) -> PyErr {
     }
 }
 
-/// The thread pool of a run on `threads` threads (rayon's global pool for `None`: the
-/// `RAYON_NUM_THREADS` of the process, else one per core).
+/// The thread pool of a run on `threads` threads, else on the `RAYON_NUM_THREADS` of the process
+/// (checked as the command line checks it), else rayon's global pool (one thread per core).
 fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
-    let Some(t) = threads else { return Ok(None) };
+    let (t, from) = match threads {
+        Some(t) => (t, format!("threads = {t}")),
+        None => match membrane_contact::parallel::env_threads().map_err(InputError::new_err)? {
+            Some(t) => (t, format!("RAYON_NUM_THREADS={t}")),
+            None => return Ok(None),
+        },
+    };
     if !(1..=membrane_contact::parallel::MAX_THREADS).contains(&t) {
         return Err(InputError::new_err(format!(
-            "threads = {t}: need 1 to {}",
+            "{from}: need 1 to {}",
             membrane_contact::parallel::MAX_THREADS
         )));
     }
     let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build();
     pool.map(Some)
-        .map_err(|e| SolverError::new_err(format!("threads = {t}: {e}")))
+        .map_err(|e| SolverError::new_err(format!("{from}: {e}")))
 }
 
 /// Runs `work` on a thread of its own (its parallel parts in `pool`, else in rayon's global

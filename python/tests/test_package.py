@@ -412,3 +412,16 @@ def test_a_result_is_written_to_a_directory_name_only(tmp_path, small):
             r.write(tmp_path / name)
         assert not (tmp_path / name).exists()
 
+
+def test_rayon_num_threads_is_checked_as_the_command_line_checks_it():
+    # rayon ignores a value that is not a whole number (and ran one thread per core, silently).
+    script = "import membrane_contact as mc\nmc.solve(n=8)\n"
+    for value, error in (("abc", "RAYON_NUM_THREADS=abc: need a whole number"), ("2000", "RAYON_NUM_THREADS=2000: need 1 to 1024")):
+        env = dict(os.environ, RAYON_NUM_THREADS=value)
+        run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120)
+        assert run.returncode == 1 and error in run.stderr, run.stderr
+    env = dict(os.environ, RAYON_NUM_THREADS="abc")
+    script = "import membrane_contact as mc\nprint(mc.solve(n=8, threads=1).vertices)\n"
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120)
+    assert run.stdout.strip() == "81", run.stderr
+
