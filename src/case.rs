@@ -1129,6 +1129,20 @@ fn quote(key: &str, source: &str, error: &ExprError) -> String {
 
 /// The typed mesh of a `[mesh]` table: the keys its kind takes, checked (`refine` is taken by
 /// every kind).
+/// Checks a `[mesh]` table as the parse of a case file does, without reading a mesh file it
+/// names: that of a case given beside a mesh, which replaces the mesh the table names (the table
+/// may hold `refine` alone).
+pub fn check_mesh_table(mut table: toml::Table) -> Result<(), String> {
+    // `refine` is checked where it applies (the given mesh's).
+    table.remove("refine");
+    if table.is_empty() {
+        return Ok(());
+    }
+    let t: MeshTable =
+        (toml::Value::Table(table).try_into()).map_err(|e| format!("[mesh]: {}", e.message()))?;
+    mesh_spec(&t).map(|_| ())
+}
+
 fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
     let given = [
         ("corners", t.corners.is_some()),
@@ -1328,6 +1342,9 @@ fn validation_levels(v: &ValidationTable, mesh: &MeshSpec) -> Result<Levels, Str
     let (Levels::Cells(l) | Levels::Refine(l)) = &levels;
     if l.is_empty() || l.windows(2).any(|w| w[1] <= w[0]) {
         return Err(format!("key '{key}' = {l:?}: need increasing levels"));
+    }
+    if matches!(levels, Levels::Cells(_)) && l[0] == 0 {
+        return Err(format!("key '{key}' = {l:?}: need 1 cell per side at least"));
     }
     Ok(levels)
 }

@@ -188,6 +188,16 @@ fn wrong_type() {
     contains(&e, "«g = [1, 2]»): expected an expression: a string such as");
 }
 
+/// Levels of 0 cells were accepted, and `study` then blamed a --levels never given.
+#[test]
+fn validation_levels_of_no_cells() {
+    let e = case_fails(&format!("{GOOD}{SQUARE}[validation]\nsizes = [0, 8]\n"));
+    contains(
+        &e,
+        "key 'validation.sizes' = [0, 8]: need 1 cell per side at least",
+    );
+}
+
 #[test]
 fn invalid_toml() {
     contains(&case_fails("mu1 = = 1\n"), "line 1, column 7 («mu1 = = 1»): ");

@@ -214,8 +214,10 @@ class Result:
     `fields` maps the file's names to the arrays, `places` to "vertices" or "cells". The arrays are
     read-only: they are what `write` writes (copy one to change it).
 
-    Figures: every attribute of `solution.h5` (`iterations`, `check_*`, `error_*`, `estimator`,
-    `effectivity`, …) is an attribute of the result and in `attributes`; `eta` is η.
+    Figures: every attribute of `solution.h5` (`iterations`, `check_*`, `error_*`, `effectivity`,
+    …) is in `attributes`, and an attribute of the result where no field has its name: `estimator`,
+    `estimator_boundary`, `estimator_contact` and `estimator_data` are fields per triangle (the
+    totals are `attributes["estimator"]`, …; `eta` is η).
     """
 
     def __init__(self, parts):
@@ -415,7 +417,8 @@ def adapt(
     error, effectivity, mismatch, iterations, seconds; bound: whether η is a guaranteed bound at
     that step — False where the case's rule does not resolve the loads or the boundary data admit
     no solution, as the step's summary() says; mismatch: where the case's exact solution misses
-    its boundary data on ∂ω_h, relative, else None) and the `Result` of each step.
+    its boundary data on ∂ω_h most, a dict {relative, at, at_vertex}, else None) and the
+    `Result` of each step.
     """
     (source, origin), (points, triangles, groups) = _case(case), _mesh(mesh)
     steps_json, parts = _core.adapt(

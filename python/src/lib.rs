@@ -48,7 +48,7 @@ create_exception!(
     _core,
     OutputError,
     PyOSError,
-    "A result directory could not be written or read."
+    "A result directory could not be written, or a result's files read back."
 );
 
 /// How often the waiting thread checks for Ctrl-C.
@@ -169,35 +169,46 @@ const GIVEN_GROUPS: &str = "the given mesh";
 /// replaced by the mesh at once, and left out of the case text the result stores.
 const PLACEHOLDER_MESH: &str = "\n[mesh]\nkind = \"rectangle\"\nn = 1\n";
 
-/// The text to parse of a case given beside a mesh: its `[mesh]` table, if any, replaced by the
-/// placeholder with the table's `refine` (the parse checks it); `None` where the text is not TOML,
-/// which the parse then reports.
-fn beside_mesh(text: &str) -> Option<String> {
-    let mut table = text.parse::<toml::Table>().ok()?;
-    let Some(named) = table.remove("mesh") else {
-        return Some(text.to_owned() + PLACEHOLDER_MESH);
+/// The text to parse of a case (from `origin`) given beside a mesh: its `[mesh]` table, if any,
+/// checked without reading a file it names and replaced by the placeholder with the table's
+/// `refine` (the parse checks it); `None` where the text is not TOML, which the parse then
+/// reports.
+fn beside_mesh(text: &str, origin: &str) -> Result<Option<String>, CaseError> {
+    let Ok(mut table) = text.parse::<toml::Table>() else {
+        return Ok(None);
     };
+    let Some(named) = table.remove("mesh") else {
+        return Ok(Some(text.to_owned() + PLACEHOLDER_MESH));
+    };
+    let toml::Value::Table(named) = named else {
+        return Err(CaseError(format!("{origin}: [mesh] must be a table")));
+    };
+    let refine = named.get("refine").cloned();
+    membrane_contact::case::check_mesh_table(named).map_err(|e| CaseError(format!("{origin}: {e}")))?;
     let mut mesh = toml::Table::new();
     mesh.insert("kind".into(), "rectangle".into());
     mesh.insert("n".into(), 1.into());
-    if let Some(refine) = named.get("refine") {
-        mesh.insert("refine".into(), refine.clone());
+    if let Some(refine) = refine {
+        mesh.insert("refine".into(), refine);
     }
     table.insert("mesh".into(), mesh.into());
-    Some(toml::to_string(&table).expect("a TOML table serializes"))
+    Ok(Some(toml::to_string(&table).expect("a TOML table serializes")))
 }
 
 impl CaseSource {
     /// The case, on the given mesh if any, which replaces the mesh the case's `[mesh]` names (the
     /// table may then be left out, or hold `refine` alone); the table's `refine` refines it.
     fn case(&self, mesh: Option<Arrays>) -> Result<Case, CaseError> {
-        let beside_mesh = |text: &str| mesh.as_ref().and(beside_mesh(text));
+        let beside_mesh = |text: &str, origin: &str| match mesh {
+            Some(_) => beside_mesh(text, origin),
+            None => Ok(None),
+        };
         let mut case = match self.kind.as_str() {
             "default" => Case::default_case(),
             "path" => {
                 let path = Path::new(&self.value);
                 let text = Case::read_text(path)?;
-                match beside_mesh(&text) {
+                match beside_mesh(&text, &path.display().to_string())? {
                     Some(parsed) => {
                         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
                         let origin = path.display().to_string();
@@ -208,7 +219,7 @@ impl CaseSource {
                     None => Case::read(path)?,
                 }
             }
-            _ => match beside_mesh(&self.value) {
+            _ => match beside_mesh(&self.value, &self.origin)? {
                 Some(parsed) => {
                     let mut case = Case::parse(&parsed, &self.origin, PathBuf::new())?;
                     case.text.clone_from(&self.value);

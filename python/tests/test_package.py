@@ -381,6 +381,10 @@ def test_a_given_mesh_replaces_the_named_mesh_and_the_tables_refine_refines_it(s
     assert len(mc.solve({**small, "mesh": {"refine": 1}}, (points, triangles), refine=0).points) == 25
     with pytest.raises(mc.InputError, match="refine = -1.*whole number"):
         mc.solve({**small, "mesh": {"kind": "file", "path": "x.msh", "refine": -1}}, (points, triangles))
+    # The table is checked as a case file's is, but for the file it names (replaced).
+    for mesh, error in (({"kind": "blob"}, "mesh.kind"), ({"bogus": 1}, "bogus"), ({"n": [4, 4]}, "kind")):
+        with pytest.raises(mc.InputError, match=error):
+            mc.solve({**small, "mesh": mesh}, (points, triangles))
 
 
 def test_result_arrays_are_read_only(small):
