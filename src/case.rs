@@ -1118,17 +1118,21 @@ fn let_names(table: &toml::Table) -> Result<Names, String> {
     Ok(names)
 }
 
-/// An expression error naming the key; it quotes at most the first 60 characters.
+/// An expression error naming the key; it quotes at most the first 60 characters, on one line
+/// (line breaks and other invisible characters escaped).
 fn quote(key: &str, source: &str, error: &ExprError) -> String {
+    let visible = |s: &str| -> String { s.chars().map(crate::expr::visible).collect() };
     let shown = match source.char_indices().nth(60) {
-        Some((i, _)) => format!("{}… ({} characters)", &source[..i], source.chars().count()),
-        None => source.to_string(),
+        Some((i, _)) => format!(
+            "{}… ({} characters)",
+            visible(&source[..i]),
+            source.chars().count()
+        ),
+        None => visible(source),
     };
     format!("key '{key}' = \"{shown}\": {error}")
 }
 
-/// The typed mesh of a `[mesh]` table: the keys its kind takes, checked (`refine` is taken by
-/// every kind).
 /// Checks a `[mesh]` table as the parse of a case file does, without reading a mesh file it
 /// names: that of a case given beside a mesh, which replaces the mesh the table names (the table
 /// may hold `refine` alone).
@@ -1143,6 +1147,8 @@ pub fn check_mesh_table(mut table: toml::Table) -> Result<(), String> {
     mesh_spec(&t).map(|_| ())
 }
 
+/// The typed mesh of a `[mesh]` table: the keys its kind takes, checked (`refine` is taken by
+/// every kind).
 fn mesh_spec(t: &MeshTable) -> Result<MeshSpec, String> {
     let given = [
         ("corners", t.corners.is_some()),

@@ -450,7 +450,8 @@ impl Program {
                         Binary::Pow => vector::pow(a, b, s),
                         Binary::Min => map2(s, a, b, min),
                         Binary::Max => map2(s, a, b, max),
-                        Binary::Atan2 => map2(s, a, b, f64::atan2),
+                        // In (−π, π] as documented: C's atan2(−0, x < 0) is −π (y + 0 is +0 at ±0).
+                        Binary::Atan2 => map2(s, a, b, |y, x| (y + 0.0).atan2(x)),
                     }
                 }
                 Step::Compare(f, a, b) => map2(s, at(a), at(b), |a, b| truth(compare(f, a, b))),
@@ -663,7 +664,7 @@ fn lex(s: &str) -> Result<Vec<(usize, Token)>, ExprError> {
             let ch = s[i..].chars().next().unwrap_or('?');
             return Err(ExprError {
                 position: i,
-                message: format!("unexpected character '{ch}'"),
+                message: format!("unexpected character '{}'", visible(ch)),
             });
         }
     }
@@ -678,6 +679,15 @@ enum Node {
 }
 
 /// The functions of the language and their number of arguments.
+/// A character as a message shows it: escaped where it would not be seen (a control character, a
+/// space other than ' ': a line break would also end the message's one line).
+pub(crate) fn visible(c: char) -> String {
+    match c.is_control() || (c.is_whitespace() && c != ' ') {
+        true => c.escape_debug().to_string(),
+        false => c.to_string(),
+    }
+}
+
 const FUNCTIONS: [(&str, usize); 15] = [
     ("sqrt", 1),
     ("exp", 1),
@@ -1047,6 +1057,8 @@ impl Parser<'_> {
             format!("'{name}' refers to itself")
         } else if self.later.contains(&name) {
             format!("'{name}' is defined later: a name may use only the names defined before it")
+        } else if FUNCTIONS.iter().any(|(f, _)| *f == name) {
+            format!("'{name}' is a function: write {name}(…)")
         } else {
             let known: Vec<&str> = BUILTIN_NAMES
                 .into_iter()
@@ -1140,6 +1152,9 @@ mod tests {
         assert_eq!(ev("min(x, y) + max(x, y) + abs(-3) + sqrt(16)", 1.0, 2.0), 10.0);
         assert_eq!(ev("atan2(y, x)", -1.0, 0.0), std::f64::consts::PI);
         assert_eq!(ev("atan2(y, x)", 0.0, -2.0), -std::f64::consts::FRAC_PI_2);
+        // (−π, π]: the polar angle of a point on the negative x-axis is π, also where −y is −0.
+        assert_eq!(ev("atan2(-y, x)", -1.0, 0.0), std::f64::consts::PI);
+        assert_eq!(ev("atan2(-0, -1)", 0.0, 0.0), std::f64::consts::PI);
     }
 
     #[test]
@@ -1178,6 +1193,19 @@ mod tests {
             .unwrap_err()
             .message
             .contains("unexpected character '$'"));
+        // Invisible characters are shown escaped (a vertical tab printed as is, a NUL as a NUL).
+        assert!(Expr::parse("x +\u{b} 1")
+            .unwrap_err()
+            .message
+            .contains("unexpected character '\\u{b}'"));
+        assert!(Expr::parse("x\u{a0}+ 1")
+            .unwrap_err()
+            .message
+            .contains("'\\u{a0}'"));
+        assert!(Expr::parse("sin x")
+            .unwrap_err()
+            .message
+            .contains("'sin' is a function: write sin(…)"));
         assert!(Expr::parse("").is_err());
         assert!(Expr::parse("1..2")
             .unwrap_err()

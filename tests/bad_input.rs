@@ -188,6 +188,13 @@ fn wrong_type() {
     contains(&e, "«g = [1, 2]»): expected an expression: a string such as");
 }
 
+/// An expression over several lines is quoted on the error's one line (it spanned three).
+#[test]
+fn a_multiline_expression_is_quoted_on_one_line() {
+    let case = format!("{GOOD}{SQUARE}").replace("f1 = -5", "f1 = \"\"\"\n-1 +\n   x*^y\n\"\"\"");
+    contains(&case_fails(&case), r#"key 'f1' = "-1 +\n   x*^y\n": unexpected '^' (at character 11)"#);
+}
+
 /// Levels of 0 cells were accepted, and `study` then blamed a --levels never given.
 #[test]
 fn validation_levels_of_no_cells() {
