@@ -972,10 +972,11 @@ fn exact_solution(
     let one = |key: &str, v: &Option<Expression>| v.as_ref().map(|v| expr(key, v)).transpose();
     // ∇u as given, or u's derivatives where it is not.
     let grad = |key: &str, g: &Option<Vec<Expression>>, u: &Expr| -> Result<[Expr; 2], String> {
-        let parse = |v| expr(key, v);
+        // Named with the entry, ∂/∂x as [0] and ∂/∂y as [1].
+        let parse = |k: usize, v| expr(&format!("{key}[{k}]"), v);
         match g.as_deref() {
             None => Ok(u.gradient()),
-            Some([gx, gy]) => Ok([parse(gx)?, parse(gy)?]),
+            Some([gx, gy]) => Ok([parse(0, gx)?, parse(1, gy)?]),
             Some(g) => Err(format!(
                 "key '{key}' has {} entries: a gradient has two, [∂/∂x, ∂/∂y]",
                 g.len()

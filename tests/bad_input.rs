@@ -192,7 +192,10 @@ fn wrong_type() {
 #[test]
 fn a_multiline_expression_is_quoted_on_one_line() {
     let case = format!("{GOOD}{SQUARE}").replace("f1 = -5", "f1 = \"\"\"\n-1 +\n   x*^y\n\"\"\"");
-    contains(&case_fails(&case), r#"key 'f1' = "-1 +\n   x*^y\n": unexpected '^' (at character 11)"#);
+    contains(
+        &case_fails(&case),
+        r#"key 'f1' = "-1 +\n   x*^y\n": unexpected '^' (at character 11)"#,
+    );
 }
 
 /// Levels of 0 cells were accepted, and `study` then blamed a --levels never given.
@@ -1212,6 +1215,12 @@ fn an_exact_gradient_of_other_than_two_entries_is_refused() {
             &format!("key 'exact.grad_u1' has {n} entries: a gradient has two"),
         );
     }
+    // An entry that does not parse is named with its index.
+    let exact = "[exact]\nu1 = 0\nu2 = 0\nlambda = 0\ngrad_u1 = [\"0\", \"1 +\"]\n";
+    contains(
+        &case_fails(&format!("{GOOD}{exact}{SQUARE}")),
+        "key 'exact.grad_u1[1]' = \"1 +\"",
+    );
 }
 
 /// `adapt` with settings it cannot use, from the case file or the command line.
