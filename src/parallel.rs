@@ -173,7 +173,7 @@ pub const MAX_THREADS: usize = 1024;
 /// a whole number (which rayon ignores), is an error naming where it came from.
 pub fn use_threads(threads: Option<usize>) -> Result<(), String> {
     let (threads, from) = match threads {
-        Some(0) => return Err(format!("--threads 0: need 1 thread at least")),
+        Some(0) => return Err("--threads 0: need 1 thread at least".into()),
         Some(t) => (t, format!("--threads {t}")),
         None => match env_threads()? {
             Some(t) => (t, format!("RAYON_NUM_THREADS={t}")),

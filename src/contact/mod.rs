@@ -62,7 +62,7 @@ pub struct Solution {
     /// written as u = u1h and psi = u2h.
     pub rigid: bool,
     /// The interpolations between the meshes of the solve's multigrid, finest first (none when it
-    /// used Cholesky): later Poisson solves on this mesh ([`poisson`]) use the same hierarchy.
+    /// used Cholesky): later Poisson solves on this mesh ([`with_poisson`]) use the same hierarchy.
     pub transfers: Vec<Prolongation>,
 }
 
