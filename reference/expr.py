@@ -343,7 +343,7 @@ def to_numpy(tree, x, y):
         "floor": np.floor,
         "min": _minimum_number(np, True),
         "max": _minimum_number(np, False),
-        "atan2": np.arctan2,
+        "atan2": lambda y, x: np.arctan2(y + 0.0, x),  # in (-pi, pi]: y = -0 is taken as +0
         "if": np.where,
         "table": lambda entries, b: _groups().numpy(entries, x, y, b),
     }
@@ -469,7 +469,7 @@ def to_numpy_gradient(tree, x, y):
             if name == "atan2":
                 (p, px, py), (q, qx, qy) = args
                 r2 = p * p + q * q
-                return np.arctan2(p, q), (q * px - p * qx) / r2, (q * py - p * qy) / r2
+                return np.arctan2(p + 0.0, q), (q * px - p * qx) / r2, (q * py - p * qy) / r2
             (a, ax, ay), = args
             v, d = {
                 "sqrt": lambda: (np.sqrt(a), 0.5 / np.sqrt(a)),

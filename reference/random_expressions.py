@@ -31,7 +31,8 @@ TWO = ("min", "max", "atan2")
 NUMPY = {"sqrt": np.sqrt, "exp": np.exp, "log": np.log, "sin": np.sin, "cos": np.cos, "tan": np.tan,
          "atan": np.arctan, "tanh": np.tanh, "abs": np.abs, "sign": np.sign, "floor": np.floor,
          "min": lambda a, b: signed_zeros(np.fmin(a, b), a, b, np.logical_or),
-         "max": lambda a, b: signed_zeros(np.fmax(a, b), a, b, np.logical_and), "atan2": np.arctan2}
+         "max": lambda a, b: signed_zeros(np.fmax(a, b), a, b, np.logical_and),
+         "atan2": lambda y, x: np.arctan2(y + 0.0, x)}  # in (-pi, pi]: y = -0 is taken as +0
 COMPARE = {"<": np.less, "<=": np.less_equal, ">": np.greater, ">=": np.greater_equal}
 ARITHMETIC = {"+": np.add, "-": np.subtract, "*": np.multiply, "/": np.divide, "^": np.power}
 # Binding strength of each node kind (a child weaker than its slot needs parentheses).
