@@ -341,10 +341,8 @@ fn progress(steps: &[Step]) {
             s.vertices,
             s.estimator,
             if s.bound { "" } else { " (NOT a bound)" },
-            s.error.map_or(String::new(), |e| format!(
-                "  error {e:.4e}  η/error {:.3}",
-                s.estimator / e
-            )),
+            (s.error.zip(s.effectivity))
+                .map_or(String::new(), |(e, x)| format!("  error {e:.4e}  η/error {x:.3}")),
             s.iterations,
             s.marked,
             s.seconds
@@ -522,7 +520,7 @@ mod tests {
                     estimator: 3.0 * (vertices as f64).powf(-0.4),
                     bound: true,
                     error: Some((vertices as f64).powf(-0.5)),
-                    effectivity: None,
+                    effectivity: Some(3.0 * (vertices as f64).powf(0.1)),
                     mismatch: None,
                     iterations: 1,
                     seconds: 0.0,

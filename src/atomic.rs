@@ -73,11 +73,9 @@ impl Staging {
     pub fn new(target: &Path, inputs: &[PathBuf], kind: &str) -> Result<Staging, OutputError> {
         let err = |m: String| OutputError(format!("{}: {m}", target.display()));
         // `Path::file_name` reads "r1/." as "r1"; the rename into "r1/." would fail after the run.
-        let last = target
-            .as_os_str()
-            .as_encoded_bytes()
-            .rsplit(|&b| b == b'/')
-            .next();
+        let bytes = target.as_os_str().as_encoded_bytes();
+        let trimmed = &bytes[..bytes.iter().rposition(|&b| b != b'/').map_or(0, |i| i + 1)];
+        let last = trimmed.rsplit(|&b| b == b'/').next();
         let name = target
             .file_name()
             .filter(|n| !n.is_empty() && !matches!(last, Some(b".") | Some(b"..")))

@@ -325,9 +325,14 @@ impl Case {
     /// assert!(case.exact.is_some());
     /// ```
     pub fn read(path: &Path) -> Result<Case, CaseError> {
-        let text = Case::read_text(path)?;
+        Case::parse_file(&Case::read_text(path)?, path)
+    }
+
+    /// Parses and checks `text`, read from the case file `path` (which names it in errors,
+    /// resolves its mesh paths and is an input of its runs).
+    pub fn parse_file(text: &str, path: &Path) -> Result<Case, CaseError> {
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-        let mut case = Case::parse(&text, &path.display().to_string(), base)?;
+        let mut case = Case::parse(text, &path.display().to_string(), base)?;
         case.path = Some(path.to_path_buf());
         Ok(case)
     }
@@ -1132,20 +1137,6 @@ fn quote(key: &str, source: &str, error: &ExprError) -> String {
         None => visible(source),
     };
     format!("key '{key}' = \"{shown}\": {error}")
-}
-
-/// Checks a `[mesh]` table as the parse of a case file does, without reading a mesh file it
-/// names: that of a case given beside a mesh, which replaces the mesh the table names (the table
-/// may hold `refine` alone).
-pub fn check_mesh_table(mut table: toml::Table) -> Result<(), String> {
-    // `refine` is checked where it applies (the given mesh's).
-    table.remove("refine");
-    if table.is_empty() {
-        return Ok(());
-    }
-    let t: MeshTable =
-        (toml::Value::Table(table).try_into()).map_err(|e| format!("[mesh]: {}", e.message()))?;
-    mesh_spec(&t).map(|_| ())
 }
 
 /// The typed mesh of a `[mesh]` table: the keys its kind takes, checked (`refine` is taken by

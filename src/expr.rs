@@ -678,16 +678,18 @@ enum Node {
     Cond(Cond),
 }
 
-/// The functions of the language and their number of arguments.
 /// A character as a message shows it: escaped where it would not be seen (a control character, a
-/// space other than ' ': a line break would also end the message's one line).
+/// space other than ' ', a format character of no width; a line break would also end the
+/// message's one line).
 pub(crate) fn visible(c: char) -> String {
-    match c.is_control() || (c.is_whitespace() && c != ' ') {
+    let no_width = matches!(c, '\u{ad}' | '\u{200b}'..='\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2060}'..='\u{2064}' | '\u{feff}');
+    match c.is_control() || (c.is_whitespace() && c != ' ') || no_width {
         true => c.escape_debug().to_string(),
         false => c.to_string(),
     }
 }
 
+/// The functions of the language and their number of arguments.
 const FUNCTIONS: [(&str, usize); 15] = [
     ("sqrt", 1),
     ("exp", 1),
@@ -1202,6 +1204,10 @@ mod tests {
             .unwrap_err()
             .message
             .contains("'\\u{a0}'"));
+        assert!(Expr::parse("x\u{200b}+ 1")
+            .unwrap_err()
+            .message
+            .contains("'\\u{200b}'"));
         assert!(Expr::parse("sin x")
             .unwrap_err()
             .message

@@ -169,8 +169,8 @@ pub const MAX_THREADS: usize = 1024;
 
 /// Sets the number of threads of the pool, before its first use: `threads` (the `--threads`
 /// option), or else rayon's default, `RAYON_NUM_THREADS` or one per core (where it is 0 or
-/// empty). None or more than [`MAX_THREADS`], from either, or a `RAYON_NUM_THREADS` that is not
-/// a whole number (which rayon ignores), is an error naming where it came from.
+/// empty). `--threads 0`, more than [`MAX_THREADS`] from either, or a `RAYON_NUM_THREADS` that is
+/// not a whole number (which rayon ignores), is an error naming where it came from.
 pub fn use_threads(threads: Option<usize>) -> Result<(), String> {
     let (threads, from) = match threads {
         Some(0) => return Err("--threads 0: need 1 thread at least".into()),

@@ -1376,6 +1376,7 @@ fn an_output_the_run_could_not_put_in_place_is_refused_before_it() {
         ("", "out/.", "out/.: not a directory name"),
         ("", "new/.", "new/.: not a directory name"),
         ("", "out/..", "out/..: not a directory name"),
+        ("", "out/.//", "out/.//: not a directory name"),
         ("", &long[..], "a name of 256 bytes: at most 255"),
         ("out", "../out", "the current directory is inside it"),
     ] {

@@ -74,9 +74,9 @@ fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
             None => return Ok(None),
         },
     };
-    if !(1..=membrane_contact::parallel::MAX_THREADS).contains(&t) {
+    if t > membrane_contact::parallel::MAX_THREADS {
         return Err(InputError::new_err(format!(
-            "{from}: need 1 to {}",
+            "{from}: at most {} threads",
             membrane_contact::parallel::MAX_THREADS
         )));
     }
@@ -169,64 +169,48 @@ const GIVEN_GROUPS: &str = "the given mesh";
 /// replaced by the mesh at once, and left out of the case text the result stores.
 const PLACEHOLDER_MESH: &str = "\n[mesh]\nkind = \"rectangle\"\nn = 1\n";
 
-/// The text to parse of a case (from `origin`) given beside a mesh: its `[mesh]` table, if any,
-/// checked without reading a file it names and replaced by the placeholder with the table's
-/// `refine` (the parse checks it); `None` where the text is not TOML, which the parse then
-/// reports.
-fn beside_mesh(text: &str, origin: &str) -> Result<Option<String>, CaseError> {
+/// The text to parse of a case given beside a mesh, which replaces the mesh the case's `[mesh]`
+/// names: the text itself where the table names a kind (the parse checks the table as a case
+/// file's, without reading a file it names), else with a placeholder table of the table's
+/// `refine` (where it holds `refine` alone, the text is written anew: a parse error elsewhere in
+/// it would be placed in that text); the text itself where it is not TOML (the parse says why).
+fn beside_mesh(text: &str) -> String {
     let Ok(mut table) = text.parse::<toml::Table>() else {
-        return Ok(None);
+        return text.to_owned();
     };
-    let Some(named) = table.remove("mesh") else {
-        return Ok(Some(text.to_owned() + PLACEHOLDER_MESH));
-    };
-    let toml::Value::Table(named) = named else {
-        return Err(CaseError(format!("{origin}: [mesh] must be a table")));
-    };
-    let refine = named.get("refine").cloned();
-    membrane_contact::case::check_mesh_table(named).map_err(|e| CaseError(format!("{origin}: {e}")))?;
-    let mut mesh = toml::Table::new();
-    mesh.insert("kind".into(), "rectangle".into());
-    mesh.insert("n".into(), 1.into());
-    if let Some(refine) = refine {
-        mesh.insert("refine".into(), refine);
+    match table.get_mut("mesh") {
+        None => text.to_owned() + PLACEHOLDER_MESH,
+        Some(toml::Value::Table(mesh)) if mesh.keys().all(|k| k == "refine") => {
+            mesh.insert("kind".into(), "rectangle".into());
+            mesh.insert("n".into(), 1.into());
+            toml::to_string(&table).expect("a TOML table serializes")
+        }
+        Some(_) => text.to_owned(),
     }
-    table.insert("mesh".into(), mesh.into());
-    Ok(Some(toml::to_string(&table).expect("a TOML table serializes")))
 }
 
 impl CaseSource {
     /// The case, on the given mesh if any, which replaces the mesh the case's `[mesh]` names (the
     /// table may then be left out, or hold `refine` alone); the table's `refine` refines it.
     fn case(&self, mesh: Option<Arrays>) -> Result<Case, CaseError> {
-        let beside_mesh = |text: &str, origin: &str| match mesh {
-            Some(_) => beside_mesh(text, origin),
-            None => Ok(None),
+        let parsed = |text: &str| match mesh {
+            Some(_) => beside_mesh(text),
+            None => text.to_owned(),
         };
         let mut case = match self.kind.as_str() {
             "default" => Case::default_case(),
             "path" => {
                 let path = Path::new(&self.value);
                 let text = Case::read_text(path)?;
-                match beside_mesh(&text, &path.display().to_string())? {
-                    Some(parsed) => {
-                        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-                        let origin = path.display().to_string();
-                        let mut case = Case::parse(&parsed, &origin, base)?;
-                        case.text = text;
-                        case
-                    }
-                    None => Case::read(path)?,
-                }
+                let mut case = Case::parse_file(&parsed(&text), path)?;
+                case.text = text;
+                case
             }
-            _ => match beside_mesh(&self.value, &self.origin)? {
-                Some(parsed) => {
-                    let mut case = Case::parse(&parsed, &self.origin, PathBuf::new())?;
-                    case.text.clone_from(&self.value);
-                    case
-                }
-                None => Case::parse(&self.value, &self.origin, PathBuf::new())?,
-            },
+            _ => {
+                let mut case = Case::parse(&parsed(&self.value), &self.origin, PathBuf::new())?;
+                case.text.clone_from(&self.value);
+                case
+            }
         };
         if let Some((points, triangles, groups)) = mesh {
             let n = points.len();

@@ -218,8 +218,8 @@ def test_threads_are_a_value_of_the_call_and_change_no_bit():
         assert same_bits(runs[1].fields[name], runs[3].fields[name]), name
     assert runs[1].eta == runs[3].eta
     assert "on 1 thread," in runs[1].summary() and "on 3 threads," in runs[3].summary()
-    for bad, need in ((0, "a whole number ≥ 1"), (-1, "a whole number ≥ 1"), (1025, "1 to 1024")):
-        with pytest.raises(mc.InputError, match=f"threads = {bad}: need {need}"):
+    for bad, need in ((0, "need a whole number ≥ 1"), (-1, "need a whole number ≥ 1"), (1025, "at most 1024 threads")):
+        with pytest.raises(mc.InputError, match=f"threads = {bad}: {need}"):
             mc.solve(n=8, threads=bad)
     table, _ = mc.study(levels=[8, 16], threads=2)
     assert [row["vertices"] for row in table] == [81, 289]
@@ -381,10 +381,14 @@ def test_a_given_mesh_replaces_the_named_mesh_and_the_tables_refine_refines_it(s
     assert len(mc.solve({**small, "mesh": {"refine": 1}}, (points, triangles), refine=0).points) == 25
     with pytest.raises(mc.InputError, match="refine = -1.*whole number"):
         mc.solve({**small, "mesh": {"kind": "file", "path": "x.msh", "refine": -1}}, (points, triangles))
-    # The table is checked as a case file's is, but for the file it names (replaced).
+    # The table is checked as a case file's is, but for the file it names (replaced, not read).
     for mesh, error in (({"kind": "blob"}, "mesh.kind"), ({"bogus": 1}, "bogus"), ({"n": [4, 4]}, "kind")):
         with pytest.raises(mc.InputError, match=error):
             mc.solve({**small, "mesh": mesh}, (points, triangles))
+    # An error elsewhere in a case file is placed in the file as written.
+    text = "# a comment\n\nmu1 = 1.0\nmu2 = 1.0\nf1 = -1\nf2 = 1\ng = 0\n\n\nbogus = 2\n[mesh]\nkind = \"file\"\npath = \"x.msh\"\n"
+    with pytest.raises(mc.InputError, match="line 10, column 1 .«bogus = 2»"):
+        mc.solve(text, (points, triangles))
 
 
 def test_result_arrays_are_read_only(small):
@@ -420,7 +424,7 @@ def test_a_result_is_written_to_a_directory_name_only(tmp_path, small):
 def test_rayon_num_threads_is_checked_as_the_command_line_checks_it():
     # rayon ignores a value that is not a whole number (and ran one thread per core, silently).
     script = "import membrane_contact as mc\nmc.solve(n=8)\n"
-    for value, error in (("abc", "RAYON_NUM_THREADS=abc: need a whole number"), ("2000", "RAYON_NUM_THREADS=2000: need 1 to 1024")):
+    for value, error in (("abc", "RAYON_NUM_THREADS=abc: need a whole number"), ("2000", "RAYON_NUM_THREADS=2000: at most 1024 threads")):
         env = dict(os.environ, RAYON_NUM_THREADS=value)
         run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120)
         assert run.returncode == 1 and error in run.stderr, run.stderr

@@ -56,7 +56,7 @@ type Change = [[f64; 3]; 2];
 impl Resolution {
     /// The check of the loads `f` (one per membrane, of tensions `mu`) of `problem`, whose
     /// pairings on the cells of S_h by the case's rule, summed over each triangle, are `sums` (for the
-    /// vertices j of s's triangle); the lifts on the solve's `transfers`.
+    /// vertices j of s's triangle); the lifts by `solve` (of [`contact::with_poisson`]).
     pub(super) fn check(
         (problem, dual): (&DiscreteProblem, &DualMesh),
         f: [&Pieces; 2],

@@ -22,6 +22,7 @@ pub use transfer::Prolongation;
 
 use buckets::Buckets;
 use std::fmt;
+use std::path::Path;
 
 /// A triangle mesh with counter-clockwise triangles and its boundary vertices.
 #[derive(Debug, Clone, PartialEq)]
@@ -350,28 +351,54 @@ pub fn available_memory() -> Option<(u64, &'static str)> {
     .min_by_key(|&(bytes, _)| bytes)
 }
 
-/// What the memory limit of this process's cgroup leaves, if it has one: cgroup v2's
-/// `memory.max` less `memory.current`, or v1's `memory.limit_in_bytes` less
-/// `memory.usage_in_bytes`.
+/// What the memory limits of this process's cgroup and of the groups above it (a batch job's may
+/// be set on its parent) leave, if any has one: the least over them of the limit less the memory
+/// in use that the kernel cannot reclaim (the usage less its inactive file pages, as container
+/// runtimes count a working set). cgroup v2: `memory.max`, `memory.current` and `memory.stat`'s
+/// `inactive_file`, its hierarchy at /sys/fs/cgroup or, beside v1, /sys/fs/cgroup/unified; v1:
+/// `memory.limit_in_bytes`, `memory.usage_in_bytes` and `total_inactive_file`.
 fn cgroup_left() -> Option<u64> {
     let groups = std::fs::read_to_string("/proc/self/cgroup").ok()?;
-    let number = |path: String| std::fs::read_to_string(path).ok()?.trim().parse::<u64>().ok();
-    groups.lines().find_map(|line| {
-        let mut parts = line.splitn(3, ':');
-        let (id, controllers, path) = (parts.next()?, parts.next()?, parts.next()?);
-        let (limit, used) = match (id, controllers.split(',').any(|c| c == "memory")) {
-            ("0", _) => ("memory.max", "memory.current"),
-            (_, true) => ("memory/memory.limit_in_bytes", "memory/memory.usage_in_bytes"),
-            _ => return None,
-        };
-        let dir = |file: &str| match file.split_once('/') {
-            Some((v1, file)) => format!("/sys/fs/cgroup/{v1}{path}/{file}"),
-            None => format!("/sys/fs/cgroup{path}/{file}"),
-        };
+    let read = |dir: &Path, file: &str| std::fs::read_to_string(dir.join(file)).ok();
+    let left_in = |dir: &Path, [limit, used, inactive]: [&str; 3]| -> Option<u64> {
+        let number = |file: &str| read(dir, file)?.trim().parse::<u64>().ok();
         // v1 writes "no limit" as a huge number, v2 as "max" (not a number).
-        let limit = number(dir(limit)).filter(|&l| l < 1 << 60)?;
-        Some(limit.saturating_sub(number(dir(used)).unwrap_or(0)))
-    })
+        let limit = number(limit).filter(|&l| l < 1 << 60)?;
+        let stat = read(dir, "memory.stat").unwrap_or_default();
+        let inactive = (stat.lines())
+            .find_map(|l| l.strip_prefix(inactive)?.trim().parse::<u64>().ok())
+            .unwrap_or(0);
+        Some(limit.saturating_sub(number(used).unwrap_or(0).saturating_sub(inactive)))
+    };
+    let v2 = (
+        ["/sys/fs/cgroup", "/sys/fs/cgroup/unified"].as_slice(),
+        ["memory.max", "memory.current", "inactive_file "],
+    );
+    let v1 = (
+        ["/sys/fs/cgroup/memory"].as_slice(),
+        [
+            "memory.limit_in_bytes",
+            "memory.usage_in_bytes",
+            "total_inactive_file ",
+        ],
+    );
+    (groups.lines())
+        .filter_map(|line| {
+            let mut parts = line.splitn(3, ':');
+            let (id, controllers, path) = (parts.next()?, parts.next()?, parts.next()?);
+            let (roots, files) = match (id, controllers.split(',').any(|c| c == "memory")) {
+                ("0", _) => v2,
+                (_, true) => v1,
+                _ => return None,
+            };
+            let group = path.trim_start_matches('/');
+            let root = roots.iter().map(Path::new).find(|r| r.join(group).is_dir())?;
+            let dir = root.join(group);
+            (dir.ancestors().take_while(|d| d.starts_with(root)))
+                .filter_map(|d| left_in(d, files))
+                .min()
+        })
+        .min()
 }
 
 /// Twice the signed area of the triangle (p, q, r).

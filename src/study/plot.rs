@@ -372,6 +372,9 @@ pub(crate) fn loglog(
         .map_err(|e| err(&e))?;
     let mut entries: Vec<Entry> = Vec::new();
     for (i, ((name, _), points)) in series.iter().zip(&decades).enumerate() {
+        if points.is_empty() {
+            continue;
+        }
         let color = Palette99::pick(i).to_rgba();
         marked_line(&mut chart, points, color)?;
         entries.push((name.clone(), color, false));
