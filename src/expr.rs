@@ -644,6 +644,12 @@ fn lex(s: &str) -> Result<Vec<(usize, Token)>, ExprError> {
                 position: start,
                 message: format!("malformed number '{text}'"),
             })?;
+            if v.is_infinite() {
+                return Err(ExprError {
+                    position: start,
+                    message: format!("the number '{text}' is beyond the largest double, about 1.8e308"),
+                });
+            }
             out.push((start, Token::Number(v)));
         } else if c.is_ascii_alphabetic() || c == b'_' {
             let start = i;
@@ -1204,6 +1210,11 @@ mod tests {
             .unwrap_err()
             .message
             .contains("'\\u{a0}'"));
+        // A literal beyond the doubles was read as inf, refused later at a point of the mesh.
+        assert!(Expr::parse("1e400 * x")
+            .unwrap_err()
+            .message
+            .contains("'1e400' is beyond the largest double"));
         assert!(Expr::parse("x\u{200b}+ 1")
             .unwrap_err()
             .message

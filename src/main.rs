@@ -8,7 +8,7 @@ use membrane_contact::progress::print as say;
 use membrane_contact::run;
 use membrane_contact::study::{self, StudyOptions};
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Large allocations on huge pages (see [`membrane_contact::pages`]).
@@ -237,8 +237,19 @@ type Failure = Box<dyn std::error::Error>;
 fn read_case(path: &Option<PathBuf>, linear: Option<String>) -> Result<(Case, String), Failure> {
     let (mut case, name) = match path {
         Some(p) => {
-            // The stem of "..toml" is ".": a name that is not one names "case".
-            let name = (p.file_stem().map(|s| s.to_string_lossy().to_string()))
+            // The stem of "..toml" is ".": a name that is not one names "case"; that of
+            // "beam.h5.toml" would be refused as a file's name, and names "beam".
+            let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().to_string());
+            let name = (stem(p))
+                .map(|s| {
+                    match Path::new(&s)
+                        .extension()
+                        .is_some_and(|e| e == "h5" || e == "xdmf")
+                    {
+                        true => stem(Path::new(&s)).unwrap_or_default(),
+                        false => s,
+                    }
+                })
                 .filter(|s| !matches!(s.as_str(), "" | "." | ".."))
                 .unwrap_or_else(|| "case".into());
             (Case::read(p)?, name)

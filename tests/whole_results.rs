@@ -126,7 +126,7 @@ fn any_file_name_works() {
 }
 
 /// The default result directory is named after the case file's stem, "case" where the stem
-/// names none ("..toml": it was results/., refused as "not a result").
+/// names none ("..toml": it was results/., refused as "not a result"), without an .h5 or .xdmf.
 #[test]
 fn a_case_file_without_a_stem_names_its_result_case() {
     let dir = tempfile::tempdir().unwrap();
@@ -138,6 +138,19 @@ fn a_case_file_without_a_stem_names_its_result_case() {
         .unwrap();
     assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
     assert_eq!(read_whole(&dir.path().join("results/case")), 81);
+    // Nor is a stem named like a file of a result ("beam.h5", refused as such): it names "beam".
+    std::fs::write(
+        dir.path().join("beam.h5.toml"),
+        membrane_contact::case::DEFAULT_CASE,
+    )
+    .unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .args(["solve", "beam.h5.toml", "--n", "8", "--quiet"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    assert_eq!(read_whole(&dir.path().join("results/beam")), 81);
 }
 
 #[test]
