@@ -302,10 +302,6 @@ fn solve(
     let r = run::solve(&case, &options, &output)?;
     membrane_contact::progress::finish();
     // The summary on stdout, whole or (on a failure) not at all.
-    match case.title.as_str() {
-        "" => say(&format!("case        {}\n", case.origin)),
-        title => say(&format!("case        {} — {title}\n", case.origin)),
-    }
     say(&r.summary(verbose));
     // ParaView's Xdmf3 reader crashes on a bare relative name: the path to open is absolute.
     let open = std::path::absolute(&output).unwrap_or_else(|_| output.clone());

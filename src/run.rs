@@ -302,7 +302,15 @@ impl Run<'_> {
     /// A short human-readable summary; `verbose` adds the solver's details (coarser levels, local
     /// corrections, CG iterations or factorizations) and why Cholesky ran in place of multigrid.
     pub fn summary(&self, verbose: bool) -> String {
-        self.figures(verbose) + &self.seconds_line()
+        self.case_line() + &self.figures(verbose) + &self.seconds_line()
+    }
+
+    /// The summary's first line: the case, by its origin and title.
+    fn case_line(&self) -> String {
+        match self.case.title.as_str() {
+            "" => format!("case        {}\n", self.case.origin),
+            title => format!("case        {} — {title}\n", self.case.origin),
+        }
     }
 
     /// The summary but for its line on the times, which differ from run to run.
@@ -538,7 +546,7 @@ impl Describe for Run<'_> {
         attrs.extend(self.effectivity().map(|x| ("effectivity", x.into())));
         attrs.extend(self.timings.attributes());
         // The summary as the run printed it, for a reader of the file (the times are above).
-        attrs.push(("summary", Attr::Text(self.figures(false))));
+        attrs.push(("summary", Attr::Text(self.case_line() + &self.figures(false))));
         attrs
     }
 }

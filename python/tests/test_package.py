@@ -433,3 +433,13 @@ def test_rayon_num_threads_is_checked_as_the_command_line_checks_it():
     run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=env, timeout=120)
     assert run.stdout.strip() == "81", run.stderr
 
+
+def test_the_summary_is_the_command_lines(tmp_path):
+    # It lacked the line naming the case, which the command line prints first.
+    summary = mc.solve(n=8, threads=1).summary()
+    assert summary.startswith("case        built-in default case — Disk contact"), summary
+    from conftest import BIN
+    cli = subprocess.run([str(BIN), "solve", "--quiet", "--threads", "1", "--n", "8", "-o", str(tmp_path / "r")],
+                         capture_output=True, text=True, check=True).stdout
+    assert cli.splitlines()[:3] == summary.splitlines()[:3]
+
