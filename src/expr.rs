@@ -1176,58 +1176,29 @@ mod tests {
 
     #[test]
     fn errors_name_the_problem() {
+        let refused = |source: &str, message: &str| {
+            let e = Expr::parse(source).unwrap_err();
+            assert!(e.message.contains(message), "{source:?}: {e}");
+        };
         let e = Expr::parse("x + foo").unwrap_err();
         assert!(e.message.contains("unknown name 'foo'"), "{e}");
         assert_eq!(e.position, 4);
-        assert!(Expr::parse("bar(x)")
-            .unwrap_err()
-            .message
-            .contains("unknown function 'bar'"));
-        assert!(Expr::parse("(x + 1")
-            .unwrap_err()
-            .message
-            .contains("expected ')'"));
-        assert!(Expr::parse("x +")
-            .unwrap_err()
-            .message
-            .contains("end of expression"));
-        assert!(Expr::parse("x < 1").unwrap_err().message.contains("condition"));
-        assert!(Expr::parse("if(x, 1, 2)")
-            .unwrap_err()
-            .message
-            .contains("condition"));
-        assert!(Expr::parse("min(x)").unwrap_err().message.contains("2 argument"));
-        assert!(Expr::parse("x $ 2")
-            .unwrap_err()
-            .message
-            .contains("unexpected character '$'"));
+        refused("bar(x)", "unknown function 'bar'");
+        refused("(x + 1", "expected ')'");
+        refused("x +", "end of expression");
+        refused("x < 1", "condition");
+        refused("if(x, 1, 2)", "condition");
+        refused("min(x)", "2 argument");
+        refused("x $ 2", "unexpected character '$'");
         // Invisible characters are shown escaped (a vertical tab printed as is, a NUL as a NUL).
-        assert!(Expr::parse("x +\u{b} 1")
-            .unwrap_err()
-            .message
-            .contains("unexpected character '\\u{b}'"));
-        assert!(Expr::parse("x\u{a0}+ 1")
-            .unwrap_err()
-            .message
-            .contains("'\\u{a0}'"));
+        refused("x +\u{b} 1", "unexpected character '\\u{b}'");
+        refused("x\u{a0}+ 1", "'\\u{a0}'");
         // A literal beyond the doubles was read as inf, refused later at a point of the mesh.
-        assert!(Expr::parse("1e400 * x")
-            .unwrap_err()
-            .message
-            .contains("'1e400' is beyond the largest double"));
-        assert!(Expr::parse("x\u{200b}+ 1")
-            .unwrap_err()
-            .message
-            .contains("'\\u{200b}'"));
-        assert!(Expr::parse("sin x")
-            .unwrap_err()
-            .message
-            .contains("'sin' is a function: write sin(…)"));
+        refused("1e400 * x", "'1e400' is beyond the largest double");
+        refused("x\u{200b}+ 1", "'\\u{200b}'");
+        refused("sin x", "'sin' is a function: write sin(…)");
         assert!(Expr::parse("").is_err());
-        assert!(Expr::parse("1..2")
-            .unwrap_err()
-            .message
-            .contains("malformed number"));
+        refused("1..2", "malformed number");
     }
 
     #[test]

@@ -130,27 +130,17 @@ fn any_file_name_works() {
 #[test]
 fn a_case_file_without_a_stem_names_its_result_case() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("..toml"), membrane_contact::case::DEFAULT_CASE).unwrap();
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
-        .args(["solve", "..toml", "--n", "8", "--quiet"])
-        .current_dir(dir.path())
-        .output()
-        .unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-    assert_eq!(read_whole(&dir.path().join("results/case")), 81);
     // Nor is a stem named like a file of a result ("beam.h5", refused as such): it names "beam".
-    std::fs::write(
-        dir.path().join("beam.h5.toml"),
-        membrane_contact::case::DEFAULT_CASE,
-    )
-    .unwrap();
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
-        .args(["solve", "beam.h5.toml", "--n", "8", "--quiet"])
-        .current_dir(dir.path())
-        .output()
-        .unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
-    assert_eq!(read_whole(&dir.path().join("results/beam")), 81);
+    for (file, result) in [("..toml", "results/case"), ("beam.h5.toml", "results/beam")] {
+        std::fs::write(dir.path().join(file), membrane_contact::case::DEFAULT_CASE).unwrap();
+        let run = std::process::Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+            .args(["solve", file, "--n", "8", "--quiet"])
+            .current_dir(dir.path())
+            .output()
+            .unwrap();
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        assert_eq!(read_whole(&dir.path().join(result)), 81);
+    }
 }
 
 #[test]
