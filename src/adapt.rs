@@ -53,15 +53,14 @@ pub struct Step {
 impl Step {
     fn new(r: &Run, marked: usize, seconds: f64) -> Step {
         let (mesh, estimate) = (&r.problem.mesh, r.estimate.as_ref().expect("estimated"));
-        let error = r.errors.as_ref().and_then(|e| e.energy);
         Step {
             vertices: mesh.n_vertices(),
             triangles: mesh.n_triangles(),
             marked,
             estimator: estimate.total,
             bound: estimate.is_bound(),
-            error,
-            effectivity: error.map(|e| estimate.total / e),
+            error: r.errors.as_ref().and_then(|e| e.energy),
+            effectivity: r.effectivity(),
             mismatch: r.errors.as_ref().and_then(|e| e.boundary),
             iterations: r.solution.obstacle.stats.iterations,
             seconds,

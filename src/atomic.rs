@@ -65,6 +65,13 @@ pub struct Staging {
 /// The longest file name, in bytes, of the file systems of Linux.
 const NAME_MAX: usize = 255;
 
+/// The extension of `path` where it names a file of a result (.h5, .xdmf, in any case), a name a
+/// result directory may not take.
+pub fn file_extension(path: &Path) -> Option<String> {
+    let extension = path.extension()?.to_string_lossy().to_lowercase();
+    matches!(extension.as_str(), "h5" | "xdmf").then_some(extension)
+}
+
 impl Staging {
     /// Prepares the result directory `target`, whose `kind` ("solution" or "study") the marker
     /// records. Refuses a `target` that exists and is not a result of this program, that holds
@@ -80,8 +87,7 @@ impl Staging {
             .file_name()
             .filter(|n| !n.is_empty() && !matches!(last, Some(b".") | Some(b"..")))
             .ok_or_else(|| err("not a directory name".into()))?;
-        let extension = target.extension().map(|e| e.to_string_lossy().to_lowercase());
-        if let Some(ext) = extension.filter(|e| e == "h5" || e == "xdmf") {
+        if let Some(ext) = file_extension(target) {
             return Err(err(format!(
                 "a result is a directory (of .h5 and .xdmf files), not a .{ext} file: give a \
                  directory name"

@@ -239,17 +239,14 @@ fn read_case(path: &Option<PathBuf>, linear: Option<String>) -> Result<(Case, St
         Some(p) => {
             // The stem of "..toml" is ".": a name that is not one names "case"; that of
             // "beam.h5.toml" would be refused as a file's name, and names "beam".
-            let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().to_string());
+            let stem = |p: &Path| p.file_stem().map(|s| s.to_string_lossy().into_owned());
             let name = (stem(p))
-                .map(|s| {
-                    match Path::new(&s)
-                        .extension()
-                        .is_some_and(|e| e == "h5" || e == "xdmf")
-                    {
-                        true => stem(Path::new(&s)).unwrap_or_default(),
-                        false => s,
-                    }
-                })
+                .and_then(
+                    |s| match membrane_contact::atomic::file_extension(Path::new(&s)) {
+                        Some(_) => stem(Path::new(&s)),
+                        None => Some(s),
+                    },
+                )
                 .filter(|s| !matches!(s.as_str(), "" | "." | ".."))
                 .unwrap_or_else(|| "case".into());
             (Case::read(p)?, name)

@@ -315,9 +315,9 @@ pub fn check_memory(vertices: usize, bytes_per_vertex: f64) -> Result<(), MeshEr
 
 /// The memory this process may still use, in bytes, and what bounds it: the least of the memory
 /// available now (`MemAvailable` of /proc/meminfo), what the process's limits on its address space
-/// and its data leave of them (`ulimit -v`, `ulimit -d`), and what its cgroup's limit leaves (a
-/// container's or a batch job's: `memory.max` of cgroup v2, `memory.limit_in_bytes` of v1);
-/// `None` where none can be read.
+/// and its data leave of them (`ulimit -v`, `ulimit -d`), and what the memory limits of its cgroup
+/// and the groups above it leave (a container's or a batch job's: the usage less inactive file
+/// pages counted as used); `None` where none can be read.
 pub fn available_memory() -> Option<(u64, &'static str)> {
     let kb = |text: &str, key: &str| -> Option<u64> {
         let line = text.lines().find(|l| l.starts_with(key))?;
