@@ -9,16 +9,21 @@ use membrane_contact::mesh::file;
 use membrane_contact::run;
 use std::path::Path;
 
+/// Dörfler's θ = 1/2 with these stops.
+fn halving(target: Option<f64>, max_vertices: usize, steps: usize) -> Adaptivity {
+    Adaptivity {
+        theta: 0.5,
+        target,
+        max_vertices,
+        steps,
+    }
+}
+
 /// `adapt` on `case` from its 8² mesh, θ = 1/2, up to `max_vertices`, into a temporary directory:
 /// the steps, the directory (kept alive) and the path of the result.
 fn adapted(mut case: Case, max_vertices: usize) -> (Adapted, tempfile::TempDir, std::path::PathBuf) {
     case.set_cells(8).unwrap();
-    let settings = Adaptivity {
-        theta: 0.5,
-        target: None,
-        max_vertices,
-        steps: 40,
-    };
+    let settings = halving(None, max_vertices, 40);
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("adapt");
     let a = adapt(&case, &settings, false, &out).unwrap();
@@ -39,12 +44,7 @@ fn adaptivity_with_a_load_jumping_across_a_curve_keeps_a_sharp_bound_at_the_opti
     let case = Case::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases/part2_disk.toml")).unwrap();
     let mut case = case;
     case.refine = 0;
-    let settings = Adaptivity {
-        theta: 0.5,
-        target: None,
-        max_vertices: 20_000,
-        steps: 40,
-    };
+    let settings = halving(None, 20_000, 40);
     let dir = tempfile::tempdir().unwrap();
     let a = adapt(&case, &settings, false, &dir.path().join("adapt")).unwrap();
     let steps = &a.adaptive;
@@ -225,12 +225,7 @@ fn adapt_says_why_it_stopped() {
     let why = |target: Option<f64>, max_vertices: usize, steps: usize| {
         let mut c = case.clone();
         c.set_cells(8).unwrap();
-        let settings = Adaptivity {
-            theta: 0.5,
-            target,
-            max_vertices,
-            steps,
-        };
+        let settings = halving(target, max_vertices, steps);
         let dir = tempfile::tempdir().unwrap();
         let a = adapt(&c, &settings, false, &dir.path().join("adapt")).unwrap();
         let md = std::fs::read_to_string(dir.path().join("adapt/adapt.md")).unwrap();
@@ -261,12 +256,7 @@ fn a_solution_exact_in_p1_adapts_to_a_whole_result() {
                 [mesh]\nkind = \"polygon\"\nboundary = [[-1, -1], [1, -1], [1, 0], [0, 0], [0, 1], [-1, 1]]\n\
                 h = 0.5\n";
     let case = Case::parse(text, "patch.toml", std::env::temp_dir()).unwrap();
-    let settings = Adaptivity {
-        theta: 0.5,
-        target: None,
-        max_vertices: 2000,
-        steps: 3,
-    };
+    let settings = halving(None, 2000, 3);
     let dir = tempfile::tempdir().unwrap();
     let a = adapt(&case, &settings, false, &dir.path().join("adapt")).unwrap();
     assert!(a.adaptive.iter().any(|s| s.estimator == 0.0), "{:?}", a.adaptive);
@@ -283,12 +273,7 @@ fn adapt_says_at_which_steps_eta_is_not_a_bound() {
     let text = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"-1 - 50*exp(-(x - 0.3)^2/1e-5)\"\nf2 = \"0\"\ng = \"0\"\n\
                 [mesh]\nkind = \"rectangle\"\nn = 8\n";
     let case = Case::parse(text, "layer.toml", std::env::temp_dir()).unwrap();
-    let settings = Adaptivity {
-        theta: 0.5,
-        target: Some(1e9),
-        max_vertices: 2000,
-        steps: 3,
-    };
+    let settings = halving(Some(1e9), 2000, 3);
     let dir = tempfile::tempdir().unwrap();
     let a = adapt(&case, &settings, false, &dir.path().join("adapt")).unwrap();
     assert!(!a.adaptive[0].bound, "{:?}", a.adaptive[0]);
@@ -314,12 +299,7 @@ fn a_failure_on_a_refined_mesh_names_the_step() {
     let text = "mu1 = 1.0\nmu2 = 1.0\nf1 = -10\nf2 = 2\ng = \"0.05 - 0.1*max(0, 1 - 10000*(x-0.55)^2)\"\n\
                 [mesh]\nkind = \"polygon\"\nboundary = [[0, 0], [1, 0], [1, 1], [0, 1]]\nh = 0.1\n";
     let case = Case::parse(text, "dip.toml", std::env::temp_dir()).unwrap();
-    let settings = |steps: usize| Adaptivity {
-        theta: 0.5,
-        target: None,
-        max_vertices: 20_000,
-        steps,
-    };
+    let settings = |steps: usize| halving(None, 20_000, steps);
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("adapt");
     let e = adapt(&case, &settings(40), false, &out).unwrap_err().to_string();
