@@ -641,6 +641,10 @@ def rust_estimate(r, cell_degree=None):
     lam_cell = lam[geo.owner]
     nt, nv = len(geo.T), len(geo.P)
     m = geo.dual_area  # m_a = |D_a| = int phi_a
+    # the contact term takes lambda_h on the contact set (>= 0, section 3); off it lambda_h is the
+    # solve's round-off, whose norm enters each membrane's term by Friedrichs
+    lam_c = np.where((r["contact"] > 0.5) & (lam > 0.0), lam, 0.0)
+    off_contact = math.sqrt(float(np.sum((lam - lam_c) ** 2 * m)))
     f = [case_function(case["f1"]), case_function(case["f2"])]
 
     # the loads (f_i, phi_a)_q by the case's rule on T_h (the solver's load vectors)
@@ -717,14 +721,14 @@ def rust_estimate(r, cell_degree=None):
         sums.append(float(local.sum()))
         G_mid.append(G)
         tau_mid.append(t_mid)
-        attrs["estimator_means_%d" % (i + 1)] = geo.C_F * math.sqrt(np.sum(rho ** 2 * m) / mu[i])
+        attrs["estimator_means_%d" % (i + 1)] = geo.C_F * (math.sqrt(np.sum(rho ** 2 * m)) + off_contact) / math.sqrt(mu[i])
         attrs["estimator_membrane_%d" % (i + 1)] = math.sqrt(sums[i]) + attrs["estimator_means_%d" % (i + 1)]
 
     # the boundary data (section 5) and the contact term (section 6)
-    grad_psi2, lampsi = boundary_lifting(geo, case, lam, gap)
+    grad_psi2, lampsi = boundary_lifting(geo, case, lam_c, gap)
     fields["estimator_boundary"] = np.sqrt(mu[0] * grad_psi2)
     w_cent = np.einsum("nk,nk->n", barycentric(geo.pk[geo.tri], geo.ps.mean(axis=1)[:, None, :])[:, 0], gap[geo.T[geo.tri]])
-    fields["estimator_contact"] = np.bincount(geo.tri, lam_cell * geo.area * w_cent, minlength=nt) + lampsi
+    fields["estimator_contact"] = np.bincount(geo.tri, lam_c[geo.owner] * geo.area * w_cent, minlength=nt) + lampsi
     fields["estimator"] = np.sqrt(np.maximum(indicator2 + fields["estimator_boundary"] ** 2 + 2 * fields["estimator_contact"], 0.0))
     eta_D = math.sqrt(float(np.sum(fields["estimator_boundary"] ** 2)))
     eta_C = float(fields["estimator_contact"].sum())

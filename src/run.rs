@@ -335,6 +335,14 @@ impl Run<'_> {
                 show(e.hminus1_lambda),
                 e.quadrature
             );
+            if e.at_round_off() {
+                out += &format!(
+                    "exact       u_h is the exact solution to round-off (|||u − u_h||| = {:.1e} |||u_h|||): \
+                     no effectivity\n",
+                    e.energy
+                        .map_or(0.0, |x| x / e.solution_energy.max(f64::MIN_POSITIVE))
+                );
+            }
             if let Some(u) = &e.unsolved {
                 out += &format!("exact       {}\n", u.describe(self.solution.rigid));
             }
@@ -504,9 +512,9 @@ impl Run<'_> {
         DualMesh::new(&self.problem.mesh, &self.edges)
     }
 
-    /// η / |||u − u_h|||, when both are known.
+    /// η / |||u − u_h|||, when both are known and the error is not round-off.
     pub fn effectivity(&self) -> Option<f64> {
-        let error = self.errors.as_ref()?.energy?;
+        let error = self.errors.as_ref()?.resolved_energy()?;
         Some(self.estimate.as_ref()?.total / error)
     }
 }

@@ -247,9 +247,10 @@ fn adapt_says_why_it_stopped() {
     assert!(why(None, 1000, 40).contains("the next mesh would have had more vertices"));
 }
 
-/// A patch test, u exact in P1: η is 0 at most steps and round-off at others. The plot leaves
-/// the zeros out (its log axis from 10^-∞ took 24 GB and the machine's memory killed the run,
-/// every step computed, nothing written) and the result is whole.
+/// A patch test, u exact in P1: η is round-off at every step (it was 0 at most, where the contact
+/// term's round-off cancelled the rest; the plot's log axis then started at 10^-∞, took 24 GB and
+/// the machine's memory killed the run, every step computed, nothing written). The result is
+/// whole (a plot of zeros alone is left out: `plot`'s tests).
 #[test]
 fn a_solution_exact_in_p1_adapts_to_a_whole_result() {
     let text = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"0\"\nf2 = \"0\"\ng = \"0.3 + 0.2*x\"\n\
@@ -259,7 +260,7 @@ fn a_solution_exact_in_p1_adapts_to_a_whole_result() {
     let settings = halving(None, 2000, 3);
     let dir = tempfile::tempdir().unwrap();
     let a = adapt(&case, &settings, false, &dir.path().join("adapt")).unwrap();
-    assert!(a.adaptive.iter().any(|s| s.estimator == 0.0), "{:?}", a.adaptive);
+    assert!(a.adaptive.iter().all(|s| s.estimator < 1e-12), "{:?}", a.adaptive);
     for file in ["adapt.png", "adapt.csv", "adapt.json", "adapt.md", "adapt.xdmf"] {
         assert!(dir.path().join("adapt").join(file).is_file(), "{file}");
     }

@@ -80,6 +80,7 @@ fn the_bound_holds_on_every_exact_case() {
                 "{name}, level {refine}: effectivity {}",
                 eta / error
             );
+            assert_eq!(r.effectivity(), Some(eta / error), "{name}, level {refine}");
             checked += 1;
         }
     }
@@ -87,16 +88,25 @@ fn the_bound_holds_on_every_exact_case() {
 }
 
 /// u1 = 1 + x + 2y, u2 = 0, no loads: no contact, u_h = u, and the equilibrated flux must be
-/// exactly −μ∇u, so that η vanishes to round-off (and so do all its terms).
+/// exactly −μ∇u, so that η vanishes to round-off (and so do all its terms). The error is
+/// round-off too, and η/error no effectivity (it was printed, 1.2e7 on such a case).
 #[test]
 fn a_linear_solution_is_reproduced_exactly() {
     for diagonal in ["right", "crossed"] {
         let case = square(
-            "mu1 = 2.0\nmu2 = 3.0\nf1 = \"0\"\nf2 = \"0\"\ng = \"1 + x + 2*y\"",
+            "mu1 = 2.0\nmu2 = 3.0\nf1 = \"0\"\nf2 = \"0\"\ng = \"1 + x + 2*y\"\n\
+             [exact]\nu1 = \"1 + x + 2*y\"\nu2 = \"0\"\nlambda = \"0\"",
             6,
             diagonal,
         );
         let r = estimated(&case);
+        let errors = r.errors.as_ref().unwrap();
+        assert!(errors.at_round_off(), "{diagonal}: {errors:?}");
+        assert_eq!((r.effectivity(), errors.resolved_energy()), (None, None));
+        assert!(r
+            .summary(false)
+            .contains("u_h is the exact solution to round-off"));
+        assert!(!r.summary(false).contains("effectivity η/error"));
         let e = r.estimate.unwrap();
         // Round-off: of the flux terms; of g' along the edges (a difference quotient, ε|g| / step);
         // of λ_h ≈ 0 in η_C, which enters η² linearly.
@@ -705,5 +715,37 @@ fn without_a_gradient_the_h1_errors_differentiate_u() {
             assert!((d - g).abs() <= 1e-12 * g, "{derived:?} against {given:?}");
         }
         assert!(derived[0] > 0.0);
+    }
+}
+
+/// No contact, u1 = 2 + e^{k(y−1)} sin kx on [0, 1] × [0, 0.7], an error of 1e-10 … 1e-8 against
+/// a solution of size 2: λ_h is the solve's round-off, of either sign. Taken into the contact
+/// term as it is, its negative part made η_C < 0 and η = 0 < error (k = 80, printed as a
+/// guaranteed bound), its positive part η 220 times the error (k = 70).
+#[test]
+fn round_off_of_lambda_off_the_contact_set_neither_cancels_nor_swamps_eta() {
+    for k in [70, 80] {
+        let u1 = format!("2 + exp({k}*(y-1))*sin({k}*x)");
+        let text = format!(
+            "mu1 = 1.0\nmu2 = 3.0\nf1 = \"0\"\nf2 = \"0\"\ng = \"{u1}\"\n\
+             [exact]\nu1 = \"{u1}\"\nu2 = \"0\"\nlambda = \"0\"\n\
+             [mesh]\nkind = \"polygon\"\nboundary = [[0, 0], [1, 0], [1, 0.7], [0, 0.7]]\nh = 0.1\n"
+        );
+        let case = Case::parse(&text, "round-off", PathBuf::new()).unwrap();
+        let r = estimated(&case);
+        let (e, error) = (
+            r.estimate.as_ref().unwrap(),
+            r.errors.as_ref().unwrap().energy.unwrap(),
+        );
+        assert!(
+            error > 1e-10 && !r.errors.as_ref().unwrap().at_round_off(),
+            "k = {k}: {error:e}"
+        );
+        assert_eq!(e.contact_total, 0.0, "k = {k}");
+        assert!(
+            (1.0..1.5).contains(&(e.total / error)),
+            "k = {k}: η = {:e}, error {error:e}",
+            e.total
+        );
     }
 }

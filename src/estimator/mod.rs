@@ -6,13 +6,13 @@
 //! |||u − u_h|||² = Σ_i μ_i ‖∇(u_i − u_ih)‖² ≤ η² = η_FR² + η_D² + 2 η_C,
 //! η_FR² = η_1² + η_2²,   η_i = ( Σ_κ [η_F,κ + η_osc,κ]² )^½ + η_Q,i,                        (7)
 //! η_F,κ = μ_i^{-½} ‖μ_i ∇u_ih + τ_i‖_κ,   η_osc,κ = μ_i^{-½} (h_κ/π) ‖f_i − Π f_i‖_κ,
-//! η_Q,i = μ_i^{-½} C_F ‖ρ_i‖,   η_D = μ1^½ ‖∇ψ‖,   η_C = (λ_h, w_h + ψ),
+//! η_Q,i = μ_i^{-½} C_F (‖ρ_i‖ + ‖λ_h − λ_h^c‖),   η_D = μ1^½ ‖∇ψ‖,   η_C = (λ_h^c, w_h + ψ),
 //! ```
 //!
 //! κ the cells of S_h, τ_i the patch-equilibrated fluxes ([`equilibration`]) with the quadrature
 //! defect c_i of the loads lifted into them ([`means`], §4(c')), ρ_i what the lift's solve leaves
-//! (round-off), C_F the Friedrichs constant of the bounding box, ψ the lifting of g − g_h
-//! ([`boundary`]). The action gets the bound of §8 from the same fluxes.
+//! (round-off), λ_h^c the part of λ_h on the contact set (off it λ_h is the solve's round-off, §3),
+//! C_F the Friedrichs constant of the bounding box, ψ the lifting of g − g_h ([`boundary`]). The action gets the bound of §8 from the same fluxes.
 //! Per triangle K the indicator η_K² = Σ_i Σ_{κ⊂K} [η_F,κ + η_osc,κ]² + η_D,K² + 2 η_C,K says
 //! where to refine. Above a rigid obstacle (§14, Theorem (O)) the sum is over the one membrane,
 //! and the lifting is z = max(ψ, ψ_obstacle − u_h) ([`obstacle`]), which keeps u_h + z above the
@@ -57,7 +57,8 @@ pub struct Estimate {
     pub total: f64,
     /// η_i for each membrane.
     pub membranes: Vec<f64>,
-    /// η_Q,i for each membrane (included in η_i).
+    /// η_Q,i for each membrane (included in η_i): what the lifts leave of the quadrature defect and
+    /// λ_h off the contact set, by Friedrichs.
     pub means: Vec<f64>,
     /// η_D.
     pub boundary_total: f64,
@@ -132,11 +133,14 @@ pub(crate) fn root(x: f64) -> f64 {
 /// ‖c‖ of a field given at the vertices, by the lumped mass (each term (c √m)², of the size of
 /// the norm, where c² would overflow).
 fn mass_norm(problem: &DiscreteProblem, c: &[f64]) -> f64 {
-    (c.iter()
-        .zip(&problem.mass)
-        .map(|(c, m)| (c * m.sqrt()).powi(2))
-        .sum::<f64>())
-    .sqrt()
+    // Scaled by the largest term, so that round-off sized values of data of any size neither
+    // underflow nor overflow when squared.
+    let terms = || c.iter().zip(&problem.mass).map(|(c, m)| c * m.sqrt());
+    let largest = terms().fold(0.0_f64, |s, x| s.max(x.abs()));
+    if largest == 0.0 || !largest.is_finite() {
+        return largest;
+    }
+    largest * terms().map(|x| (x / largest).powi(2)).sum::<f64>().sqrt()
 }
 
 /// What the case's rule of the loads gives and misses: whether it resolves them (§11), and its
@@ -229,7 +233,7 @@ fn local_terms(
         problem,
         dual,
         membranes,
-        action,
+        contact_lambda: &lifting.contact_lambda,
         gap: &solution.obstacle.gap,
         above: (psi.as_ref().zip(lifting.above.as_deref())).map(|(psi, above)| (psi, f[0], above)),
     };
@@ -305,7 +309,7 @@ impl Estimate {
         e.indicator = indicators(terms, &e.boundary, &e.contact, m);
         let rest = &loads.lifted.rest;
         e.means = (membranes.iter().zip(rest))
-            .map(|(mb, c)| friedrichs * mass_norm(problem, c) / mb.mu.sqrt())
+            .map(|(mb, c)| friedrichs * (mass_norm(problem, c) + lifting.off_contact) / mb.mu.sqrt())
             .collect();
         e.membranes = (0..m)
             .map(|i| terms.iter().map(|t| t.local2[i]).sum::<f64>().sqrt() + e.means[i])
@@ -448,12 +452,19 @@ impl Estimate {
 }
 
 /// The lifting z of §3 on every triangle: ‖∇z‖²_K and the pieces of (λ_h, ·)_K it adds to the
-/// contact term.
+/// contact term, with λ_h split as that term needs it.
 struct Lifting {
+    /// λ_h where (5) takes it: on the contact set, where it is positive (and w_h = 0); 0 elsewhere.
+    contact_lambda: Vec<f64>,
+    /// ‖λ_h − `contact_lambda`‖: off the contact set λ_a is the solve's residual, round-off of
+    /// either sign, which (5) cannot take (it needs λ_h ≥ 0, and a negative part of round-off size
+    /// made η_C < 0 and η = 0 against an error of 2.6e-10); it enters each η_i by Friedrichs, as ρ_i.
+    off_contact: f64,
     /// An upper bound of ‖∇ℓ‖²_K (above an obstacle the sweep adds the part ψ − u_h adds,
     /// [`TriangleTerms::obstacle2`]).
     grad2: Vec<f64>,
-    /// ∫_K λ_h ℓ, ℓ the lifting of g − g_h ([`boundary`]); the contact term adds (λ_h, w_h)_K.
+    /// ∫_K λ_h ℓ, ℓ the lifting of g − g_h ([`boundary`]); the contact term adds (λ_h, w_h)_K
+    /// (λ_h its contact part).
     with_lambda: Vec<f64>,
     /// Above an obstacle, (λ_h, u_h + z − ψ)_K, the whole contact term ([`obstacle`]).
     contact: Option<Vec<f64>>,
@@ -498,12 +509,22 @@ impl Lifting {
         let (mesh, data) = (&problem.mesh, &problem.data);
         let g = (data.g.pieces("g", mesh, On::Curves))
             .expect("the data fit the mesh's groups (checked by DiscreteProblem::new)");
+        let contact_lambda: Vec<f64> = (action.lambda.iter().zip(&solution.obstacle.contact))
+            .map(|(&l, &contact)| if contact && l > 0.0 { l } else { 0.0 })
+            .collect();
+        let rest: Vec<f64> = (action.lambda.iter().zip(&contact_lambda))
+            .map(|(l, c)| l - c)
+            .collect();
+        let off_contact = mass_norm(problem, &rest);
+        let lambda = &contact_lambda[..];
         let Lower::Rigid { psi } = &data.lower else {
             let gap = Some(&solution.obstacle.gap[..]);
-            let l = boundary::lifting(mesh, &patches.neighbour, (&g, None), &action.lambda, gap);
+            let l = boundary::lifting(mesh, &patches.neighbour, (&g, None), lambda, gap);
             return Lifting {
                 grad2: l.iter().map(|l| l.grad_norm.powi(2)).collect(),
                 with_lambda: l.iter().map(|l| l.with_lambda).collect(),
+                contact_lambda,
+                off_contact,
                 contact: None,
                 above: None,
                 apart: false,
@@ -512,8 +533,8 @@ impl Lifting {
         };
         let psi = (psi.pieces("psi", mesh, On::Surfaces))
             .expect("the data fit the mesh's groups (checked by DiscreteProblem::new)");
-        let l = boundary::lifting(mesh, &patches.neighbour, (&g, Some(&psi)), &action.lambda, None);
-        let o = obstacle::terms(problem, dual, &psi, &solution.u1, &action.lambda, &l);
+        let l = boundary::lifting(mesh, &patches.neighbour, (&g, Some(&psi)), lambda, None);
+        let o = obstacle::terms(problem, dual, &psi, &solution.u1, lambda, &l);
         let apart =
             (l.iter().zip(&o)).all(|(l, o)| o.above == 0 || (l.grad_norm == 0.0 && l.range == [0.0; 2]));
         Lifting {
@@ -523,6 +544,8 @@ impl Lifting {
             grad2: l.iter().map(|l| l.grad_norm.powi(2)).collect(),
             with_lambda: l.iter().map(|l| l.with_lambda).collect(),
             contact: Some(o.iter().map(|o| o.contact).collect()),
+            contact_lambda,
+            off_contact,
         }
     }
 }
@@ -680,7 +703,8 @@ struct Terms<'a> {
     problem: &'a DiscreteProblem,
     dual: &'a DualMesh<'a>,
     membranes: &'a [Membrane<'a>],
-    action: &'a Action,
+    /// λ_h on the contact set ([`Lifting::contact_lambda`]).
+    contact_lambda: &'a [f64],
     /// w_h (u1h − u2h), or u_h − ψ_h above an obstacle.
     gap: &'a [f64],
     /// Above an obstacle: ψ with its derivatives, f and the cells of each triangle where ψ is
@@ -751,7 +775,7 @@ impl Terms<'_> {
                 alpha * div_a - (1.0 - alpha) * div_b,
             ));
             terms.lambda2 += (zeta + diameter / PI * cell_loads.oscillation[2].sqrt()).powi(2);
-            let lambda_h = self.action.lambda[dual.owner(s)];
+            let lambda_h = self.contact_lambda[dual.owner(s)];
             terms.contact += lambda_h * area * cell_mean(mesh, s, self.gap);
         }
         terms

@@ -9,6 +9,7 @@ use crate::datum::On;
 use crate::expr::{Expr, Program};
 use crate::linear::dirichlet_solve;
 use crate::mesh::{DualMesh, Mesh};
+use crate::parallel::{self, PIECE};
 use crate::problem::{DiscreteProblem, Lower};
 use crate::result::{Attribute, Describe, Field, Place};
 use cubature::{Density, Integral, Rules};
@@ -92,6 +93,9 @@ pub struct Errors {
     pub boundary: Option<Mismatch>,
     /// Where the exact solution does not solve the equations (`unsolved`).
     pub unsolved: Option<Unsolved>,
+    /// |||u_h||| = (Σ μ_i |u_ih|²_H¹)^½ (above a rigid obstacle μ1^½ |u_h|_H¹), the scale of the
+    /// energy error's round-off.
+    pub solution_energy: f64,
 }
 
 /// The norms by name (a study's JSON): u1's and u2's, or above a rigid obstacle u's alone
@@ -169,7 +173,23 @@ impl Mismatch {
 /// A mismatch below this part of the boundary values is round-off.
 const MISMATCH: f64 = 1e-9;
 
+/// An energy error below this part of |||u_h||| is round-off (a solution exact in P1): no
+/// discretisation reaches it, and a ratio to it, as the effectivity η/error, says nothing.
+const ENERGY_ROUND_OFF: f64 = 1e-10;
+
 impl Errors {
+    /// The energy error |||u − u_h|||, unless it is round-off of |||u_h||| ([`Errors::at_round_off`]).
+    pub fn resolved_energy(&self) -> Option<f64> {
+        self.energy.filter(|_| !self.at_round_off())
+    }
+
+    /// Whether the energy error is at most 10⁻¹⁰ of |||u_h|||: u_h is the exact
+    /// solution to round-off (as on a patch test).
+    pub fn at_round_off(&self) -> bool {
+        self.energy
+            .is_some_and(|e| e <= ENERGY_ROUND_OFF * self.solution_energy)
+    }
+
     /// The errors of `solution` and `action` against `exact`; with `hminus1`, the H⁻¹ norm too.
     pub fn compute(
         problem: &DiscreteProblem,
@@ -213,8 +233,20 @@ impl Errors {
             gradients_given: exact.gradients_given,
             boundary: boundary_mismatch(problem, exact, [&solution.u1, &solution.u2]),
             unsolved: unsolved(problem, exact),
+            solution_energy: solution_energy(problem, solution, exact.rigid),
         }
     }
+}
+
+/// |||u_h||| = (Σ_i μ_i u_ih·K u_ih)^½, u2h left out above a rigid obstacle.
+fn solution_energy(problem: &DiscreteProblem, solution: &Solution, rigid: bool) -> f64 {
+    let k = &problem.stiffness;
+    let energy = |u: &[f64]| parallel::sum(u.len(), PIECE, |rows| rows.map(|a| u[a] * k.row_dot(a, u)).sum());
+    let mut total = problem.data.mu1 * energy(&solution.u1);
+    if let (false, Some(mu2)) = (rigid, problem.data.mu2()) {
+        total += mu2 * energy(&solution.u2);
+    }
+    total.max(0.0).sqrt()
 }
 
 /// Where the exact solution differs from the boundary data on ∂ω_h by more than round-off of the
