@@ -18,6 +18,10 @@ use std::fmt;
 
 pub use crate::contact::CHECK_TOLERANCE as TOLERANCE;
 
+/// A dual cell below this part of the largest is a feature of the domain far smaller than the
+/// mesh size (1000 times narrower), where the round-off of λ_h is named as such.
+const SMALL_CELL: f64 = 1e-6;
+
 /// The largest round-off of λ_h a run accepts, relative to the size of the loads.
 pub const RESOLUTION: f64 = 1e-3;
 
@@ -59,6 +63,8 @@ pub struct Checks {
     pub resolution: f64,
     /// max_a ε s_a / m_a.
     pub noise: f64,
+    /// The vertex where `noise` is reached, and its m_a relative to the largest m_b.
+    pub noisiest: ([f64; 2], f64),
     /// max_a (|(f1, φ_a)| + |(f2, φ_a)|)/m_a.
     pub loads: f64,
     /// The size of the smaller membrane, min_i max_b |u_ib| (above an obstacle max_b |u_b|), and
@@ -100,6 +106,10 @@ pub enum CheckError {
         /// [`Checks::values`], where the round-off comes from computing the u_ib from larger terms
         /// (the values exact to their own size would resolve λ_h).
         cancelled: Option<[f64; 2]>,
+        /// [`Checks::noisiest`], where that dual cell is below 10⁻⁶ of the largest: a
+        /// feature of the domain far smaller than the mesh size, whose cells' tiny m_a divide the
+        /// round-off of (4.5).
+        small_cell: Option<([f64; 2], f64)>,
     },
     /// A check exceeds [`TOLERANCE`].
     Failed {
@@ -130,13 +140,20 @@ impl fmt::Display for CheckError {
                 noise,
                 loads,
                 cancelled,
+                small_cell,
             } => {
                 write!(
                     f,
                     "λ_h is not resolved in double precision: the round-off of (4.5) reaches {noise:.1e}, \
                      against loads of size {loads:.1e} "
                 )?;
-                if let Some(values) = cancelled {
+                if let Some(([x, y], share)) = small_cell {
+                    write!(
+                        f,
+                        "at the vertex ({x}, {y}), whose dual cell is {share:.0e} of the largest (a \
+                         feature of the domain there is far smaller than the mesh: widen or remove it)"
+                    )?;
+                } else if let Some(values) = cancelled {
                     write!(
                         f,
                         "(u_h, at most {:.1e}, is computed from terms up to {:.1e}, its gap to the \
@@ -195,6 +212,7 @@ impl Checks {
                 noise: self.noise,
                 loads: self.loads,
                 cancelled: (self.own_noise <= RESOLUTION * self.loads).then_some(self.values),
+                small_cell: Some(self.noisiest).filter(|n| n.1 < SMALL_CELL),
             });
         }
         match all.iter().find(|(_, v)| *v > TOLERANCE) {
@@ -230,6 +248,7 @@ impl Action {
             negative_gap: gap.iter().fold(0.0_f64, |m, &w| m.max(-w)) / gap_scale,
             resolution: 0.0,
             noise: 0.0,
+            noisiest: ([0.0; 2], 1.0),
             loads: 0.0,
             values: [0.0; 2],
             own_noise: 0.0,
@@ -253,6 +272,7 @@ impl Action {
             checks.sizes = [own_size(problem, 0, u1), own_size(problem, 1, u2)];
             checks.noises = membrane_noises(problem, u1, u2, gap);
         }
+        let largest_cell = problem.mass.iter().fold(f64::MIN_POSITIVE, |m, &x| m.max(x));
         for a in (0..n).filter(|&a| !mesh.on_boundary[a]) {
             let m = problem.mass[a];
             let l1 = (mu1 * k.row_dot(a, u1) - problem.load1[a]) / m;
@@ -269,7 +289,9 @@ impl Action {
                 lambda2[a] = l2;
             }
             let s = size.max(f64::MIN_POSITIVE);
-            checks.noise = checks.noise.max(ROUNDOFF * size / m);
+            if ROUNDOFF * size / m > checks.noise {
+                (checks.noise, checks.noisiest) = (ROUNDOFF * size / m, (mesh.points[a], m / largest_cell));
+            }
             checks.own_noise = checks.own_noise.max(ROUNDOFF * own / m);
             checks.loads = checks.loads.max(problem.load_size(a) / m);
             checks.prop12 = checks.prop12.max((l1 - l2).abs() * m / s);
@@ -374,6 +396,7 @@ mod tests {
             negative_gap: 0.0,
             resolution: RESOLUTION,
             noise: 1.0,
+            noisiest: ([0.5, 0.25], 1e-3),
             loads: 1e3,
             values: [1.0, 3.0],
             own_noise: 1.0,
@@ -406,10 +429,28 @@ mod tests {
                 Err(CheckError::Unresolved {
                     noise: 1.0,
                     loads: 1e3,
-                    cancelled
+                    cancelled,
+                    small_cell: None
                 })
             );
         }
+        // … unless the vertex of the largest round-off has a dual cell far smaller than the others.
+        let tiny = Checks {
+            resolution: 2.0 * RESOLUTION,
+            noisiest: ([0.5, 0.25], 1e-9),
+            ..ok
+        };
+        let error = tiny.verify().unwrap_err();
+        assert!(matches!(
+            error,
+            CheckError::Unresolved {
+                small_cell: Some(_),
+                ..
+            }
+        ));
+        assert!(error
+            .to_string()
+            .contains("at the vertex (0.5, 0.25), whose dual cell is 1e-9 of the largest"));
         // Membrane 2 of a size such that the round-off of its values is twice the limit; one of
         // size 0 (its data all 0) is not checked.
         let noise = ROUNDOFF;

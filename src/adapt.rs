@@ -130,19 +130,30 @@ pub fn adapt(case: &Case, settings: &Adaptivity, dual: bool, target: &Path) -> R
         uniform,
         stopped,
     };
-    write_text(&dir.join("adapt.md"), &markdown(case, settings, &adapted))?;
     write_text(&dir.join("adapt.csv"), &csv(&adapted))?;
     let json = serde_json::to_string_pretty(&adapted).expect("steps serialise");
     write_text(&dir.join("adapt.json"), &json)?;
+    let plotted = plot(&dir.join("adapt.png"), settings, &adapted)?;
+    write_text(
+        &dir.join("adapt.md"),
+        &markdown(case, settings, &adapted, plotted),
+    )?;
+    staging.commit(&inputs)?;
+    Ok(adapted)
+}
+
+/// The plot of η (and the error) against N of both refinements; whether it was drawn (not when
+/// every value is 0, as on a solution exact in P1).
+fn plot(path: &Path, settings: &Adaptivity, adapted: &Adapted) -> Result<bool, OutputError> {
     let exact = adapted.adaptive.iter().any(|s| s.error.is_some());
     let (title, y_name) = if exact {
         ("η and error", "η and the energy error |||u − u_h|||")
     } else {
         ("η", "η (bound of the energy error)")
     };
-    let series = series(&adapted);
+    let series = series(adapted);
     plot::loglog(
-        &dir.join("adapt.png"),
+        path,
         &format!(
             "{title}: adaptive (θ = {}) and uniform refinement",
             settings.theta
@@ -155,9 +166,7 @@ pub fn adapt(case: &Case, settings: &Adaptivity, dual: bool, target: &Path) -> R
             beside: usize::from(exact),
         }],
     )
-    .map_err(OutputError)?;
-    staging.commit(&inputs)?;
-    Ok(adapted)
+    .map_err(OutputError)
 }
 
 /// The adapted meshes have no coarser levels (Cholesky solves them) and are estimated: the
@@ -380,7 +389,7 @@ pub fn rate(steps: &[Step], value: impl Fn(&Step) -> Option<f64>) -> Option<f64>
     Some(sxy / sxx)
 }
 
-fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted) -> String {
+fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted, plotted: bool) -> String {
     let bound = match a.adaptive.iter().chain(&a.uniform).all(|st| st.bound) {
         true => "η is the guaranteed bound of the energy error (docs/a-posteriori.md)",
         false => {
@@ -439,7 +448,11 @@ fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted) -> String {
     {
         s += &note;
     }
-    s += "![η and error against N](adapt.png)\n\nOpen `adapt.xdmf` in ParaView (Xdmf3 reader) for the meshes and fields of every step.\n";
+    s += match plotted {
+        true => "![η and error against N](adapt.png)\n\n",
+        false => "No plot: every η and error is 0 (nothing to show on a log axis).\n\n",
+    };
+    s += "Open `adapt.xdmf` in ParaView (Xdmf3 reader) for the meshes and fields of every step.\n";
     s
 }
 

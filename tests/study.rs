@@ -104,6 +104,13 @@ fn the_ball_obstacle_converges_at_the_rates_of_p1_in_few_iterations() {
     // … and its table shows η beside the error, as between two membranes.
     let table = study::markdown_table("ball", &l);
     assert!(table.contains("η (bound of energy)"), "{table}");
+    // Every row has as many cells as the header: the bars of |u−uh|_H1 are escaped.
+    let cells = |row: &str| row.replace("\\|", "").matches('|').count();
+    let rows: Vec<&str> = table.lines().filter(|r| r.starts_with('|')).collect();
+    assert!(
+        rows.len() == 6 && rows.iter().all(|r| cells(r) == cells(rows[0])),
+        "{table}"
+    );
 }
 
 #[test]
@@ -295,4 +302,40 @@ fn a_wrong_exact_solution_is_flagged_on_each_level() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("study/study.json")).unwrap()).unwrap();
     assert!(json[1]["errors"]["exact_equation_mismatch"].as_f64().unwrap() > 0.5);
+}
+
+/// A load the case's rule does not resolve (a layer of width 3e-3 on 8² and 16² meshes): η is
+/// not a guaranteed bound there, and the study says so per level in its table, CSV and JSON
+/// (it headed the column "η (bound of energy)" on every level without a word).
+#[test]
+fn a_study_says_on_which_levels_eta_is_not_a_bound() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"-1 - 50*exp(-(x - 0.3)^2/1e-5)\"\nf2 = \"0\"\ng = \"0\"\n\
+                [mesh]\nkind = \"rectangle\"\nn = 8\n";
+    std::fs::write(dir.path().join("layer.toml"), text).unwrap();
+    let run = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .args(["-q", "study", "--levels", "8,16", "-o"])
+        .arg(dir.path().join("study"))
+        .arg(dir.path().join("layer.toml"))
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let read = |name: &str| std::fs::read_to_string(dir.path().join("study").join(name)).unwrap();
+    let md = read("study.md");
+    assert!(
+        md.contains("**only on the levels with \"yes\" under \"bound\"**"),
+        "{md}"
+    );
+    assert_eq!(md.matches("| no |").count(), 2, "{md}");
+    let csv = read("study.csv");
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let column = header.iter().position(|c| *c == "bound").unwrap();
+    assert!(
+        csv.lines()
+            .skip(1)
+            .all(|row| row.split(',').nth(column) == Some("0")),
+        "{csv}"
+    );
+    let json: serde_json::Value = serde_json::from_str(&read("study.json")).unwrap();
+    assert_eq!(json[0]["bound"], serde_json::Value::Bool(false));
 }

@@ -363,7 +363,8 @@ def study(
     `solve`.
 
     Returns (table, results): one dict per level (cells or refine, h, vertices, the error norms,
-    estimator, effectivity, iterations, cold_iterations, seconds, the norms' estimated quadrature
+    estimator, effectivity, bound (whether η is a guaranteed bound on the level), iterations,
+    cold_iterations, seconds, the norms' estimated quadrature
     error and the exact solution's mismatches; with several gradings also `variant`), and the
     `Result` of each level, in the same order.
     """
@@ -386,8 +387,6 @@ def study(
     for label, levels_json, parts in series:
         for level, p in zip(json.loads(levels_json), parts):
             row = _row(level)
-            energy, eta = row.get("energy"), row.get("estimator")
-            row["effectivity"] = eta / energy if energy and eta is not None else None
             if label:
                 row["variant"] = label
             table.append(row)

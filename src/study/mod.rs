@@ -35,6 +35,11 @@ pub struct Level {
     pub errors: Option<Errors>,
     /// The guaranteed bound η of the energy error (docs/a-posteriori.md).
     pub estimator: Option<f64>,
+    /// η / |||u − u_h|||, when both are known and the error is not round-off ([`run::Run::effectivity`]).
+    pub effectivity: Option<f64>,
+    /// Whether η is a guaranteed bound on this level ([`crate::estimator::Estimate::is_bound`]),
+    /// when it is computed.
+    pub bound: Option<bool>,
     /// Active-set iterations with nested iteration (warm start from the previous level).
     pub iterations: usize,
     /// Active-set iterations from a cold start (no contact), when asked for.
@@ -44,11 +49,6 @@ pub struct Level {
 }
 
 impl Level {
-    /// η / |||u − u_h|||, when both are known.
-    pub fn effectivity(&self) -> Option<f64> {
-        Some(self.estimator? / self.errors.as_ref()?.energy?)
-    }
-
     /// The level's first column: its refinements in a study by refinement, else its cells.
     fn column(&self) -> &'static str {
         if self.refine.is_some() {
@@ -154,15 +154,18 @@ pub fn study(
         ));
     }
     let drawn: Vec<(String, &[Level])> = series.iter().map(|(l, r)| (l.clone(), r.as_slice())).collect();
-    plot::errors(
+    let plotted = plot::errors(
         &staging.path().join("errors.png"),
         &format!("{name}: errors"),
         &drawn,
     )
     .map_err(OutputError)?;
     markdown += "EOCs against h, and in parentheses against N^(−1/2) (N vertices). ‖λ−λh‖_H⁻¹ is the dual \
-                 norm over P1 functions on the dual submesh S_h (a lower bound converging to the true norm).\n\n\
-                 ![errors](errors.png)\n";
+                 norm over P1 functions on the dual submesh S_h (a lower bound converging to the true norm).\n\n";
+    markdown += match plotted {
+        true => "![errors](errors.png)\n",
+        false => "No plot: every error is round-off (nothing to show on a log axis).\n",
+    };
     write_text(&staging.path().join("study.md"), &markdown)?;
     staging.commit(&inputs)?;
     Ok(series)
@@ -282,6 +285,8 @@ pub fn run_levels(
             vertices: r.problem.mesh.n_vertices(),
             errors: r.errors.clone(),
             estimator: r.estimate.as_ref().map(|e| e.total),
+            effectivity: r.effectivity(),
+            bound: r.estimate.as_ref().map(|e| e.is_bound()),
             iterations: stats.iterations,
             cold_iterations,
             seconds: stats.wall_seconds + r.timings.assembly + r.timings.mesh,
@@ -352,10 +357,11 @@ pub fn markdown_table(title: &str, levels: &[Level]) -> String {
     let first = levels.first().map_or("cells", Level::column);
     let _ = write!(s, "| {first} | h | vertices |");
     for n in &names {
-        let _ = write!(s, " {n} |{eoc_header}");
+        // A norm's bars would end its cell.
+        let _ = write!(s, " {} |{eoc_header}", n.replace('|', "\\|"));
     }
-    s += " effectivity η/energy | iterations (nested) | iterations (cold) | seconds |\n|";
-    s += &"---|".repeat(3 + eoc_columns * names.len() + 4);
+    s += " effectivity η/energy | bound | iterations (nested) | iterations (cold) | seconds |\n|";
+    s += &"---|".repeat(3 + eoc_columns * names.len() + 5);
     s += "\n";
     for (i, l) in levels.iter().enumerate() {
         let _ = write!(s, "| {} | {:.4e} | {} |", l.label(), l.h, l.vertices);
@@ -378,12 +384,18 @@ pub fn markdown_table(title: &str, levels: &[Level]) -> String {
         }
         let _ = writeln!(
             s,
-            " {} | {} | {} | {:.3} |",
-            l.effectivity().map_or("—".into(), |x| format!("{x:.3}")),
+            " {} | {} | {} | {} | {:.3} |",
+            l.effectivity.map_or("—".into(), |x| format!("{x:.3}")),
+            l.bound.map_or("—", |b| if b { "yes" } else { "no" }),
             l.iterations,
             l.cold_iterations.map_or("—".into(), |c| c.to_string()),
             l.seconds
         );
+    }
+    if levels.iter().any(|l| l.bound == Some(false)) {
+        s += "\nη is a guaranteed bound of the energy error **only on the levels with \"yes\" under \
+              \"bound\"**: on the others the case's rule does not resolve the loads, or the boundary \
+              data admit no solution (each level's `solve --estimate` summary says which).\n";
     }
     let mismatches = levels.iter().filter_map(|l| l.errors.as_ref()?.boundary);
     if let Some(note) = crate::norms::Mismatch::note(mismatches) {
@@ -420,7 +432,7 @@ pub fn csv(levels: &[Level]) -> String {
             let _ = write!(s, ",{name},eoc_{name}");
         }
     }
-    s += ",effectivity,exact_equation_mismatch,iterations,cold_iterations,seconds\n";
+    s += ",effectivity,bound,exact_equation_mismatch,iterations,cold_iterations,seconds\n";
     for (i, l) in levels.iter().enumerate() {
         let size = l.refine.or(l.cells).map_or(String::new(), |k| k.to_string());
         let _ = write!(s, "{size},{:e},{}", l.h, l.vertices);
@@ -436,14 +448,15 @@ pub fn csv(levels: &[Level]) -> String {
             );
         }
         let cold = l.cold_iterations.map_or(String::new(), |c| c.to_string());
-        let effectivity = l.effectivity().map_or(String::new(), |x| format!("{x:.4}"));
+        let effectivity = l.effectivity.map_or(String::new(), |x| format!("{x:.4}"));
+        let bound = l.bound.map_or("", |b| if b { "1" } else { "0" });
         // The share of the sample points where [exact] misses its equations (0: it solves them).
         let mismatch = (l.errors.as_ref()).map_or(String::new(), |e| {
             format!("{}", e.unsolved.map_or(0.0, |u| u.share))
         });
         let _ = writeln!(
             s,
-            ",{effectivity},{mismatch},{},{cold},{:.4}",
+            ",{effectivity},{bound},{mismatch},{},{cold},{:.4}",
             l.iterations, l.seconds
         );
     }

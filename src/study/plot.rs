@@ -261,8 +261,8 @@ const X_NAME: &str = "N^(−1/2), N = number of vertices   (← finer meshes)";
 /// A log-log plot of the errors (and η) of one or more studies (labelled series) against
 /// N^(−1/2), each labelled with its EOC over the two finest levels, with the guides of the rates
 /// of P1 elements for a smooth solution: slope 1 beside the energy error (H¹ rate), slope 2 beside
-/// ‖u1 − u1h‖_L² (L² rate).
-pub fn errors(path: &Path, title: &str, studies: &[(String, &[Level])]) -> Result<(), String> {
+/// ‖u1 − u1h‖_L² (L² rate). Whether it was drawn (see [`loglog`]).
+pub fn errors(path: &Path, title: &str, studies: &[(String, &[Level])]) -> Result<bool, String> {
     let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
     let mut guides = Vec::new();
     let mut estimator = false;
@@ -311,18 +311,19 @@ pub fn errors(path: &Path, title: &str, studies: &[(String, &[Level])]) -> Resul
 }
 
 /// A log-log plot of labelled series of (N^(−1/2), value), with `guides`; `y_name` says what the
-/// values are.
+/// values are. Whether it was drawn: not when no value has a place on a log axis (every one 0 or
+/// not finite), and then no file is written.
 pub(crate) fn loglog(
     path: &Path,
     title: &str,
     y_name: &str,
     series: &[(String, Vec<(f64, f64)>)],
     guides: &[Guide],
-) -> Result<(), String> {
+) -> Result<bool, String> {
     register_font()?;
     let decades: Vec<Vec<(f64, f64)>> = series.iter().map(|s| decades(&s.1)).collect();
     if decades.iter().all(Vec::is_empty) {
-        return Ok(());
+        return Ok(false);
     }
     let guides: Vec<Guide> = (guides.iter())
         .filter(|g| !decades[g.beside].is_empty())
@@ -389,7 +390,8 @@ pub(crate) fn loglog(
             .map_err(|e| err(&e))?;
         entries.push((g.label.clone(), color, true));
     }
-    legend(&side, &entries).map_err(|e| format!("{}: {e}", path.display()))
+    legend(&side, &entries).map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(true)
 }
 
 /// The points (x, y) at their decades (log10), but those a log axis has no place for: 0 (η of a
@@ -500,6 +502,20 @@ mod tests {
             (0.5, -1.0),
         ];
         assert_eq!(decades(&points), [(-1.0, -3.0)]);
+    }
+
+    /// With no value a log axis can show (every η 0 on a patch test), no plot is drawn and no
+    /// file written, and the caller is told so (adapt.md linked a plot that did not exist).
+    #[test]
+    fn with_nothing_to_show_no_plot_is_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("plot.png");
+        let series = [("η".to_string(), vec![(0.1, 0.0), (0.05, 0.0)])];
+        assert_eq!(loglog(&path, "title", "η", &series, &[]), Ok(false));
+        assert!(!path.exists());
+        let series = [("η".to_string(), vec![(0.1, 1e-3), (0.05, 0.0)])];
+        assert_eq!(loglog(&path, "title", "η", &series, &[]), Ok(true));
+        assert!(path.is_file());
     }
 
     fn slope(s: [(f64, f64); 2]) -> f64 {
