@@ -742,6 +742,20 @@ fn round_off_of_lambda_off_the_contact_set_neither_cancels_nor_swamps_eta() {
             "k = {k}: {error:e}"
         );
         assert_eq!(e.contact_total, 0.0, "k = {k}");
+        // λ_h, all of it off the contact set, enters each η_i by Friedrichs: C_F ‖λ_h‖ / μ_i^½,
+        // C_F of the bounding box 1 × 0.7.
+        let off: f64 = (r.action.lambda.iter().zip(&r.problem.mass))
+            .map(|(l, m)| l * l * m)
+            .sum::<f64>()
+            .sqrt();
+        let c_f = 1.0 / (std::f64::consts::PI * (1.0 + 1.0 / 0.49_f64).sqrt());
+        assert!(off > 0.0, "k = {k}");
+        for (means, mu) in e.means.iter().zip([1.0_f64, 3.0]) {
+            assert!(
+                (means - c_f * off / mu.sqrt()).abs() <= 1e-9 * means,
+                "k = {k}: {means:e}"
+            );
+        }
         assert!(
             (1.0..1.5).contains(&(e.total / error)),
             "k = {k}: η = {:e}, error {error:e}",

@@ -51,7 +51,8 @@ pub struct Estimate {
     pub oscillation: Vec<Vec<f64>>,
     /// μ1^½ ‖∇z‖_K, z the lifting of g − g_h (and above an obstacle of ψ − u_h, §14).
     pub boundary: Vec<f64>,
-    /// (λ_h, w_h + z)_K (above an obstacle (λ_h, u_h + z − ψ)_K).
+    /// (λ_h^c, w_h + z)_K (above an obstacle (λ_h^c, u_h + z − ψ)_K), λ_h^c its part on the
+    /// contact set.
     pub contact: Vec<f64>,
     /// η, the bound of |||u − u_h|||.
     pub total: f64,
@@ -136,6 +137,9 @@ fn mass_norm(problem: &DiscreteProblem, c: &[f64]) -> f64 {
     // Scaled by the largest term, so that round-off sized values of data of any size neither
     // underflow nor overflow when squared.
     let terms = || c.iter().zip(&problem.mass).map(|(c, m)| c * m.sqrt());
+    if terms().any(f64::is_nan) {
+        return f64::NAN;
+    }
     let largest = terms().fold(0.0_f64, |s, x| s.max(x.abs()));
     if largest == 0.0 || !largest.is_finite() {
         return largest;
@@ -324,7 +328,7 @@ impl Estimate {
                 (e.total, e.lifted_membrane) = (total, Some(lifted));
             }
         }
-        e.lambda = e.lambda_bound(problem, membranes, terms, rest, friedrichs);
+        e.lambda = e.lambda_bound(problem, membranes, terms, (rest, lifting.off_contact), friedrichs);
         e
     }
 
@@ -339,14 +343,15 @@ impl Estimate {
         (root(total), lifted)
     }
 
-    /// §8: ‖λ − λ_h‖ ≤ μ̄^½ E_w + η_λ, E_w ≤ (η_λ²/μ̄ + μ̄‖∇z‖² + 2η_C)^½, from the totals of
-    /// the energy bound, the triangles' terms, what the lift leaves (`rest`) and C_F.
+    /// §8: ‖λ − λ_h‖ ≤ μ̄^½ E_w + η_λ, E_w ≤ ((η_λ + C_F‖λ_h − λ_h^c‖)²/μ̄ + μ̄‖∇z‖² + 2η_C)^½
+    /// (η_C of λ_h^c, §3), from the totals of the energy bound, the triangles' terms, what the lift
+    /// leaves (`rest`), λ_h off the contact set (`off_contact`) and C_F.
     fn lambda_bound(
         &self,
         problem: &DiscreteProblem,
         membranes: &[Membrane],
         terms: &[TriangleTerms],
-        rest: &[Vec<f64>],
+        (rest, off_contact): (&[Vec<f64>], f64),
         friedrichs: f64,
     ) -> f64 {
         let (alpha, mu_bar) = weights(membranes);
@@ -358,7 +363,8 @@ impl Estimate {
         let grad_z2 = self.boundary_total.powi(2) / membranes[0].mu;
         // E_w ≤ E ≤ η as well (E² = (μ1 + μ2)‖∇e_v‖² + E_w²; E_w = E above an obstacle), which
         // is the smaller where (O') of §14 gave η.
-        let e_w = root(eta_lambda.powi(2) / mu_bar + mu_bar * grad_z2 + 2.0 * self.contact_total);
+        let eta_w = eta_lambda + friedrichs * off_contact;
+        let e_w = root(eta_w.powi(2) / mu_bar + mu_bar * grad_z2 + 2.0 * self.contact_total);
         let e_w = if e_w > self.total { self.total } else { e_w };
         mu_bar.sqrt() * e_w + eta_lambda
     }
@@ -687,7 +693,8 @@ struct TriangleTerms {
     local2: [f64; 2],
     /// Σ_κ (‖ζ‖_κ + (h_κ/π) ‖ρ − Π ρ‖_κ)² (§8).
     lambda2: f64,
-    /// (λ_h, w_h)_K: w_h is affine and λ_h constant on each κ (between two membranes).
+    /// (λ_h^c, w_h)_K: w_h is affine and λ_h^c (λ_h on the contact set) constant on each κ
+    /// (between two membranes).
     contact: f64,
     /// Above an obstacle, Σ_κ (η̃_F,κ + η_osc,κ)², η̃_F,κ the flux term of ũ = u_h + z where the
     /// obstacle is above u_h (of u_h elsewhere), and Σ_κ (λ_ψ⁻, ψ − u_h)_κ there (§14).

@@ -164,7 +164,7 @@ pub fn study(
                  norm over P1 functions on the dual submesh S_h (a lower bound converging to the true norm).\n\n";
     markdown += match plotted {
         true => "![errors](errors.png)\n",
-        false => "No plot: every error is round-off (nothing to show on a log axis).\n",
+        false => "No plot: no error or η above 10⁻¹² (nothing to show on a log axis).\n",
     };
     write_text(&staging.path().join("study.md"), &markdown)?;
     staging.commit(&inputs)?;
