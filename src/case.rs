@@ -1232,11 +1232,16 @@ fn point(v: &[f64], what: impl Fn() -> String) -> Result<[f64; 2], String> {
     }
 }
 
-/// The vertices of a polygon's ring (`name`: the key, and the hole), each [x, y].
+/// The vertices of a polygon's ring (`name`: the key, and the hole), each [x, y]; a last vertex
+/// equal to the first (a ring closed as GeoJSON and shapely write it) is left out.
 fn ring(vertices: &[Vec<f64>], name: &str) -> Result<Vec<[f64; 2]>, String> {
-    (vertices.iter().enumerate())
+    let mut ring: Vec<[f64; 2]> = (vertices.iter().enumerate())
         .map(|(i, v)| point(v, || format!("key {name}, vertex {}", i + 1)))
-        .collect()
+        .collect::<Result<_, _>>()?;
+    if ring.len() > 1 && ring.first() == ring.last() {
+        ring.pop();
+    }
+    Ok(ring)
 }
 
 /// `kind = "rectangle"`: n, corners (default the unit square), diagonal.

@@ -967,6 +967,15 @@ fn a_needle_is_a_feature_too_small() {
     );
 }
 
+/// A vertex repeated within a ring is named (a ring closed by its first vertex is not: own_domains).
+#[test]
+fn a_repeated_vertex_is_named() {
+    contains(
+        &polygon_fails("boundary = [[0, 0], [1, 0], [1, 0], [1, 1], [0, 1]]\nh = 0.25\n"),
+        "the vertex [1.0, 0.0] is repeated",
+    );
+}
+
 #[test]
 fn bad_polygons() {
     let e = polygon_fails("boundary = [[0, 0], [1, 1], [1, 0], [0, 1]]\nh = 0.1\n");

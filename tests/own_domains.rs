@@ -571,3 +571,16 @@ fn a_polygon_moved_across_the_axes_keeps_its_mesh() {
         }
     }
 }
+
+/// A ring closed by repeating its first vertex (as GeoJSON and shapely write it), holes too, is
+/// the same polygon (it was refused: "the vertex [0.0, 0.0] is repeated").
+#[test]
+fn a_closed_ring_is_the_same_polygon() {
+    let square = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+    let hole = vec![[0.4, 0.4], [0.6, 0.4], [0.5, 0.6]];
+    let close = |r: &[[f64; 2]]| [r, &r[..1]].concat();
+    let open = polygon_case(&square, std::slice::from_ref(&hole), 0.1);
+    let closed = polygon_case(&close(&square), &[close(&hole)], 0.1);
+    let (a, b) = (open.mesh().unwrap(), closed.mesh().unwrap());
+    assert_eq!((a.n_triangles(), a.points), (b.n_triangles(), b.points));
+}
