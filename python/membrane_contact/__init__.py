@@ -211,8 +211,12 @@ class Result:
     an obstacle `u`, `psi`, `gap`, `lambda_`, `contact`; with an exact solution `u1_exact`, …;
     with `estimate=True` per triangle `estimator` and its terms; on a mesh with physical groups (a
     Gmsh file) per triangle `group`, the index of its surface in the JSON list `surface_groups`.
-    `fields` maps the file's names to the arrays, `places` to "vertices" or "cells". The arrays are
-    read-only: they are what `write` writes (copy one to change it).
+    `fields` maps the file's names to the arrays, `places` to "vertices" or "cells". With `dual`
+    or `flux`, the dual submesh S_h as dual.xdmf holds it: `dual_points` (P, 2),
+    `dual_triangles` (6M, 3) and `dual_fields`, name → one value per cell (`lambda`, λ_h constant
+    on each D_a; `vertex`, the a of D_a; with `flux` the fluxes t_ih of (4.13): `t1_x`, `t1_y`,
+    `div_t1`, …); without them None, None and {}. The arrays are read-only: they are what `write`
+    writes (copy one to change it).
 
     Figures: every attribute of `solution.h5` (`iterations`, `check_*`, `error_*`, `effectivity`,
     …) is in `attributes`, and an attribute of the result where no field has its name: `estimator`,
@@ -231,7 +235,14 @@ class Result:
                 values = values != 0.0
             self.fields[name] = _read_only(values)
             self.places[name] = place
-        self.dual_fields = parts.dual_field_names()
+        # S_h, with `dual` or `flux`: the grid and cell fields of dual.xdmf
+        self.dual_points = self.dual_triangles = None
+        self.dual_fields = {}
+        dual = parts.dual()
+        if dual is not None:
+            points, triangles, fields = dual
+            self.dual_points, self.dual_triangles = _read_only(points), _read_only(triangles)
+            self.dual_fields = {name: _read_only(values) for name, values in fields}
         self.attributes = parts.attributes()
 
     @property

@@ -17,9 +17,9 @@ use membrane_contact::adapt;
 use membrane_contact::atomic;
 use membrane_contact::case::{Case, CaseError, Levels};
 use membrane_contact::contact::{LinearSolver, SolveError, Start};
-use membrane_contact::mesh::{Edges, Mesh};
+use membrane_contact::mesh::{DualMesh, Edges, Mesh};
 use membrane_contact::progress;
-use membrane_contact::result::{hdf5_error, Attr, Attribute, Field, Place, SOLUTION_H5};
+use membrane_contact::result::{hdf5_error, Attr, Attribute, Field, Place, Values, SOLUTION_H5};
 use membrane_contact::run::{self, Parts, RunError};
 use membrane_contact::study::{self, StudyOptions};
 use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray2};
@@ -382,16 +382,34 @@ impl PyParts {
         Ok(list)
     }
 
-    /// The names of the fields of the dual submesh S_h written with the result (none unless
-    /// asked for by `dual` or `flux`).
-    fn dual_field_names(&self) -> Vec<&'static str> {
-        match self.parts.writes_dual {
-            true => (self.parts.fields.iter())
-                .filter(|f| f.place == Place::DualCells)
-                .map(|f| f.name)
-                .collect(),
-            false => Vec::new(),
+    /// The dual submesh S_h when the result holds it (asked for by `dual` or `flux`), as
+    /// `dual.xdmf` holds it: its points (P, 2), its triangles (S, 3), and its fields, name → one
+    /// value per cell, in the order written; else None.
+    #[allow(clippy::type_complexity)]
+    fn dual<'py>(
+        &self,
+        py: Python<'py>,
+    ) -> PyResult<Option<(Bound<'py, PyAny>, Bound<'py, PyAny>, Bound<'py, PyList>)>> {
+        if !self.parts.writes_dual {
+            return Ok(None);
         }
+        let d = DualMesh::new(&self.parts.mesh, &self.parts.edges);
+        let points: Vec<f64> = (0..d.n_points()).flat_map(|p| d.point(p)).collect();
+        let cells: Vec<i64> = (0..d.n_cells())
+            .flat_map(|s| d.cell(s))
+            .map(|v| v as i64)
+            .collect();
+        let fields = PyList::empty_bound(py);
+        for f in self.parts.fields.iter().filter(|f| f.place == Place::DualCells) {
+            let per_cell: Vec<f64> = match &f.values {
+                Values::PerVertex(v) => (0..d.n_cells()).map(|s| v[d.owner(s)]).collect(),
+                _ => f.values().into_owned(),
+            };
+            fields.append((f.name, PyArray1::from_vec_bound(py, per_cell)))?;
+        }
+        let points = PyArray1::from_vec_bound(py, points).reshape([d.n_points(), 2])?;
+        let cells = PyArray1::from_vec_bound(py, cells).reshape([d.n_cells(), 3])?;
+        Ok(Some((points.into_any(), cells.into_any(), fields)))
     }
 
     /// The attributes of `solution.h5`'s root group: name → number, count, text or list.

@@ -7,6 +7,7 @@ import subprocess
 import sys
 import tomllib
 
+import h5py
 import meshio
 import numpy as np
 import pytest
@@ -270,12 +271,35 @@ def test_write_then_read_is_the_result(tmp_path):
     for name in r.fields:
         assert np.array_equal(back.fields[name], r.fields[name]), name
     assert back.attributes == r.attributes
+    assert same_bits(back.dual_points, r.dual_points) and set(back.dual_fields) == set(r.dual_fields)
+    assert all(same_bits(back.dual_fields[k], v) for k, v in r.dual_fields.items())
     # Its summary is the run's, and says it was read back.
     assert back.summary().startswith(r.summary().rsplit("seconds", 1)[0])
     assert "(read back: 81 vertices, 128 triangles)" in back.summary()
     # Written again from what was read, the file holds the same data.
     back.write(tmp_path / "again")
     assert all(same_bits(a, b) for a, b in zip(h5(tmp_path / "out")[0].values(), h5(tmp_path / "again")[0].values()))
+
+
+def test_the_dual_submesh_and_fluxes_are_the_cli_s_bit_for_bit(tmp_path):
+    # With flux=True, S_h and the fluxes t_ih are arrays of the result, as dual.xdmf holds them
+    # (they were only written: `dual_fields` was a list of names); without, there are none.
+    case = CASES / "default.toml"
+    cli_solve(tmp_path, case, "--n", 8, "--flux")
+    with h5py.File(tmp_path / "cli" / "solution.h5", "r") as f:
+        written = {k: f["dual"][k][()] for k in f["dual"]}
+    r = mc.solve(case, n=8, flux=True)
+    assert same_bits(r.dual_points, written["geometry"])
+    assert np.array_equal(r.dual_triangles, written["topology"])
+    assert set(r.dual_fields) == set(written) - {"geometry", "topology"} >= {"lambda", "t1_x", "div_t2"}
+    for name, values in r.dual_fields.items():
+        assert same_bits(values, written[name]), name
+    # 6 cells per triangle; λ_h constant on each D_a: the vertex value of its owner.
+    assert r.dual_triangles.shape == (6 * len(r.triangles), 3)
+    owner = r.dual_fields["vertex"].astype(np.int64)
+    assert same_bits(r.dual_fields["lambda"], r.lambda_[owner])
+    plain = mc.solve(case, n=8)
+    assert (plain.dual_points, plain.dual_triangles, plain.dual_fields) == (None, None, {})
 
 
 def test_study_returns_its_levels():
