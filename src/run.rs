@@ -337,10 +337,10 @@ impl Run<'_> {
             );
             if e.at_round_off() {
                 out += &format!(
-                    "exact       u_h is the exact solution to round-off (|||u − u_h||| = {:.1e} |||u_h|||): \
-                     no effectivity\n",
-                    e.energy
-                        .map_or(0.0, |x| x / e.solution_energy.max(f64::MIN_POSITIVE))
+                    "exact       u_h is the exact solution to round-off (|||u − u_h||| = {:.1e}, within the \
+                     {:.0e} the round-off of its values makes of it): no effectivity\n",
+                    e.energy.unwrap_or(0.0),
+                    e.energy_round_off
                 );
             }
             if let Some(u) = &e.unsolved {

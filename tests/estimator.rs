@@ -107,9 +107,22 @@ fn a_linear_solution_is_reproduced_exactly() {
             .summary(false)
             .contains("u_h is the exact solution to round-off"));
         assert!(!r.summary(false).contains("effectivity η/error"));
+        // The same plane lifted by 10⁶: the error is the round-off of values of size 10⁶, far
+        // above 10⁻¹⁰ |||u_h|||, and still no effectivity.
+        let lifted = square(
+            "mu1 = 2.0\nmu2 = 3.0\nf1 = \"0\"\nf2 = \"0\"\ng = \"1e6 + x + 2*y\"\n\
+             [exact]\nu1 = \"1e6 + x + 2*y\"\nu2 = \"0\"\nlambda = \"0\"",
+            6,
+            diagonal,
+        );
+        let errors = estimated(&lifted).errors.unwrap();
+        assert!(
+            errors.energy.unwrap() > 1e-12 && errors.at_round_off(),
+            "{diagonal}: {errors:?}"
+        );
         let e = r.estimate.unwrap();
         // Round-off: of the flux terms; of g' along the edges (a difference quotient, ε|g| / step);
-        // of λ_h ≈ 0 in η_C, which enters η² linearly.
+        // λ_h ≈ 0 is off the contact set, so η_C = 0.
         assert!(
             e.membranes.iter().all(|&x| x < 1e-12),
             "{diagonal}: {:?}",
@@ -122,6 +135,7 @@ fn a_linear_solution_is_reproduced_exactly() {
         );
         assert!(e.total.powi(2) < 1e-11, "{diagonal}: η = {:e}", e.total);
         assert!(e.indicator.iter().all(|&x| x * x < 1e-11));
+        assert_eq!(e.contact_total, 0.0);
     }
 }
 
