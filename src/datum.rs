@@ -165,7 +165,7 @@ fn entries(
         .collect();
     let missing = |g: u32, what: String| match g {
         NONE => format!(
-            "{what} belongs to no {} of {}: with a table, every one must",
+            "{what} belongs to no {} of {}: with a table, every one must belong to one",
             on.noun(),
             groups.source
         ),

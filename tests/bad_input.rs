@@ -518,6 +518,96 @@ fn non_triangle_cells() {
     contains(&e, "cell type 'Quadrilateral' is not supported");
 }
 
+/// An XDMF mesh of `topology` (its type, and the DataItem's Dimensions) on `mesh.h5`, whose
+/// datasets are the fan's points at heights `z` and the 1D `/mesh/cells`; the mesh read, or the
+/// error.
+fn read_xdmf(topology: &str, cells: &[i64], z: [f64; 5]) -> Result<membrane_contact::mesh::Mesh, String> {
+    let dir = tempfile::tempdir().unwrap();
+    let (points, _) = fan();
+    {
+        let _guard = FILES.lock().unwrap_or_else(|e| e.into_inner());
+        let f = hdf5::File::create(dir.path().join("mesh.h5")).unwrap();
+        let p = ndarray::Array2::from_shape_fn((5, 3), |(i, k)| if k < 2 { points[i][k] } else { z[i] });
+        f.new_dataset_builder()
+            .with_data(&p)
+            .create("/mesh/geometry")
+            .unwrap();
+        let c = ndarray::Array1::from_vec(cells.to_vec());
+        f.new_dataset_builder()
+            .with_data(&c)
+            .create("/mesh/cells")
+            .unwrap();
+    }
+    let xdmf = format!(
+        "<Xdmf><Domain><Grid><Topology TopologyType=\"{topology}\"><DataItem Format=\"HDF\">mesh.h5:/mesh/cells</DataItem></Topology><Geometry GeometryType=\"XYZ\"><DataItem Format=\"HDF\">mesh.h5:/mesh/geometry</DataItem></Geometry></Grid></Domain></Xdmf>"
+    );
+    std::fs::write(dir.path().join("mesh.xdmf"), xdmf).unwrap();
+    membrane_contact::mesh::file::read(&dir.path().join("mesh.xdmf")).map_err(|e| e.to_string())
+}
+
+/// meshio writes a mesh of several cell blocks (a Gmsh file's surfaces, its lines) as an XDMF
+/// `Mixed` topology: its triangles are the mesh, and points and lines are left aside, as the .msh
+/// reader leaves them (it was refused: "cell type 'Mixed' is not supported"); a quadrilateral in
+/// it is named. A mesh in a plane z = 5, or at z = 0 up to round-off, is the plane's (it was
+/// refused: "the mesh must lie in the plane z = 0"); a tilted one is not.
+#[test]
+fn meshio_s_mixed_topologies_and_planes_off_z_0_are_read() {
+    // Triangles in two blocks (XDMF type 4), between them a line (2, with its count of vertices)
+    // and a vertex (1, with its count).
+    let mixed = [
+        4, 0, 1, 4, 4, 1, 2, 4, 2, 2, 0, 1, 1, 1, 3, 4, 2, 3, 4, 4, 3, 0, 4,
+    ];
+    let flat = [0.0; 5];
+    let mesh = read_xdmf("Mixed", &mixed, flat).unwrap();
+    let (points, triangles) = fan();
+    assert_eq!(mesh.points, points);
+    let read: Vec<[i64; 3]> = mesh.triangles().map(|t| t.map(|v| v as i64)).collect();
+    assert_eq!(read, triangles);
+    let e = read_xdmf("Mixed", &[4, 0, 1, 4, 5, 0, 1, 2, 3], flat).unwrap_err();
+    assert!(
+        e.contains("the mixed topology holds a cell of XDMF type 5 (entry 4)"),
+        "{e}"
+    );
+    for z in [[5.0; 5], [0.0, 1.2e-16, 0.0, -1e-16, 0.0]] {
+        assert_eq!(read_xdmf("Mixed", &mixed, z).unwrap().points, points, "{z:?}");
+    }
+    let e = read_xdmf("Mixed", &mixed, [0.0, 0.5, 0.5, 0.0, 0.25]).unwrap_err();
+    assert!(
+        e.contains("vertex 1 has z = 0.5, the first z = 0: the mesh must lie in a plane z = constant"),
+        "{e}"
+    );
+}
+
+/// A Gmsh file with a view written into it (its sections repeated) and an HDF5 file of neither
+/// layout read alone say what to do (they gave the parser's and HDF5's own words).
+#[test]
+fn a_gmsh_file_with_a_view_and_a_foreign_h5_say_what_to_do() {
+    let case = |path: &str| format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"{path}\"\n");
+    let repeated = |d: &Path| {
+        let text = std::fs::read_to_string("data/meshes/square.msh").unwrap();
+        let entities = &text[text.find("$Entities").unwrap()..text.find("$Nodes").unwrap()];
+        std::fs::write(d.join("view.msh"), text.clone() + entities).unwrap();
+    };
+    contains(
+        &fails(&case("view.msh"), repeated, &[], None),
+        "view.msh: not a readable MSH 4.1 file: the file holds its sections twice (a view written \
+         into it with PostProcessing.SaveMesh = 1?): save the mesh alone",
+    );
+    let foreign = |d: &Path| {
+        let _guard = FILES.lock().unwrap_or_else(|e| e.into_inner());
+        let f = hdf5::File::create(d.join("mesh.h5")).unwrap();
+        f.new_dataset_builder()
+            .with_data(&[0.0, 1.0])
+            .create("/data0")
+            .unwrap();
+    };
+    contains(
+        &fails(&case("mesh.h5"), foreign, &[], None),
+        "mesh.h5: neither a result of this program (/mesh/geometry) nor dolfinx's mesh \
+         (/Mesh/mesh/geometry): another layout (meshio's) is read through its .xdmf file",
+    );
+}
+
 /// A time series (adapt.xdmf) names its meshes' count and the last one's file instead of reading
 /// the first step's mesh without a word.
 #[test]

@@ -405,6 +405,18 @@ fn keys_of_repeated_unused_and_missing_names_are_told_apart() {
             && e.contains("no element carries it"),
         "{e}"
     );
+    // No $Entities (meshio writes a MSH 4.1 file so): names declared that no element carries (it
+    // said "this mesh has none" of a file that declares them).
+    let (start, end) = (
+        text.find("$Entities").unwrap(),
+        text.find("$EndEntities\n").unwrap() + 13,
+    );
+    let bare = format!("{}{}", &text[..start], &text[end..]);
+    let e = refused(bare, "f1 = { loaded = -20, free = 0 }\ng = 0.05");
+    assert!(
+        e.contains("'loaded' is a name") && e.contains("no element carries it"),
+        "{e}"
+    );
     let mesh = two_regions();
     let mut groups = mesh.groups().unwrap().clone();
     groups.curves.clear();

@@ -109,10 +109,14 @@ def _mesh(mesh):
         raise InputError(f"mesh: points need real coordinates, got dtype {points.dtype}")
     if not np.issubdtype(points.dtype, np.number):
         raise InputError(f"mesh: points need numbers, got dtype {points.dtype}")
-    if points.shape[1] == 3:
-        if np.any(points[:, 2] != 0):
-            raise InputError("mesh: the points have z ≠ 0: a plane mesh (z = 0) is needed")
-        points = points[:, :2]
+    if points.shape[1] == 3 and len(points):
+        # a plane z = constant, up to round-off (as the mesh files' readers take it)
+        z = points[:, 2].astype(np.float64)
+        off = np.abs(z - z[0]) > 1e-12 * np.abs(points.astype(np.float64)).max()
+        if np.any(off):
+            i = int(np.argmax(off))
+            raise InputError(f"mesh: point {i} has z = {z[i]}, the first z = {z[0]}: the mesh must lie in a plane z = constant")
+    points = points[:, :2]
     if triangles.ndim != 2 or triangles.shape[1] != 3:
         raise InputError(f"mesh: triangles need shape (M, 3), got {triangles.shape}")
     if not np.issubdtype(triangles.dtype, np.integer):
@@ -314,7 +318,7 @@ def solve(
         or a dict of the case file's keys.
     mesh: a meshio.Mesh (its "triangle" cells; read from a Gmsh file, its physical groups too:
     gmsh:physical and field_data), a (points, triangles) pair (points (N, 2), or
-    (N, 3) with z = 0; triangles (M, 3) of any integer type) or a dolfinx mesh; it replaces the
+    (N, 3) in a plane z = constant; triangles (M, 3) of any integer type) or a dolfinx mesh; it replaces the
     mesh the case's [mesh] names (the table may then be left out, or hold `refine` alone), is
     refined as the table's `refine` says (refine= overrides it), keeps its vertex numbering (but
     for the points of a meshio.Mesh that no triangle uses, dropped) and is checked as a mesh file

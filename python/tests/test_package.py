@@ -369,6 +369,19 @@ def test_a_missing_case_file_beside_a_mesh_is_named(tmp_path):
             mc.solve(case, (points, triangles))
 
 
+def test_a_mesh_in_a_plane_z_constant_is_that_plane_s(small):
+    # z = 5, or z = 0 up to a CAD kernel's round-off, is the plane's mesh (z != 0 was refused); a
+    # tilted mesh is not.
+    points, triangles = unit_square(4)
+    flat = mc.solve(small, (points, triangles))
+    for z in (np.full(len(points), 5.0), np.where(np.arange(len(points)) % 2 == 1, 1.2e-16, 0.0)):
+        r = mc.solve(small, (np.column_stack([points, z]), triangles))
+        assert same_bits(r.points, flat.points) and same_bits(r.u1, flat.u1)
+    tilted = np.column_stack([points, 0.5 * points[:, 0]])
+    with pytest.raises(mc.InputError, match="point 1 has z = 0.125, the first z = 0.0: the mesh must lie in a plane"):
+        mc.solve(small, (tilted, triangles))
+
+
 def test_meshes_of_other_cells_are_refused(small):
     points, triangles = unit_square(4)
     quads = np.array([[0, 1, 6, 5]])

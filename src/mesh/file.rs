@@ -263,7 +263,8 @@ fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<RawMesh, FileError> {
     };
     let topology = child("Topology")?;
     let kind = topology_type(topology);
-    if !kind.eq_ignore_ascii_case("triangle") {
+    let mixed = kind.eq_ignore_ascii_case("mixed");
+    if !(mixed || kind.eq_ignore_ascii_case("triangle")) {
         return Err(err(format!(
             "cell type '{kind}' is not supported: the mesh must be made of triangles"
         )));
@@ -271,6 +272,9 @@ fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<RawMesh, FileError> {
     let geometry = heavy(path, child("Geometry")?)?;
     let topology = heavy(path, topology)?;
     let points = read_points(&geometry.file, &geometry.dataset)?;
+    if mixed {
+        return Ok((points, read_mixed(&topology.file, &topology.dataset)?));
+    }
     let cells = read_cells(&topology.file, &topology.dataset)?;
     for (item, rows, cols) in [(&geometry, points.len(), 2), (&topology, cells.len(), 3)] {
         let declared = &item.dimensions;
@@ -516,10 +520,16 @@ fn heavy(path: &Path, node: roxmltree::Node) -> Result<Heavy, FileError> {
 
 fn read_h5_mesh(path: &Path) -> Result<RawMesh, FileError> {
     let file = open_h5(path)?;
-    let (g, t) = if file.link_exists("/mesh/geometry") {
-        ("/mesh/geometry", "/mesh/topology")
-    } else {
-        ("/Mesh/mesh/geometry", "/Mesh/mesh/topology")
+    let (g, t) = match ["/mesh/geometry", "/Mesh/mesh/geometry"].map(|d| file.link_exists(d)) {
+        [true, _] => ("/mesh/geometry", "/mesh/topology"),
+        [false, true] => ("/Mesh/mesh/geometry", "/Mesh/mesh/topology"),
+        [false, false] => {
+            return Err(FileError(format!(
+                "{}: neither a result of this program (/mesh/geometry) nor dolfinx's mesh \
+                 (/Mesh/mesh/geometry): another layout (meshio's) is read through its .xdmf file",
+                path.display()
+            )))
+        }
     };
     drop(file);
     Ok((read_points(path, g)?, read_cells(path, t)?))
@@ -641,23 +651,13 @@ fn read_points(path: &Path, dataset: &str) -> Result<Vec<[f64; 2]>, FileError> {
     let dim = a.ncols();
     if !(dim == 2 || dim == 3) {
         return Err(err(format!(
-            "coordinates have {dim} columns, need 2 (or 3 with z = 0)"
+            "coordinates have {dim} columns, need 2 (or 3 in a plane z = constant)"
         )));
     }
-    a.rows()
-        .into_iter()
-        .enumerate()
-        .map(|(i, r)| {
-            if dim == 3 && r[2] != 0.0 {
-                Err(err(format!(
-                    "vertex {i} has z = {}: the mesh must lie in the plane z = 0",
-                    r[2]
-                )))
-            } else {
-                Ok([r[0], r[1]])
-            }
-        })
-        .collect()
+    let xyz: Vec<[f64; 3]> = (a.rows().into_iter())
+        .map(|r| [r[0], r[1], if dim == 3 { r[2] } else { 0.0 }])
+        .collect();
+    super::planar(&xyz, |i| format!("vertex {i}")).map_err(err)
 }
 
 /// The cells, read as numbers and checked to be whole and non-negative (a float dataset is
@@ -684,6 +684,38 @@ fn read_cells(path: &Path, dataset: &str) -> Result<Vec<[usize; 3]>, FileError> 
             }
         })
         .collect()
+}
+
+/// The triangles of a `Mixed` topology (meshio writes one wherever a mesh has several cell blocks,
+/// as a Gmsh file of several surfaces has): each cell its XDMF type code, then its vertices —
+/// triangles (4) kept, polyvertices (1) and polylines (2), each with its count of vertices first,
+/// left aside as the .msh reader leaves points and lines; any other type refused.
+fn read_mixed(path: &Path, dataset: &str) -> Result<Vec<[usize; 3]>, FileError> {
+    let err = |m: String| FileError(format!("{}:{dataset}: {m}", path.display()));
+    let stream = read_column(path, dataset)?;
+    let index = |k: usize| {
+        let x = *stream
+            .get(k)
+            .ok_or_else(|| err("the mixed topology ends within a cell".into()))?;
+        vertex_index(x).ok_or_else(|| err(format!("entry {k} is {x}: need a whole number from 0")))
+    };
+    let (mut triangles, mut k) = (Vec::new(), 0);
+    while k < stream.len() {
+        match index(k)? {
+            4 => {
+                triangles.push([index(k + 1)?, index(k + 2)?, index(k + 3)?]);
+                k += 4;
+            }
+            1 | 2 => k += 2 + index(k + 1)?,
+            code => {
+                return Err(err(format!(
+                    "the mixed topology holds a cell of XDMF type {code} (entry {k}): the mesh must be \
+                     made of triangles (with points and lines beside them)"
+                )))
+            }
+        }
+    }
+    Ok(triangles)
 }
 
 /// A vertex index read as a number: a whole number from 0 (below 9e15, exact in f64).

@@ -66,6 +66,12 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>, Tags), Fi
                  without them (Mesh.SaveParametric = 0, the default)"
                     .into()
             }
+            // A post-processing view written into the mesh's file repeats its sections.
+            false if kinds.iter().any(|k| k.contains("Multiple entity sections")) => {
+                "the file holds its sections twice (a view written into it with \
+                 PostProcessing.SaveMesh = 1?): save the mesh alone"
+                    .into()
+            }
             false => kinds.join(": "),
         };
         err(format!("not a readable MSH {VERSION} file: {why}"))
@@ -90,20 +96,20 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>, Tags), Fi
     used.sort_unstable();
     used.dedup();
     let index: HashMap<u64, usize> = used.iter().enumerate().map(|(i, &t)| (t, i)).collect();
-    let points = (used.iter())
-        .map(|tag| match coordinates.get(tag) {
-            Some(p) if p[2] != 0.0 => Err(err(format!(
-                "node {tag} has z = {}: the mesh must lie in the plane z = 0",
-                p[2]
-            ))),
-            Some(p) => Ok([p[0], p[1]]),
-            None => Err(err(format!(
-                "a triangle refers to node {tag}, which the file does not define"
-            ))),
+    let xyz = (used.iter())
+        .map(|tag| {
+            (coordinates.get(tag).copied()).ok_or_else(|| {
+                err(format!(
+                    "a triangle refers to node {tag}, which the file does not define"
+                ))
+            })
         })
         .collect::<Result<Vec<_>, _>>()?;
+    let points = super::planar(&xyz, |i| format!("node {}", used[i])).map_err(err)?;
     let names = super::groups::physical_names(&bytes).map_err(err)?;
-    let has_groups = triangle_tag.iter().any(Option::is_some) || !lines.is_empty();
+    // Names alone (meshio writes $PhysicalNames without the elements' tags) are groups no
+    // element carries, which a table naming one is told.
+    let has_groups = triangle_tag.iter().any(Option::is_some) || !lines.is_empty() || !names.is_empty();
     let groups = has_groups.then(|| RawGroups {
         ambiguous,
         ..raw_groups(&names, &triangle_tag, &lines, |tag| index.get(&tag).copied())
@@ -178,7 +184,8 @@ fn elements(
             }
             (2, ElementType::Qua4 | ElementType::Qua8 | ElementType::Qua9) => {
                 return Err(err(format!(
-                    "quadrilateral elements ({:?}, surface {}): the mesh must be made of triangles",
+                    "quadrilateral elements ({:?}, surface {}): the mesh must be made of triangles \
+                     (mesh without recombination: Mesh.RecombineAll = 0, no Recombine)",
                     block.element_type, block.entity_tag
                 )))
             }

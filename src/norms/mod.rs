@@ -93,8 +93,8 @@ pub struct Errors {
     pub boundary: Option<Mismatch>,
     /// Where the exact solution does not solve the equations (`unsolved`).
     pub unsolved: Option<Unsolved>,
-    /// What the round-off of u_h's values makes of the energy error ([`energy_round_off`]): an
-    /// error below it says nothing of the discretisation.
+    /// What values of u_ih off by 10⁻¹³ of max |u_ih| make of the energy error: an error below
+    /// it says nothing of the discretisation.
     pub energy_round_off: f64,
 }
 
