@@ -256,6 +256,15 @@ fn contact_solve(
 }
 
 impl Run<'_> {
+    /// The fields of the result files, with S_h's if `dual` (already there when the run writes S_h).
+    pub fn fields_with_dual(&self, dual: bool) -> Vec<Field<'_>> {
+        let mut fields = self.fields();
+        if dual && !self.writes_dual {
+            fields.extend(self.dual_fields());
+        }
+        fields
+    }
+
     /// The fields of S_h: λ_h = Σ_a λ_a χ_{D_a} (0 on the cells of boundary vertices), and the a of
     /// each D_a (in [`Describe::fields`] when the result holds S_h).
     pub fn dual_fields(&self) -> Vec<Field<'_>> {
@@ -285,15 +294,18 @@ impl Run<'_> {
     }
 
     /// The run's result as owned parts, free of the case and of the run: what [`Run::write`]
-    /// writes (the same fields and attributes, copied, with the mesh and S_h's edges) and the
-    /// summary, for a caller that keeps the result after the run is gone (the Python package).
-    pub fn parts(&self, verbose: bool) -> Parts {
+    /// writes (the same fields and attributes, copied, with the mesh and S_h's edges; S_h also
+    /// if `dual`) and the summary, for a caller that keeps the result after the run is gone (the
+    /// Python package).
+    pub fn parts(&self, verbose: bool, dual: bool) -> Parts {
         Parts {
-            fields: self.fields().into_iter().map(Field::into_owned).collect(),
+            fields: (self.fields_with_dual(dual).into_iter())
+                .map(Field::into_owned)
+                .collect(),
             attributes: self.attributes(),
             summary: self.summary(verbose),
             inputs: self.case.inputs(),
-            writes_dual: self.writes_dual,
+            writes_dual: self.writes_dual || dual,
             mesh: self.problem.mesh.clone(),
             edges: self.edges.clone(),
         }

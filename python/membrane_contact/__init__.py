@@ -419,13 +419,15 @@ def adapt(
     target=None,
     max_vertices=None,
     steps=None,
+    dual=False,
     threads=None,
 ):
     """Adaptive refinement, as `membrane-contact adapt` computes it (nothing is written): solve,
     estimate, refine the triangles with the largest indicators (Dörfler's θ), solve again, … until
     η ≤ target, the vertex budget or the step count (each default: the case's [adapt]). n: cells
     per side of a built-in initial mesh; refine: uniform refinements of the initial mesh (K), any
-    kind. threads: as in `solve`.
+    kind. dual: each step's `Result` holds S_h (`dual_points`, …), as `adapt --dual` writes it.
+    threads: as in `solve`.
 
     Returns (table, results): one dict per step (vertices, triangles, marked, estimator, bound,
     error, effectivity, mismatch, iterations, seconds; bound: whether η is a guaranteed bound at
@@ -447,6 +449,7 @@ def adapt(
         target=target,
         max_vertices=_count("max_vertices", max_vertices),
         steps=_count("steps", steps),
+        dual=dual,
         threads=_count("threads", threads, least=1),
     )
     return json.loads(steps_json), [Result(p) for p in parts]

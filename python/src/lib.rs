@@ -481,7 +481,7 @@ fn solve(
             estimate,
             dual,
         };
-        Ok(run::run(&case, &options)?.parts(verbose))
+        Ok(run::run(&case, &options)?.parts(verbose, false))
     })?;
     Ok(PyParts { parts })
 }
@@ -529,7 +529,7 @@ fn run_study(
             let mut parts = Vec::new();
             let levels = study::run_levels(&cases, &options, |_, _, r| {
                 parts.push(PyParts {
-                    parts: r.parts(false),
+                    parts: r.parts(false, false),
                 })
             })?;
             let json = serde_json::to_string(&levels).expect("levels serialise");
@@ -543,7 +543,7 @@ fn run_study(
 /// The adaptive loop: its steps as JSON and the `Parts` of each step.
 #[pyfunction]
 #[pyo3(signature = (case, origin, points=None, triangles=None, groups=None, *, n=None, refine=None, theta=None,
-    target=None, max_vertices=None, steps=None, threads=None))]
+    target=None, max_vertices=None, steps=None, dual=false, threads=None))]
 #[pyo3(name = "adapt")]
 #[allow(clippy::too_many_arguments)]
 fn run_adapt(
@@ -559,6 +559,7 @@ fn run_adapt(
     target: Option<f64>,
     max_vertices: Option<usize>,
     steps: Option<usize>,
+    dual: bool,
     threads: Option<usize>,
 ) -> PyResult<(String, Vec<PyParts>)> {
     let (source, mesh) = inputs(case, origin, points, triangles, groups)?;
@@ -574,7 +575,7 @@ fn run_adapt(
         let mut parts = Vec::new();
         let steps = adapt::steps(&case, &settings, |_, r, _| {
             parts.push(PyParts {
-                parts: r.parts(false),
+                parts: r.parts(false, dual),
             });
             Ok(())
         })?;

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import membrane_contact as mc
-from conftest import CASES, ROOT, cli_solve, h5, same_bits, unit_square
+from conftest import BIN, CASES, ROOT, cli_solve, h5, same_bits, unit_square
 
 
 def check_against_cli(result, data):
@@ -314,6 +314,21 @@ def test_adapt_returns_its_steps():
     assert len(table) == len(results) == 3
     assert [len(r.points) for r in results] == [row["vertices"] for row in table]
     assert table[-1]["vertices"] > table[0]["vertices"]
+
+
+def test_adapt_with_dual_holds_s_h_as_the_command_line_writes_it(tmp_path):
+    # adapt(dual=True): each step's S_h as arrays, bit for bit `adapt --dual`'s step files (the
+    # keyword was missing); without it, none.
+    table, results = mc.adapt(CASES / "default.toml", n=8, steps=1, dual=True)
+    subprocess.run([str(BIN), "adapt", "--quiet", str(CASES / "default.toml"), "--n", "8", "--steps", "1",
+                    "--dual", "-o", str(tmp_path / "cli")], check=True, stdout=subprocess.DEVNULL)
+    with h5py.File(tmp_path / "cli" / "step-001" / "solution.h5", "r") as f:
+        written = {k: f["dual"][k][()] for k in f["dual"]}
+    last = results[-1]
+    assert same_bits(last.dual_points, written["geometry"])
+    assert set(last.dual_fields) == set(written) - {"geometry", "topology"}
+    assert all(same_bits(v, written[k]) for k, v in last.dual_fields.items())
+    assert mc.adapt(CASES / "default.toml", n=8, steps=1)[1][-1].dual_fields == {}
 
 
 def test_summary():
