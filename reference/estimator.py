@@ -455,7 +455,10 @@ def estimate(path, variants=VARIANTS, lift_means=("dualmin", "patch")):
     out["error_energy"] = float(attrs.get("error_energy", np.nan))
     out["error_hminus1"] = float(attrs.get("error_hminus1_lambda", np.nan))
 
-    # contact term (lambda_h, w_h + psi) and the boundary lifting
+    # contact term (lambda_h, w_h + psi) and the boundary lifting; this study of the fluxes takes
+    # lambda_h whole (on the shipped cases its part off the contact set is round-off far below
+    # eta_C); the bound as the Rust code computes it, with that part by Friedrichs, is
+    # rust_estimate's
     w_cent = np.einsum("nk,nk->n", barycentric(geo.pk[geo.tri], geo.ps.mean(axis=1)[:, None, :])[:, 0], gap[geo.T[geo.tri]])
     contact_cell = lam_cell * w_cent * geo.area
     grad_psi2, lampsi = boundary_lifting(geo, case, lam, gap)

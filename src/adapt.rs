@@ -31,8 +31,9 @@ pub struct Step {
     pub vertices: usize,
     /// Triangles.
     pub triangles: usize,
-    /// Triangles marked for refinement (none on the last step).
-    pub marked: usize,
+    /// Triangles marked for refinement; none on the last step and under uniform refinement
+    /// (which refines every triangle).
+    pub marked: Option<usize>,
     /// η.
     pub estimator: f64,
     /// Whether η is a guaranteed bound at this step: the loads resolved by the case's rule and the
@@ -42,6 +43,9 @@ pub struct Step {
     pub error: Option<f64>,
     /// η / |||u − u_h|||.
     pub effectivity: Option<f64>,
+    /// Whether u_h is the exact solution to round-off ([`crate::norms::Errors::at_round_off`]): its
+    /// error and η are round-off, left out of the rates and the plot.
+    pub round_off: bool,
     /// Where the exact solution misses the boundary data on ∂ω_h (a curved ω) most, relative.
     pub mismatch: Option<crate::norms::Mismatch>,
     /// Active-set iterations.
@@ -51,7 +55,7 @@ pub struct Step {
 }
 
 impl Step {
-    fn new(r: &Run, marked: usize, seconds: f64) -> Step {
+    fn new(r: &Run, marked: Option<usize>, seconds: f64) -> Step {
         let (mesh, estimate) = (&r.problem.mesh, r.estimate.as_ref().expect("estimated"));
         Step {
             vertices: mesh.n_vertices(),
@@ -61,6 +65,7 @@ impl Step {
             bound: estimate.is_bound(),
             error: r.errors.as_ref().and_then(|e| e.energy),
             effectivity: r.effectivity(),
+            round_off: r.errors.as_ref().is_some_and(|e| e.at_round_off()),
             mismatch: r.errors.as_ref().and_then(|e| e.boundary),
             iterations: r.solution.obstacle.stats.iterations,
             seconds,
@@ -245,7 +250,7 @@ pub fn steps(
             (fine.n_vertices() <= settings.max_vertices).then_some((fine, count))
         };
         let seconds = clock.elapsed().as_secs_f64();
-        adaptive.push(Step::new(&r, marked.as_ref().map_or(0, |m| m.1), seconds));
+        adaptive.push(Step::new(&r, marked.as_ref().map(|m| m.1), seconds));
         each(step, &r, &adaptive)?;
         let Some((fine, _)) = marked else { break };
         clock = Instant::now();
@@ -299,10 +304,7 @@ fn mesh_error(case: &Case, e: &dyn std::fmt::Display) -> RunError {
 fn write_step(staging: &Staging, dir: &str, r: &Run, dual: bool) -> Result<(), RunError> {
     let path = staging.path().join(dir);
     std::fs::create_dir(&path).map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
-    let mut fields = r.fields();
-    if dual && !r.writes_dual {
-        fields.extend(r.dual_fields());
-    }
+    let fields = r.fields_with_dual(dual);
     let dual = dual.then(|| r.dual());
     result::write(&path, &r.problem.mesh, dual.as_ref(), &fields, &r.attributes())
         .map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
@@ -316,7 +318,7 @@ fn uniform(case: &Case, vertices: usize) -> Result<Vec<Step>, RunError> {
     let curves = case.curves();
     let clock = Instant::now();
     let mut r = run::run(case, &estimating(Start::Nested))?;
-    let mut out = vec![Step::new(&r, 0, clock.elapsed().as_secs_f64())];
+    let mut out = vec![Step::new(&r, None, clock.elapsed().as_secs_f64())];
     loop {
         let clock = Instant::now();
         let fine = r
@@ -334,7 +336,7 @@ fn uniform(case: &Case, vertices: usize) -> Result<Vec<Step>, RunError> {
         let which = format!("adapt's uniform comparison, refinement {}", out.len());
         let next = run::on_mesh(case, fine, Vec::new(), &estimating(start), 0.0)
             .map_err(|e| named(case, e, &which))?;
-        out.push(Step::new(&next, 0, clock.elapsed().as_secs_f64()));
+        out.push(Step::new(&next, None, clock.elapsed().as_secs_f64()));
         r = next;
     }
 }
@@ -352,7 +354,7 @@ fn progress(steps: &[Step]) {
             (s.error.zip(s.effectivity))
                 .map_or(String::new(), |(e, x)| format!("  error {e:.4e}  η/error {x:.3}")),
             s.iterations,
-            s.marked,
+            s.marked.map_or("—".into(), |m| m.to_string()),
             s.seconds
         ))
     });
@@ -372,8 +374,8 @@ fn last_decades(steps: &[Step]) -> &[Step] {
 /// The rate s of value ∝ N^(−s): the least-squares slope of −log value against log N over
 /// the steps of the last two decades of N (with the step before them; all if they span less).
 pub fn rate(steps: &[Step], value: impl Fn(&Step) -> Option<f64>) -> Option<f64> {
-    let points: Vec<(f64, f64)> = last_decades(steps)
-        .iter()
+    let points: Vec<(f64, f64)> = (last_decades(steps).iter())
+        .filter(|s| !s.round_off)
         .filter_map(|s| Some(((s.vertices as f64).ln(), -value(s)?.ln())))
         .collect();
     if points.len() < 2 {
@@ -414,7 +416,7 @@ fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted, plotted: bool) -> S
                 "| {k} | {} | {} | {} | {:.4e} | {} | {} | {} | {} | {:.3} |",
                 st.vertices,
                 st.triangles,
-                st.marked,
+                st.marked.map_or("—".into(), |m| m.to_string()),
                 st.estimator,
                 if st.bound { "yes" } else { "NO" },
                 st.error.map_or("—".into(), |e| format!("{e:.4e}")),
@@ -450,7 +452,7 @@ fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted, plotted: bool) -> S
     }
     s += match plotted {
         true => "![η and error against N](adapt.png)\n\n",
-        false => "No plot: every η and error is 0 (nothing to show on a log axis).\n\n",
+        false => "No plot: no η or error above round-off (nothing to show on a log axis).\n\n",
     };
     s += "Open `adapt.xdmf` in ParaView (Xdmf3 reader) for the meshes and fields of every step.\n";
     s
@@ -468,7 +470,7 @@ fn csv(a: &Adapted) -> String {
                 "{name},{k},{},{},{},{:e},{},{},{},{},{},{:.4}",
                 st.vertices,
                 st.triangles,
-                st.marked,
+                st.marked.map_or(String::new(), |m| m.to_string()),
                 st.estimator,
                 u8::from(st.bound),
                 opt(st.error),
@@ -491,11 +493,12 @@ fn series(a: &Adapted) -> Vec<(String, Vec<(f64, f64)>)> {
         let slope = |value: fn(&Step) -> Option<f64>| {
             rate(steps, value).map_or(String::new(), |r| format!("  (slope {:.2})", 2.0 * r))
         };
+        let resolved = || steps.iter().filter(|s| !s.round_off);
         out.push((
             format!("{name}: η{}", slope(|s| Some(s.estimator))),
-            steps.iter().map(|s| (x(s), s.estimator)).collect(),
+            resolved().map(|s| (x(s), s.estimator)).collect(),
         ));
-        let errors: Vec<(f64, f64)> = steps.iter().filter_map(|s| Some((x(s), s.error?))).collect();
+        let errors: Vec<(f64, f64)> = resolved().filter_map(|s| Some((x(s), s.error?))).collect();
         if !errors.is_empty() {
             out.push((format!("{name}: error{}", slope(|s| s.error)), errors));
         }
@@ -528,11 +531,12 @@ mod tests {
                 Step {
                     vertices,
                     triangles: 2 * vertices,
-                    marked: 0,
+                    marked: None,
                     estimator: 3.0 * (vertices as f64).powf(-0.4),
                     bound: true,
                     error: Some((vertices as f64).powf(-0.5)),
                     effectivity: Some(3.0 * (vertices as f64).powf(0.1)),
+                    round_off: false,
                     mismatch: None,
                     iterations: 1,
                     seconds: 0.0,
@@ -542,5 +546,11 @@ mod tests {
         assert!((rate(&steps, |s| Some(s.estimator)).unwrap() - 0.4).abs() < 1e-12);
         assert!((rate(&steps, |s| s.error).unwrap() - 0.5).abs() < 1e-12);
         assert_eq!(rate(&steps[..1], |s| s.error), None);
+        // Steps where u_h is exact to round-off are left out (their values are noise).
+        let mut noisy = steps.clone();
+        for s in &mut noisy[10..] {
+            (s.round_off, s.estimator, s.error) = (true, 1e-14 * s.vertices as f64, Some(1e-15));
+        }
+        assert!((rate(&noisy, |s| Some(s.estimator)).unwrap() - 0.4).abs() < 1e-12);
     }
 }

@@ -31,6 +31,11 @@ fn adapted(mut case: Case, max_vertices: usize) -> (Adapted, tempfile::TempDir, 
     for s in a.adaptive.iter().chain(&a.uniform) {
         assert!(s.vertices <= max_vertices, "N = {} > {max_vertices}", s.vertices);
     }
+    // Triangles are marked at every adaptive step but the last; uniform refinement marks none
+    // (it refines every one: the tables said "marked 0").
+    let (last, before) = a.adaptive.split_last().unwrap();
+    assert!(last.marked.is_none() && before.iter().all(|s| s.marked.is_some_and(|m| m > 0)));
+    assert!(a.uniform.iter().all(|s| s.marked.is_none()));
     (a, dir, out)
 }
 

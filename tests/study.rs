@@ -339,3 +339,51 @@ fn a_study_says_on_which_levels_eta_is_not_a_bound() {
     let json: serde_json::Value = serde_json::from_str(&read("study.json")).unwrap();
     assert_eq!(json[0]["bound"], serde_json::Value::Bool(false));
 }
+
+/// The study's CSV as (header, rows).
+fn csv_of(dir: &Path) -> (Vec<String>, Vec<Vec<String>>) {
+    let text = std::fs::read_to_string(dir.join("study.csv")).unwrap();
+    let mut lines = text
+        .lines()
+        .map(|l| l.split(',').map(str::to_string).collect::<Vec<_>>());
+    (lines.next().unwrap(), lines.collect())
+}
+
+/// Round-off has no EOC and no curve: on a solution exact in P1 no column gets one (η and
+/// ‖λ − λ_h‖ had EOCs of −1 … −2 from their round-off, the errors none), and no plot is drawn; where
+/// λ = 0 and λ_h is round-off (no_contact), ‖λ − λ_h‖_L² gets none while the errors of u keep theirs.
+#[test]
+fn round_off_gets_no_eoc_and_no_curve() {
+    let dir = tempfile::tempdir().unwrap();
+    let linear = "mu1 = 1.0\nmu2 = 2.0\nf1 = 0\nf2 = 0\ng = \"1 + x + y\"\n\
+                  [exact]\nu1 = \"1 + x + y\"\nu2 = \"0\"\nlambda = \"0\"\n\
+                  [mesh]\nkind = \"rectangle\"\nn = 8\n";
+    std::fs::write(dir.path().join("linear.toml"), linear).unwrap();
+    let study = |case: &Path, out: &str| {
+        let run = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+            .args(["-q", "--threads", "1", "study", "--levels", "8,16,32", "-o"])
+            .arg(dir.path().join(out))
+            .arg(case)
+            .output()
+            .unwrap();
+        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        csv_of(&dir.path().join(out))
+    };
+    let (header, rows) = study(&dir.path().join("linear.toml"), "linear");
+    for (k, name) in header.iter().enumerate().filter(|(_, n)| n.starts_with("eoc_")) {
+        assert!(rows.iter().all(|r| r[k].is_empty()), "{name}: {rows:?}");
+    }
+    assert!(!dir.path().join("linear/errors.png").exists());
+    let md = std::fs::read_to_string(dir.path().join("linear/study.md")).unwrap();
+    assert!(md.contains("No plot: no error or η above round-off"), "{md}");
+    let (header, rows) = study(Path::new("data/cases/no_contact.toml"), "no_contact");
+    let column = |name: &str| header.iter().position(|c| c == name).unwrap();
+    assert!(
+        rows.iter().all(|r| r[column("eoc_l2_lambda")].is_empty()),
+        "{rows:?}"
+    );
+    assert!(
+        rows[1..].iter().all(|r| !r[column("eoc_energy")].is_empty()),
+        "{rows:?}"
+    );
+}

@@ -96,6 +96,9 @@ pub struct Errors {
     /// What values of u_ih off by 10⁻¹³ of max |u_ih| make of the energy error: an error below
     /// it says nothing of the discretisation.
     pub energy_round_off: f64,
+    /// The round-off λ_h can carry in L²(ω): [`crate::action::Checks::noise`] (its largest at a
+    /// vertex) times |ω|^½.
+    pub lambda_round_off: f64,
 }
 
 /// The norms by name (a study's JSON): u1's and u2's, or above a rigid obstacle u's alone
@@ -190,6 +193,11 @@ impl Errors {
         self.energy.is_some_and(|e| e <= self.energy_round_off)
     }
 
+    /// Whether ‖λ − λ_h‖_L² is within the round-off λ_h can carry (λ = 0 where λ_h is round-off).
+    pub fn lambda_at_round_off(&self) -> bool {
+        self.l2_lambda <= self.lambda_round_off
+    }
+
     /// The errors of `solution` and `action` against `exact`; with `hminus1`, the H⁻¹ norm too.
     pub fn compute(
         problem: &DiscreteProblem,
@@ -234,6 +242,7 @@ impl Errors {
             boundary: boundary_mismatch(problem, exact, [&solution.u1, &solution.u2]),
             unsolved: unsolved(problem, exact),
             energy_round_off: energy_round_off(problem, solution, exact.rigid),
+            lambda_round_off: action.checks.noise * mesh.measure().sqrt(),
         }
     }
 }

@@ -164,7 +164,7 @@ pub fn study(
                  norm over P1 functions on the dual submesh S_h (a lower bound converging to the true norm).\n\n";
     markdown += match plotted {
         true => "![errors](errors.png)\n",
-        false => "No plot: no error or η above 10⁻¹² (nothing to show on a log axis).\n",
+        false => "No plot: no error or η above round-off (nothing to show on a log axis).\n",
     };
     write_text(&staging.path().join("study.md"), &markdown)?;
     staging.commit(&inputs)?;
@@ -327,9 +327,34 @@ pub(crate) fn quantities(level: &Level) -> Vec<(&'static str, &'static str, Opti
     ]
 }
 
-/// EOC between two levels against h and against N^(−1/2); None when an error is negligible.
+/// Whether the quantity `short` of [`quantities`] is more than round-off on `level`: not where
+/// u_h is the exact solution to round-off ([`Errors::at_round_off`]: then neither are the errors
+/// of u nor η), nor ‖λ − λ_h‖ where it is within λ_h's round-off. Its EOCs and plots leave it out.
+pub(crate) fn resolved(level: &Level, short: &str) -> bool {
+    let Some(e) = &level.errors else {
+        return true;
+    };
+    match short {
+        "l2_lambda" | "hminus1_lambda" => !e.lambda_at_round_off(),
+        _ => !e.at_round_off(),
+    }
+}
+
+/// The EOC of the quantity `k` of [`quantities`] from level i − 1 to level i, where it is resolved
+/// on both.
+fn eoc_from_previous(levels: &[Level], i: usize, k: usize) -> Option<(f64, f64)> {
+    let (a, b) = (levels.get(i.checked_sub(1)?)?, &levels[i]);
+    let (qa, qb) = (quantities(a).swap_remove(k), quantities(b).swap_remove(k));
+    if !(resolved(a, qa.1) && resolved(b, qb.1)) {
+        return None;
+    }
+    eoc(a, b, qa.2?, qb.2?)
+}
+
+/// EOC between two levels against h and against N^(−1/2) of errors `ea`, `eb`; None unless
+/// both are positive.
 pub fn eoc(a: &Level, b: &Level, ea: f64, eb: f64) -> Option<(f64, f64)> {
-    (ea > 1e-12 && eb > 1e-12).then(|| {
+    (ea > 0.0 && eb > 0.0).then(|| {
         let r = (ea / eb).ln();
         (
             r / (a.h / b.h).ln(),
@@ -365,14 +390,11 @@ pub fn markdown_table(title: &str, levels: &[Level]) -> String {
     s += "\n";
     for (i, l) in levels.iter().enumerate() {
         let _ = write!(s, "| {} | {:.4e} | {} |", l.label(), l.h, l.vertices);
-        for (label, _, value) in quantities(l) {
+        for (k, (label, _, value)) in quantities(l).into_iter().enumerate() {
             if !names.contains(&label) {
                 continue;
             }
-            let previous = i.checked_sub(1).and_then(|j| {
-                let p = quantities(&levels[j]).into_iter().find(|q| q.0 == label)?.2?;
-                eoc(&levels[j], l, p, value?)
-            });
+            let previous = eoc_from_previous(levels, i, k);
             let _ = write!(s, " {} |", value.map_or("—".into(), |v| format!("{v:.4e}")));
             if eoc_columns == 2 {
                 let _ = write!(
@@ -437,9 +459,7 @@ pub fn csv(levels: &[Level]) -> String {
         let size = l.refine.or(l.cells).map_or(String::new(), |k| k.to_string());
         let _ = write!(s, "{size},{:e},{}", l.h, l.vertices);
         for (k, (_, _, value)) in quantities(l).into_iter().enumerate() {
-            let e = i
-                .checked_sub(1)
-                .and_then(|j| eoc(&levels[j], l, quantities(&levels[j])[k].2?, value?));
+            let e = eoc_from_previous(levels, i, k);
             let _ = write!(
                 s,
                 ",{},{}",

@@ -271,8 +271,8 @@ pub fn errors(path: &Path, title: &str, studies: &[(String, &[Level])]) -> Resul
         for (k, (name, short, _)) in quantities(first).into_iter().enumerate() {
             let points: Vec<(f64, f64)> = levels
                 .iter()
+                .filter(|l| super::resolved(l, short))
                 .filter_map(|l| Some(((l.vertices as f64).powf(-0.5), quantities(l)[k].2?)))
-                .filter(|p| p.1 > 1e-12)
                 .collect();
             if points.is_empty() {
                 continue;
