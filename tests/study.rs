@@ -180,7 +180,22 @@ fn study_command_writes_tables_and_plots() {
     }
     let csv = std::fs::read_to_string(dir.path().join("study/study.csv")).unwrap();
     assert_eq!(csv.lines().count(), 4);
-    assert!(csv.starts_with("cells,h,vertices,h1_u1,eoc_h1_u1"));
+    assert!(csv.starts_with("cells,cells_across,h,vertices,h1_u1,eoc_h1_u1,eoc_n_h1_u1,"));
+    // The EOC against N^(−1/2) from the CSV's own N and errors (it had only the EOC against h).
+    let rows: Vec<Vec<f64>> = (csv.lines().skip(1))
+        .map(|r| {
+            r.split(',')
+                .take(7)
+                .map(|x| x.parse().unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect();
+    let expected = 2.0 * (rows[1][4] / rows[2][4]).ln() / (rows[2][3] / rows[1][3]).ln();
+    assert!(
+        (rows[2][6] - expected).abs() < 1e-12,
+        "{} against {expected}",
+        rows[2][6]
+    );
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("study/study.json")).unwrap()).unwrap();
     assert_eq!(json[2]["cells"], 16);
@@ -237,7 +252,7 @@ fn disk_study_by_refinement_converges_at_rate_one() {
     );
     let csv = std::fs::read_to_string(dir.path().join("study/study.csv")).unwrap();
     assert!(
-        csv.starts_with("refine,h,vertices") && csv.contains("\n3,"),
+        csv.starts_with("refine,cells_across,h,vertices") && csv.contains("\n3,"),
         "{csv}"
     );
     // Cells per side do not apply to a disk.
@@ -326,7 +341,7 @@ fn a_study_says_on_which_levels_eta_is_not_a_bound() {
         md.contains("**only on the levels with \"yes\" under \"bound\"**"),
         "{md}"
     );
-    assert_eq!(md.matches("| no |").count(), 2, "{md}");
+    assert_eq!(md.matches("| NO |").count(), 2, "{md}");
     let csv = read("study.csv");
     let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
     let column = header.iter().position(|c| *c == "bound").unwrap();

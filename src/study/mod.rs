@@ -408,7 +408,7 @@ pub fn markdown_table(title: &str, levels: &[Level]) -> String {
             s,
             " {} | {} | {} | {} | {:.3} |",
             l.effectivity.map_or("—".into(), |x| format!("{x:.3}")),
-            l.bound.map_or("—", |b| if b { "yes" } else { "no" }),
+            l.bound.map_or("—", |b| if b { "yes" } else { "NO" }),
             l.iterations,
             l.cold_iterations.map_or("—".into(), |c| c.to_string()),
             l.seconds
@@ -446,38 +446,51 @@ pub fn markdown_table(title: &str, levels: &[Level]) -> String {
     s
 }
 
-/// The study as CSV, one row per level, with EOCs against h.
+/// The study as CSV, one row per level: the level (refinements or cells per side, and across on
+/// a rectangle of unequal sides), h, N, each quantity with its EOCs against h and against N^(−1/2)
+/// (`eoc_X`, `eoc_n_X`), the effectivity, whether η is a bound (1/0), the norms' estimated
+/// quadrature error, the exact solution's mismatches, iterations and seconds; empty where none.
 pub fn csv(levels: &[Level]) -> String {
-    let mut s = format!("{},h,vertices", levels.first().map_or("cells", Level::column));
+    let mut s = format!(
+        "{},cells_across,h,vertices",
+        levels.first().map_or("cells", Level::column)
+    );
     if let Some(l) = levels.first() {
         for (_, name, _) in quantities(l) {
-            let _ = write!(s, ",{name},eoc_{name}");
+            let _ = write!(s, ",{name},eoc_{name},eoc_n_{name}");
         }
     }
-    s += ",effectivity,bound,exact_equation_mismatch,iterations,cold_iterations,seconds\n";
+    s += ",effectivity,bound,quadrature,exact_boundary_mismatch,exact_equation_mismatch,iterations,\
+          cold_iterations,seconds\n";
+    let text = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v:e}"));
     for (i, l) in levels.iter().enumerate() {
         let size = l.refine.or(l.cells).map_or(String::new(), |k| k.to_string());
-        let _ = write!(s, "{size},{:e},{}", l.h, l.vertices);
+        let across = l.cells_across.map_or(String::new(), |k| k.to_string());
+        let _ = write!(s, "{size},{across},{:e},{}", l.h, l.vertices);
         for (k, (_, _, value)) in quantities(l).into_iter().enumerate() {
             let e = eoc_from_previous(levels, i, k);
             let _ = write!(
                 s,
-                ",{},{}",
-                value.map_or(String::new(), |v| format!("{v:e}")),
-                e.map_or(String::new(), |e| format!("{:.4}", e.0))
+                ",{},{},{}",
+                text(value),
+                text(e.map(|e| e.0)),
+                text(e.map(|e| e.1))
             );
         }
         let cold = l.cold_iterations.map_or(String::new(), |c| c.to_string());
-        let effectivity = l.effectivity.map_or(String::new(), |x| format!("{x:.4}"));
         let bound = l.bound.map_or("", |b| if b { "1" } else { "0" });
-        // The share of the sample points where [exact] misses its equations (0: it solves them).
-        let mismatch = (l.errors.as_ref()).map_or(String::new(), |e| {
-            format!("{}", e.unsolved.map_or(0.0, |u| u.share))
-        });
+        // The exact solution's mismatches: of the boundary data on ∂ω_h (relative), and the share
+        // of the sample points where it misses its equations; 0 where there is none.
+        let e = l.errors.as_ref();
         let _ = writeln!(
             s,
-            ",{effectivity},{bound},{mismatch},{},{cold},{:.4}",
-            l.iterations, l.seconds
+            ",{},{bound},{},{},{},{},{cold},{:e}",
+            text(l.effectivity),
+            text(e.map(|e| e.quadrature)),
+            text(e.map(|e| e.boundary.map_or(0.0, |m| m.relative))),
+            text(e.map(|e| e.unsolved.map_or(0.0, |u| u.share))),
+            l.iterations,
+            l.seconds
         );
     }
     s
