@@ -272,6 +272,18 @@ fn output_dir(output: Option<PathBuf>, default: &str, name: &str) -> Result<Path
     }
 }
 
+/// The path of `file` in the result `dir` for a user to open: absolute (ParaView's Xdmf3 reader
+/// crashes on a bare relative name), without `..` or doubled separators where the directory can
+/// be resolved.
+fn to_open(dir: &Path, file: &str) -> String {
+    let resolved = std::fs::canonicalize(dir).or_else(|_| std::path::absolute(dir));
+    resolved
+        .unwrap_or_else(|_| dir.to_path_buf())
+        .join(file)
+        .display()
+        .to_string()
+}
+
 fn solve(
     case_path: Option<PathBuf>,
     output: Option<PathBuf>,
@@ -301,17 +313,15 @@ fn solve(
     membrane_contact::progress::finish();
     // The summary on stdout, whole or (on a failure) not at all.
     say(&r.summary(verbose));
-    // ParaView's Xdmf3 reader crashes on a bare relative name: the path to open is absolute.
-    let open = std::path::absolute(&output).unwrap_or_else(|_| output.clone());
     let dual = if r.writes_dual {
-        format!(" and {}/dual.xdmf", open.display())
+        format!(" and {}", to_open(&output, "dual.xdmf"))
     } else {
         String::new()
     };
     say(&format!(
-        "result      {} — open {}/solution.xdmf{dual} in ParaView (Xdmf3 reader)\n",
+        "result      {} — open {}{dual} in ParaView (Xdmf3 reader)\n",
         output.display(),
-        open.display()
+        to_open(&output, "solution.xdmf")
     ));
     Ok(())
 }
@@ -369,11 +379,10 @@ fn adapt(
     let adapted = membrane_contact::adapt::adapt(&case, &settings, dual, &dir)?;
     membrane_contact::progress::finish();
     say(&format!("stopped     by {}\n", adapted.stopped));
-    let open = std::path::absolute(&dir).unwrap_or_else(|_| dir.clone());
     say(&format!(
-        "adapt       {} (adapt.md, .csv, .json, adapt.png; open {}/adapt.xdmf in ParaView (Xdmf3 reader): one time step per adapt step)\n",
+        "adapt       {} (adapt.md, .csv, .json, adapt.png; open {} in ParaView (Xdmf3 reader): one time step per adapt step)\n",
         dir.display(),
-        open.display()
+        to_open(&dir, "adapt.xdmf")
     ));
     Ok(())
 }

@@ -125,6 +125,23 @@ fn any_file_name_works() {
     }
 }
 
+/// The file to open is named by its resolved absolute path (it printed "/tmp/x/../x/out//solution.xdmf").
+#[test]
+fn the_file_to_open_is_named_by_its_resolved_path() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("sub")).unwrap();
+    let run = solve(&dir.path().join("sub/../out/"), 8);
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    let resolved = std::fs::canonicalize(dir.path())
+        .unwrap()
+        .join("out/solution.xdmf");
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        stdout.contains(&format!("open {} in ParaView", resolved.display())),
+        "{stdout}"
+    );
+}
+
 /// The default result directory is named after the case file's stem, "case" where the stem
 /// names none ("..toml": it was results/., refused as "not a result"), without an .h5 or .xdmf.
 #[test]
