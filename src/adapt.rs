@@ -43,8 +43,8 @@ pub struct Step {
     pub error: Option<f64>,
     /// η / |||u − u_h|||.
     pub effectivity: Option<f64>,
-    /// Whether u_h is the exact solution to round-off ([`crate::norms::Errors::at_round_off`]): its
-    /// error and η are round-off, left out of the rates and the plot.
+    /// Whether u_h is the exact solution to round-off ([`Run::at_round_off`]): its error and η are
+    /// round-off, left out of the rates and the plot.
     pub round_off: bool,
     /// Where the exact solution misses the boundary data on ∂ω_h (a curved ω) most, relative.
     pub mismatch: Option<crate::norms::Mismatch>,
@@ -65,7 +65,7 @@ impl Step {
             bound: estimate.is_bound(),
             error: r.errors.as_ref().and_then(|e| e.energy),
             effectivity: r.effectivity(),
-            round_off: r.errors.as_ref().is_some_and(|e| e.at_round_off()),
+            round_off: r.at_round_off(),
             mismatch: r.errors.as_ref().and_then(|e| e.boundary),
             iterations: r.solution.obstacle.stats.iterations,
             seconds,
@@ -148,7 +148,7 @@ pub fn adapt(case: &Case, settings: &Adaptivity, dual: bool, target: &Path) -> R
 }
 
 /// The plot of η (and the error) against N of both refinements; whether it was drawn (not when
-/// every value is 0, as on a solution exact in P1).
+/// every value is round-off or 0, as on a solution exact in P1).
 fn plot(path: &Path, settings: &Adaptivity, adapted: &Adapted) -> Result<bool, OutputError> {
     let exact = adapted.adaptive.iter().any(|s| s.error.is_some());
     let (title, y_name) = if exact {

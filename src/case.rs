@@ -1240,6 +1240,13 @@ fn ring(vertices: &[Vec<f64>], name: &str) -> Result<Vec<[f64; 2]>, String> {
         .collect::<Result<_, _>>()?;
     if ring.len() > 1 && ring.first() == ring.last() {
         ring.pop();
+        if ring.len() < 3 {
+            return Err(format!(
+                "key {name} has {} vertices besides its last, which repeats the first to close it: \
+                 a polygon needs at least 3",
+                ring.len()
+            ));
+        }
     }
     Ok(ring)
 }

@@ -345,8 +345,13 @@ fn study(
     };
     study::study(&case, &name, &options, &dir)?;
     membrane_contact::progress::finish();
+    let plot = if dir.join("errors.png").exists() {
+        ", errors.png"
+    } else {
+        ""
+    };
     say(&format!(
-        "study       {} (study.md, .csv, .json, errors.png, iterations*.png)\n",
+        "study       {} (study.md, .csv, .json{plot}, iterations*.png)\n",
         dir.display()
     ));
     Ok(())
@@ -379,8 +384,13 @@ fn adapt(
     let adapted = membrane_contact::adapt::adapt(&case, &settings, dual, &dir)?;
     membrane_contact::progress::finish();
     say(&format!("stopped     by {}\n", adapted.stopped));
+    let plot = if dir.join("adapt.png").exists() {
+        ", adapt.png"
+    } else {
+        ""
+    };
     say(&format!(
-        "adapt       {} (adapt.md, .csv, .json, adapt.png; open {} in ParaView (Xdmf3 reader): one time step per adapt step)\n",
+        "adapt       {} (adapt.md, .csv, .json{plot}; open {} in ParaView (Xdmf3 reader): one time step per adapt step)\n",
         dir.display(),
         to_open(&dir, "adapt.xdmf")
     ));

@@ -524,6 +524,19 @@ impl Run<'_> {
         DualMesh::new(&self.problem.mesh, &self.edges)
     }
 
+    /// Whether u_h is the exact solution to round-off (a solution exact in P1): its energy error,
+    /// or without an exact solution η, is within what the round-off of u_h's values makes of it.
+    pub fn at_round_off(&self) -> bool {
+        match (
+            self.errors.as_ref().filter(|e| e.energy.is_some()),
+            &self.estimate,
+        ) {
+            (Some(e), _) => e.at_round_off(),
+            (None, Some(e)) => e.total <= crate::norms::energy_round_off(&self.problem, &self.solution),
+            (None, None) => false,
+        }
+    }
+
     /// η / |||u − u_h|||, when both are known and the error is not round-off.
     pub fn effectivity(&self) -> Option<f64> {
         let error = self.errors.as_ref()?.resolved_energy()?;

@@ -254,8 +254,9 @@ fn adapt_says_why_it_stopped() {
 
 /// A patch test, u exact in P1: η is round-off at every step (it was 0 at most, where the contact
 /// term's round-off cancelled the rest; the plot's log axis then started at 10^-∞, took 24 GB and
-/// the machine's memory killed the run, every step computed, nothing written). The result is
-/// whole (a plot of zeros alone is left out: `plot`'s tests).
+/// the machine's memory killed the run, every step computed, nothing written). Every step is
+/// round-off, so there is no rate and no plot, which adapt.md says; the rest of the result is
+/// whole.
 #[test]
 fn a_solution_exact_in_p1_adapts_to_a_whole_result() {
     let text = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"0\"\nf2 = \"0\"\ng = \"0.3 + 0.2*x\"\n\
@@ -265,10 +266,20 @@ fn a_solution_exact_in_p1_adapts_to_a_whole_result() {
     let settings = halving(None, 2000, 3);
     let dir = tempfile::tempdir().unwrap();
     let a = adapt(&case, &settings, false, &dir.path().join("adapt")).unwrap();
-    assert!(a.adaptive.iter().all(|s| s.estimator < 1e-12), "{:?}", a.adaptive);
-    for file in ["adapt.png", "adapt.csv", "adapt.json", "adapt.md", "adapt.xdmf"] {
+    assert!(
+        a.adaptive.iter().all(|s| s.estimator < 1e-12 && s.round_off),
+        "{:?}",
+        a.adaptive
+    );
+    for file in ["adapt.csv", "adapt.json", "adapt.md", "adapt.xdmf"] {
         assert!(dir.path().join("adapt").join(file).is_file(), "{file}");
     }
+    let md = std::fs::read_to_string(dir.path().join("adapt/adapt.md")).unwrap();
+    assert!(
+        md.contains("No plot: no η or error above round-off") && md.contains("η —, error —"),
+        "{md}"
+    );
+    assert!(!dir.path().join("adapt/adapt.png").exists());
 }
 
 /// A load the case's rule does not resolve (a layer of width 3e-3 on an 8² mesh): η is not a

@@ -518,16 +518,18 @@ fn non_triangle_cells() {
     contains(&e, "cell type 'Quadrilateral' is not supported");
 }
 
-/// An XDMF mesh of `topology` (its type, and the DataItem's Dimensions) on `mesh.h5`, whose
-/// datasets are the fan's points at heights `z` and the 1D `/mesh/cells`; the mesh read, or the
-/// error.
-fn read_xdmf(topology: &str, cells: &[i64], z: [f64; 5]) -> Result<membrane_contact::mesh::Mesh, String> {
+/// An XDMF mesh of `topology` on `mesh.h5`, whose datasets are `points` and the 1D `/mesh/cells`;
+/// the mesh read, or the error.
+fn read_xdmf(
+    topology: &str,
+    cells: &[i64],
+    points: &[[f64; 3]],
+) -> Result<membrane_contact::mesh::Mesh, String> {
     let dir = tempfile::tempdir().unwrap();
-    let (points, _) = fan();
     {
         let _guard = FILES.lock().unwrap_or_else(|e| e.into_inner());
         let f = hdf5::File::create(dir.path().join("mesh.h5")).unwrap();
-        let p = ndarray::Array2::from_shape_fn((5, 3), |(i, k)| if k < 2 { points[i][k] } else { z[i] });
+        let p = ndarray::Array2::from_shape_fn((points.len(), 3), |(i, k)| points[i][k]);
         f.new_dataset_builder()
             .with_data(&p)
             .create("/mesh/geometry")
@@ -539,7 +541,9 @@ fn read_xdmf(topology: &str, cells: &[i64], z: [f64; 5]) -> Result<membrane_cont
             .unwrap();
     }
     let xdmf = format!(
-        "<Xdmf><Domain><Grid><Topology TopologyType=\"{topology}\"><DataItem Format=\"HDF\">mesh.h5:/mesh/cells</DataItem></Topology><Geometry GeometryType=\"XYZ\"><DataItem Format=\"HDF\">mesh.h5:/mesh/geometry</DataItem></Geometry></Grid></Domain></Xdmf>"
+        "<Xdmf><Domain><Grid><Topology TopologyType=\"{topology}\"><DataItem Dimensions=\"{}\" Format=\"HDF\">mesh.h5:/mesh/cells</DataItem></Topology><Geometry GeometryType=\"XYZ\"><DataItem Dimensions=\"{} 3\" Format=\"HDF\">mesh.h5:/mesh/geometry</DataItem></Geometry></Grid></Domain></Xdmf>",
+        cells.len(),
+        points.len()
     );
     std::fs::write(dir.path().join("mesh.xdmf"), xdmf).unwrap();
     membrane_contact::mesh::file::read(&dir.path().join("mesh.xdmf")).map_err(|e| e.to_string())
@@ -557,21 +561,36 @@ fn meshio_s_mixed_topologies_and_planes_off_z_0_are_read() {
     let mixed = [
         4, 0, 1, 4, 4, 1, 2, 4, 2, 2, 0, 1, 1, 1, 3, 4, 2, 3, 4, 4, 3, 0, 4,
     ];
-    let flat = [0.0; 5];
-    let mesh = read_xdmf("Mixed", &mixed, flat).unwrap();
     let (points, triangles) = fan();
+    let at = |z: [f64; 5]| -> Vec<[f64; 3]> { (0..5).map(|i| [points[i][0], points[i][1], z[i]]).collect() };
+    let flat = &at([0.0; 5]);
+    let mesh = read_xdmf("Mixed", &mixed, flat).unwrap();
     assert_eq!(mesh.points, points);
     let read: Vec<[i64; 3]> = mesh.triangles().map(|t| t.map(|v| v as i64)).collect();
     assert_eq!(read, triangles);
+    // A point that only a vertex cell uses is left aside; a cell cut short is named.
+    let beyond = [flat.clone(), vec![[3.0, 3.0, 0.0]]].concat();
+    let fewer = read_xdmf("Mixed", &[&mixed[..], &[1, 1, 5]].concat(), &beyond).unwrap();
+    assert_eq!(fewer.points, points);
+    let e = read_xdmf("Mixed", &[4, 0, 1, 4, 2, 9, 0], flat).unwrap_err();
+    assert!(e.contains("the mixed topology ends within a cell"), "{e}");
     let e = read_xdmf("Mixed", &[4, 0, 1, 4, 5, 0, 1, 2, 3], flat).unwrap_err();
     assert!(
         e.contains("the mixed topology holds a cell of XDMF type 5 (entry 4)"),
         "{e}"
     );
-    for z in [[5.0; 5], [0.0, 1.2e-16, 0.0, -1e-16, 0.0]] {
-        assert_eq!(read_xdmf("Mixed", &mixed, z).unwrap().points, points, "{z:?}");
+    for z in [[5.0; 5], [0.0, 1.2e-16, 0.0, -1e-16, 0.0], [1e15; 5]] {
+        assert_eq!(
+            read_xdmf("Mixed", &mixed, &at(z)).unwrap().points,
+            points,
+            "{z:?}"
+        );
     }
-    let e = read_xdmf("Mixed", &mixed, [0.0, 0.5, 0.5, 0.0, 0.25]).unwrap_err();
+    // Far from z = 0 a tilt is still a tilt (the tolerance was relative to |z|).
+    let tilted = at([1e15, 1e15 + 100.0, 1e15 + 100.0, 1e15, 1e15 + 50.0]);
+    let e = read_xdmf("Mixed", &mixed, &tilted).unwrap_err();
+    assert!(e.contains("vertex 1 has z = 1000000000000100"), "{e}");
+    let e = read_xdmf("Mixed", &mixed, &at([0.0, 0.5, 0.5, 0.0, 0.25])).unwrap_err();
     assert!(
         e.contains("vertex 1 has z = 0.5, the first z = 0: the mesh must lie in a plane z = constant"),
         "{e}"
@@ -1057,12 +1076,17 @@ fn a_needle_is_a_feature_too_small() {
     );
 }
 
-/// A vertex repeated within a ring is named (a ring closed by its first vertex is not: own_domains).
+/// A vertex repeated within a ring is named (a ring closed by its first vertex is not: own_domains),
+/// and a closed ring of too few vertices says it was closed.
 #[test]
 fn a_repeated_vertex_is_named() {
     contains(
         &polygon_fails("boundary = [[0, 0], [1, 0], [1, 0], [1, 1], [0, 1]]\nh = 0.25\n"),
         "the vertex [1.0, 0.0] is repeated",
+    );
+    contains(
+        &polygon_fails("boundary = [[0, 0], [1, 0], [0, 0]]\nh = 0.25\n"),
+        "key 'mesh.boundary' has 2 vertices besides its last, which repeats the first to close it",
     );
 }
 

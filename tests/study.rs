@@ -292,13 +292,7 @@ fn a_wrong_exact_solution_is_flagged_on_each_level() {
     let wrong = text.replacen("f2 = \"2*pi^2*", "f2 = \"3*pi^2*", 1);
     assert_ne!(wrong, text);
     std::fs::write(dir.path().join("wrong.toml"), wrong).unwrap();
-    let run = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
-        .args(["-q", "study", "--levels", "8,16", "-o"])
-        .arg(dir.path().join("study"))
-        .arg(dir.path().join("wrong.toml"))
-        .output()
-        .unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    study_command(&dir.path().join("wrong.toml"), "8,16", &dir.path().join("study"));
     let md = std::fs::read_to_string(dir.path().join("study/study.md")).unwrap();
     assert!(
         md.contains("On every level, [exact] does not solve −μ2Δu2 + λ = f2"),
@@ -328,13 +322,7 @@ fn a_study_says_on_which_levels_eta_is_not_a_bound() {
     let text = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"-1 - 50*exp(-(x - 0.3)^2/1e-5)\"\nf2 = \"0\"\ng = \"0\"\n\
                 [mesh]\nkind = \"rectangle\"\nn = 8\n";
     std::fs::write(dir.path().join("layer.toml"), text).unwrap();
-    let run = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
-        .args(["-q", "study", "--levels", "8,16", "-o"])
-        .arg(dir.path().join("study"))
-        .arg(dir.path().join("layer.toml"))
-        .output()
-        .unwrap();
-    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+    study_command(&dir.path().join("layer.toml"), "8,16", &dir.path().join("study"));
     let read = |name: &str| std::fs::read_to_string(dir.path().join("study").join(name)).unwrap();
     let md = read("study.md");
     assert!(
@@ -353,6 +341,17 @@ fn a_study_says_on_which_levels_eta_is_not_a_bound() {
     );
     let json: serde_json::Value = serde_json::from_str(&read("study.json")).unwrap();
     assert_eq!(json[0]["bound"], serde_json::Value::Bool(false));
+}
+
+/// `membrane-contact study CASE --levels LEVELS -o OUT`, which must succeed.
+fn study_command(case: &Path, levels: &str, out: &Path) {
+    let run = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .args(["-q", "study", "--levels", levels, "-o"])
+        .arg(out)
+        .arg(case)
+        .output()
+        .unwrap();
+    assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
 }
 
 /// The study's CSV as (header, rows).
@@ -375,13 +374,7 @@ fn round_off_gets_no_eoc_and_no_curve() {
                   [mesh]\nkind = \"rectangle\"\nn = 8\n";
     std::fs::write(dir.path().join("linear.toml"), linear).unwrap();
     let study = |case: &Path, out: &str| {
-        let run = Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
-            .args(["-q", "--threads", "1", "study", "--levels", "8,16,32", "-o"])
-            .arg(dir.path().join(out))
-            .arg(case)
-            .output()
-            .unwrap();
-        assert!(run.status.success(), "{}", String::from_utf8_lossy(&run.stderr));
+        study_command(case, "8,16,32", &dir.path().join(out));
         csv_of(&dir.path().join(out))
     };
     let (header, rows) = study(&dir.path().join("linear.toml"), "linear");
@@ -391,6 +384,13 @@ fn round_off_gets_no_eoc_and_no_curve() {
     assert!(!dir.path().join("linear/errors.png").exists());
     let md = std::fs::read_to_string(dir.path().join("linear/study.md")).unwrap();
     assert!(md.contains("No plot: no error or η above round-off"), "{md}");
+    // Without [exact], η alone: its round-off gets no EOC either (it got −2.0 and −5.5).
+    let plane = linear.split("[exact]").next().unwrap().to_string() + "[mesh]\nkind = \"rectangle\"\nn = 8\n";
+    std::fs::write(dir.path().join("plane.toml"), plane).unwrap();
+    let (header, rows) = study(&dir.path().join("plane.toml"), "plane");
+    let eta = header.iter().position(|c| c == "eoc_estimator").unwrap();
+    assert!(rows.iter().all(|r| r[eta].is_empty()), "{rows:?}");
+    assert!(!dir.path().join("plane/errors.png").exists());
     let (header, rows) = study(Path::new("data/cases/no_contact.toml"), "no_contact");
     let column = |name: &str| header.iter().position(|c| c == name).unwrap();
     assert!(

@@ -111,8 +111,9 @@ def _mesh(mesh):
         raise InputError(f"mesh: points need numbers, got dtype {points.dtype}")
     if points.shape[1] == 3 and len(points):
         # a plane z = constant, up to round-off (as the mesh files' readers take it)
-        z = points[:, 2].astype(np.float64)
-        off = np.abs(z - z[0]) > 1e-12 * np.abs(points.astype(np.float64)).max()
+        z, xy = points[:, 2].astype(np.float64), points[:, :2].astype(np.float64)
+        tolerance = 1e-12 * np.ptp(xy, axis=0).max() + 4 * np.finfo(np.float64).eps * abs(z[0])
+        off = ~(np.abs(z - z[0]) <= tolerance)  # NaN is no plane either
         if np.any(off):
             i = int(np.argmax(off))
             raise InputError(f"mesh: point {i} has z = {z[i]}, the first z = {z[0]}: the mesh must lie in a plane z = constant")
@@ -429,8 +430,9 @@ def adapt(
     kind. dual: each step's `Result` holds S_h (`dual_points`, …), as `adapt --dual` writes it.
     threads: as in `solve`.
 
-    Returns (table, results): one dict per step (vertices, triangles, marked, estimator, bound,
-    error, effectivity, mismatch, iterations, seconds; bound: whether η is a guaranteed bound at
+    Returns (table, results): one dict per step (vertices, triangles, marked (None on the last
+    step), estimator, bound, error, effectivity, round_off (u_h exact to round-off: no
+    effectivity), mismatch, iterations, seconds; bound: whether η is a guaranteed bound at
     that step — False where the case's rule does not resolve the loads or the boundary data admit
     no solution, as the step's summary() says; mismatch: where the case's exact solution misses
     its boundary data on ∂ω_h most, a dict {relative, at, at_vertex}, else None) and the

@@ -392,6 +392,9 @@ def test_a_mesh_in_a_plane_z_constant_is_that_plane_s(small):
     for z in (np.full(len(points), 5.0), np.where(np.arange(len(points)) % 2 == 1, 1.2e-16, 0.0)):
         r = mc.solve(small, (np.column_stack([points, z]), triangles))
         assert same_bits(r.points, flat.points) and same_bits(r.u1, flat.u1)
+    for z in (np.where(np.arange(len(points)) == 3, np.nan, 0.0), 1e15 + 100 * points[:, 0]):
+        with pytest.raises(mc.InputError, match="the mesh must lie in a plane z = constant"):
+            mc.solve(small, (np.column_stack([points, z]), triangles))
     tilted = np.column_stack([points, 0.5 * points[:, 0]])
     with pytest.raises(mc.InputError, match="point 1 has z = 0.125, the first z = 0.0: the mesh must lie in a plane"):
         mc.solve(small, (tilted, triangles))

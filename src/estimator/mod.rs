@@ -883,3 +883,30 @@ impl Describe for Estimate {
         attrs
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Diagonal;
+    use crate::problem::Data;
+
+    /// The lumped-mass norm of values whose squares would underflow or overflow, and a NaN kept
+    /// (a fold by `max` had dropped it).
+    #[test]
+    fn the_mass_norm_neither_underflows_nor_hides_a_nan() {
+        let mesh = Mesh::rectangle([0.0, 0.0], [1.0, 1.0], 2, 2, Diagonal::Right).unwrap();
+        let zero = || crate::expr::Expr::parse("0").unwrap();
+        let quadrature = crate::assembly::Quadrature { degree: 2 };
+        let data = Data::new([1.0, 1.0], zero(), zero(), zero(), quadrature).unwrap();
+        let problem = DiscreteProblem::new(mesh, &data).unwrap();
+        let n = problem.mesh.n_vertices();
+        // Σ_a m_a = |ω| = 1.
+        for scale in [1e-200, 1.0, 1e200] {
+            let norm = mass_norm(&problem, &vec![scale; n]);
+            assert!((norm / scale - 1.0).abs() < 1e-14, "{scale:e}: {norm:e}");
+        }
+        let mut c = vec![1.0; n];
+        c[3] = f64::NAN;
+        assert!(mass_norm(&problem, &c).is_nan());
+    }
+}

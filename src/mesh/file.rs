@@ -272,21 +272,54 @@ fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<RawMesh, FileError> {
     let geometry = heavy(path, child("Geometry")?)?;
     let topology = heavy(path, topology)?;
     let points = read_points(&geometry.file, &geometry.dataset)?;
+    geometry.holds(points.len(), 2).map_err(err)?;
     if mixed {
-        return Ok((points, read_mixed(&topology.file, &topology.dataset)?));
+        // A mixed stream's Dimensions count its entries, not its cells.
+        return Ok(used_points(
+            points,
+            read_mixed(&topology.file, &topology.dataset)?,
+        ));
     }
     let cells = read_cells(&topology.file, &topology.dataset)?;
-    for (item, rows, cols) in [(&geometry, points.len(), 2), (&topology, cells.len(), 3)] {
-        let declared = &item.dimensions;
+    topology.holds(cells.len(), 3).map_err(err)?;
+    Ok((points, cells))
+}
+
+impl Heavy {
+    /// Whether the declared dimensions are `rows` × `cols` (or 3 columns, as XYZ geometry has).
+    fn holds(&self, rows: usize, cols: usize) -> Result<(), String> {
+        let declared = &self.dimensions;
         if declared.first() != Some(&rows) || (declared.len() > 1 && declared[1] != cols && declared[1] != 3)
         {
-            return Err(err(format!(
+            return Err(format!(
                 "the DataItem of {} declares Dimensions {declared:?}, but the dataset has {rows} rows",
-                item.dataset
-            )));
+                self.dataset
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The points the triangles use, renumbered in their order, and the triangles on them: a mixed
+/// topology's other cells (points, lines) may hold points no triangle uses, which are left aside
+/// as the .msh reader leaves unused nodes.
+fn used_points(points: Vec<[f64; 2]>, triangles: Vec<[usize; 3]>) -> RawMesh {
+    let mut index = vec![usize::MAX; points.len()];
+    for &v in triangles.iter().flatten() {
+        if let Some(i) = index.get_mut(v) {
+            *i = 0;
         }
     }
-    Ok((points, cells))
+    let mut kept = Vec::new();
+    for (v, i) in index.iter_mut().enumerate().filter(|(_, i)| **i == 0) {
+        *i = kept.len();
+        kept.push(points[v]);
+    }
+    // An index beyond the points stays as it is (beyond them still), for the mesh's check to name.
+    let renumbered = (triangles.into_iter())
+        .map(|t| t.map(|v| index.get(v).copied().unwrap_or(v)))
+        .collect();
+    (kept, renumbered)
 }
 
 /// The meshtags of the XDMF grid `grid` (a topology on another grid's geometry), if it tags
@@ -706,7 +739,12 @@ fn read_mixed(path: &Path, dataset: &str) -> Result<Vec<[usize; 3]>, FileError> 
                 triangles.push([index(k + 1)?, index(k + 2)?, index(k + 3)?]);
                 k += 4;
             }
-            1 | 2 => k += 2 + index(k + 1)?,
+            1 | 2 => {
+                k += 2 + index(k + 1)?;
+                if k > stream.len() {
+                    return Err(err("the mixed topology ends within a cell".into()));
+                }
+            }
             code => {
                 return Err(err(format!(
                     "the mixed topology holds a cell of XDMF type {code} (entry {k}): the mesh must be \

@@ -897,14 +897,18 @@ fn segments_meet(p: [f64; 2], q: [f64; 2], r: [f64; 2], s: [f64; 2]) -> bool {
     on(p, q, r, d1) || on(p, q, s, d2) || on(r, s, p, d3) || on(r, s, q, d4)
 }
 
-/// The points of a mesh file given in 3D, in their plane z = z₀ (every z within round-off, 10⁻¹²
-/// of the extent, of the first: a CAD kernel's rotations leave z = 1e-16); `name(i)` names point
-/// i in the message where one leaves the plane.
+/// The points of a mesh file given in 3D, in their plane z = z₀ (every z within round-off of the
+/// first: 10⁻¹² of the mesh's extent in x and y, and a few units of z₀'s last digit; a CAD kernel's
+/// rotations leave z = 1e-16); `name(i)` names point i in the message where one leaves the plane.
 pub(crate) fn planar(xyz: &[[f64; 3]], name: impl Fn(usize) -> String) -> Result<Vec<[f64; 2]>, String> {
     let z0 = xyz.first().map_or(0.0, |p| p[2]);
-    let extent = xyz.iter().flatten().fold(0.0_f64, |m, x| m.max(x.abs()));
+    let (low, high) = xyz.iter().fold(([f64::MAX; 2], [f64::MIN; 2]), |(l, h), p| {
+        (min2(l, [p[0], p[1]]), max2(h, [p[0], p[1]]))
+    });
+    let extent = (high[0] - low[0]).max(high[1] - low[1]);
+    let tolerance = 1e-12 * extent + 4.0 * f64::EPSILON * z0.abs();
     // NaN is no plane either.
-    let within = |z: f64| (z - z0).abs() <= 1e-12 * extent;
+    let within = |z: f64| (z - z0).abs() <= tolerance;
     match xyz.iter().position(|p| !within(p[2])) {
         Some(i) => Err(format!(
             "{} has z = {}, the first z = {z0}: the mesh must lie in a plane z = constant",

@@ -241,16 +241,16 @@ impl Errors {
             gradients_given: exact.gradients_given,
             boundary: boundary_mismatch(problem, exact, [&solution.u1, &solution.u2]),
             unsolved: unsolved(problem, exact),
-            energy_round_off: energy_round_off(problem, solution, exact.rigid),
+            energy_round_off: energy_round_off(problem, solution),
             lambda_round_off: action.checks.noise * mesh.measure().sqrt(),
         }
     }
 }
 
-/// The energy error that values of u_ih off by [`VALUE_ROUND_OFF`] of max |u_ih| make: on a
+/// The energy error that values of u_ih off by 10⁻¹³ of max |u_ih| make: on a
 /// triangle K, Σ_j |∇φ_j| = P_K / (2|K|) (P_K its perimeter), so
 /// (Σ_i μ_i (δ max |u_ih|)² Σ_K P_K² / (4|K|))^½, u2h left out above a rigid obstacle.
-fn energy_round_off(problem: &DiscreteProblem, solution: &Solution, rigid: bool) -> f64 {
+pub fn energy_round_off(problem: &DiscreteProblem, solution: &Solution) -> f64 {
     let mesh = &problem.mesh;
     let shape = parallel::sum(mesh.n_triangles(), PIECE, |triangles| {
         (triangles.map(|t| {
@@ -263,7 +263,7 @@ fn energy_round_off(problem: &DiscreteProblem, solution: &Solution, rigid: bool)
     });
     let size = |u: &[f64]| VALUE_ROUND_OFF * u.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
     let mut total = problem.data.mu1 * size(&solution.u1).powi(2);
-    if let (false, Some(mu2)) = (rigid, problem.data.mu2()) {
+    if let (false, Some(mu2)) = (solution.rigid, problem.data.mu2()) {
         total += mu2 * size(&solution.u2).powi(2);
     }
     (total * shape).sqrt()

@@ -40,6 +40,9 @@ pub struct Level {
     /// Whether η is a guaranteed bound on this level ([`crate::estimator::Estimate::is_bound`]),
     /// when it is computed.
     pub bound: Option<bool>,
+    /// Whether u_h is the exact solution to round-off ([`run::Run::at_round_off`]): its errors
+    /// and η are round-off, without EOCs.
+    pub round_off: bool,
     /// Active-set iterations with nested iteration (warm start from the previous level).
     pub iterations: usize,
     /// Active-set iterations from a cold start (no contact), when asked for.
@@ -241,8 +244,13 @@ pub fn run_levels(
     let mut previous: Option<run::Run> = None;
     let by_refinement = matches!(options.levels, Levels::Refine(_));
     for (i, c) in levels.iter().enumerate() {
-        // About √N: cells per side, or the root of the estimated vertices (0 for a file).
-        let side = (c.cells()).unwrap_or_else(|| (c.estimated_vertices() as f64).sqrt() as usize);
+        // About √N: cells per side, or the root of the estimated vertices; for a file's mesh
+        // (none estimated) of 4 times the level before's (0 on the first).
+        let estimated = match c.estimated_vertices() {
+            0 => previous.as_ref().map_or(0, |r| 4 * r.problem.mesh.n_vertices()),
+            n => n,
+        };
+        let side = (c.cells()).unwrap_or_else(|| (estimated as f64).sqrt() as usize);
         // The first level by nested iteration on its coarser meshes, as `solve` starts it.
         let start = previous.as_ref().map_or(Start::Nested, |r| Start::From {
             mesh: &r.problem.mesh,
@@ -287,6 +295,7 @@ pub fn run_levels(
             estimator: r.estimate.as_ref().map(|e| e.total),
             effectivity: r.effectivity(),
             bound: r.estimate.as_ref().map(|e| e.is_bound()),
+            round_off: r.at_round_off(),
             iterations: stats.iterations,
             cold_iterations,
             seconds: stats.wall_seconds + r.timings.assembly + r.timings.mesh,
@@ -328,15 +337,12 @@ pub(crate) fn quantities(level: &Level) -> Vec<(&'static str, &'static str, Opti
 }
 
 /// Whether the quantity `short` of [`quantities`] is more than round-off on `level`: not where
-/// u_h is the exact solution to round-off ([`Errors::at_round_off`]: then neither are the errors
-/// of u nor η), nor ‖λ − λ_h‖ where it is within λ_h's round-off. Its EOCs and plots leave it out.
+/// u_h is the exact solution to round-off ([`Level::round_off`]: then neither are the errors of u
+/// nor η), nor ‖λ − λ_h‖ where it is within λ_h's round-off. Its EOCs and plots leave it out.
 pub(crate) fn resolved(level: &Level, short: &str) -> bool {
-    let Some(e) = &level.errors else {
-        return true;
-    };
     match short {
-        "l2_lambda" | "hminus1_lambda" => !e.lambda_at_round_off(),
-        _ => !e.at_round_off(),
+        "l2_lambda" | "hminus1_lambda" => !level.errors.as_ref().is_some_and(Errors::lambda_at_round_off),
+        _ => !level.round_off,
     }
 }
 
