@@ -352,7 +352,7 @@ impl Run<'_> {
                     "exact       u_h is the exact solution to round-off (|||u − u_h||| = {:.1e}, within the \
                      {:.0e} the round-off of its values makes of it): no effectivity\n",
                     e.energy.unwrap_or(0.0),
-                    e.energy_round_off
+                    e.round_off.energy
                 );
             }
             if let Some(u) = &e.unsolved {
@@ -532,7 +532,7 @@ impl Run<'_> {
             &self.estimate,
         ) {
             (Some(e), _) => e.at_round_off(),
-            (None, Some(e)) => e.total <= crate::norms::energy_round_off(&self.problem, &self.solution),
+            (None, Some(e)) => e.total <= crate::norms::RoundOff::of(&self.problem, &self.solution).energy,
             (None, None) => false,
         }
     }

@@ -391,6 +391,21 @@ fn round_off_gets_no_eoc_and_no_curve() {
     let eta = header.iter().position(|c| c == "eoc_estimator").unwrap();
     assert!(rows.iter().all(|r| r[eta].is_empty()), "{rows:?}");
     assert!(!dir.path().join("plane/errors.png").exists());
+    // u1 = 10⁶ + sin πx sin πy and u2 = 0, computed from v and w of 10⁶: u2's errors are the
+    // round-off of those (about 10⁻⁷), without EOCs, while u1's keep theirs (they had −1.1 … 0.3).
+    let lifted = "mu1 = 1.0\nmu2 = 1.0\nf1 = \"2*pi^2*sin(pi*x)*sin(pi*y)\"\nf2 = 0\ng = \"1e6\"\n\
+                  [exact]\nu1 = \"1e6 + sin(pi*x)*sin(pi*y)\"\nu2 = 0\nlambda = 0\n\
+                  [mesh]\nkind = \"rectangle\"\nn = 8\n";
+    std::fs::write(dir.path().join("lifted.toml"), lifted).unwrap();
+    let (header, rows) = study(&dir.path().join("lifted.toml"), "lifted");
+    let column = |name: &str| header.iter().position(|c| c == name).unwrap();
+    assert!(rows
+        .iter()
+        .all(|r| r[column("eoc_h1_u2")].is_empty() && r[column("eoc_l2_u2")].is_empty()));
+    assert!(
+        rows[1..].iter().all(|r| !r[column("eoc_h1_u1")].is_empty()),
+        "{rows:?}"
+    );
     let (header, rows) = study(Path::new("data/cases/no_contact.toml"), "no_contact");
     let column = |name: &str| header.iter().position(|c| c == name).unwrap();
     assert!(

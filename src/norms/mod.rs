@@ -93,9 +93,9 @@ pub struct Errors {
     pub boundary: Option<Mismatch>,
     /// Where the exact solution does not solve the equations (`unsolved`).
     pub unsolved: Option<Unsolved>,
-    /// What values of u_ih off by 10⁻¹³ of max |u_ih| make of the energy error: an error below
-    /// it says nothing of the discretisation.
-    pub energy_round_off: f64,
+    /// What the round-off of u_h's values makes of each membrane's errors ([`RoundOff`]): an
+    /// error below it says nothing of the discretisation.
+    pub round_off: RoundOff,
     /// The round-off λ_h can carry in L²(ω): [`crate::action::Checks::noise`] (its largest at a
     /// vertex) times |ω|^½.
     pub lambda_round_off: f64,
@@ -176,7 +176,7 @@ impl Mismatch {
 /// A mismatch below this part of the boundary values is round-off.
 const MISMATCH: f64 = 1e-9;
 
-/// The relative round-off of u_h's values that [`energy_round_off`] allows for: about 450 ε (the
+/// The relative round-off of u_h's values that [`RoundOff`] allows for: about 450 ε (the
 /// solve's own round-off, and the cancellation of u − u_h where both are large).
 const VALUE_ROUND_OFF: f64 = 1e-13;
 
@@ -190,7 +190,7 @@ impl Errors {
     /// the exact solution to round-off (a solution exact in P1), and a ratio to the error, as the
     /// effectivity η/error, says nothing.
     pub fn at_round_off(&self) -> bool {
-        self.energy.is_some_and(|e| e <= self.energy_round_off)
+        self.energy.is_some_and(|e| e <= self.round_off.energy)
     }
 
     /// Whether ‖λ − λ_h‖_L² is within the round-off λ_h can carry (λ = 0 where λ_h is round-off).
@@ -241,32 +241,52 @@ impl Errors {
             gradients_given: exact.gradients_given,
             boundary: boundary_mismatch(problem, exact, [&solution.u1, &solution.u2]),
             unsolved: unsolved(problem, exact),
-            energy_round_off: energy_round_off(problem, solution),
+            round_off: RoundOff::of(problem, solution),
             lambda_round_off: action.checks.noise * mesh.measure().sqrt(),
         }
     }
 }
 
-/// The energy error that values of u_ih off by 10⁻¹³ of max |u_ih| make: on a
-/// triangle K, Σ_j |∇φ_j| = P_K / (2|K|) (P_K its perimeter), so
-/// (Σ_i μ_i (δ max |u_ih|)² Σ_K P_K² / (4|K|))^½, u2h left out above a rigid obstacle.
-pub fn energy_round_off(problem: &DiscreteProblem, solution: &Solution) -> f64 {
-    let mesh = &problem.mesh;
-    let shape = parallel::sum(mesh.n_triangles(), PIECE, |triangles| {
-        (triangles.map(|t| {
-            let [p, q, r] = mesh.corners(t);
-            let perimeter = dist(p, q) + dist(q, r) + dist(r, p);
-            // P_K/(2|K|) first: P_K² may overflow where the ratio does not.
-            (perimeter / (2.0 * mesh.area(t))).powi(2) * mesh.area(t)
-        }))
-        .sum()
-    });
-    let size = |u: &[f64]| VALUE_ROUND_OFF * u.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
-    let mut total = problem.data.mu1 * size(&solution.u1).powi(2);
-    if let (false, Some(mu2)) = (solution.rigid, problem.data.mu2()) {
-        total += mu2 * size(&solution.u2).powi(2);
+/// What values of u_ih off by 10⁻¹³ of what they are computed from make of the errors' norms:
+/// u_ih = v ± w, so of max_b (|u1h| + |u2h| + 2|w_h|)(b) ≥ |v| + |w| (as the action's checks
+/// count it: u2h near 0 may be computed from v and w of 10⁶), δ. On a triangle K,
+/// Σ_j |∇φ_j| = P_K / (2|K|) (P_K its perimeter).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct RoundOff {
+    /// Of |u_i − u_ih|_H¹: δ (Σ_K P_K² / (4|K|))^½.
+    pub h1: f64,
+    /// Of ‖u_i − u_ih‖_L²: δ |ω|^½.
+    pub l2: f64,
+    /// Of the energy error: (Σ_i μ_i)^½ times `h1` (μ1^½ above a rigid obstacle).
+    pub energy: f64,
+}
+
+impl RoundOff {
+    /// The round-off of `solution`'s errors on `problem`'s mesh.
+    pub fn of(problem: &DiscreteProblem, solution: &Solution) -> RoundOff {
+        let mesh = &problem.mesh;
+        let shape = parallel::sum(mesh.n_triangles(), PIECE, |triangles| {
+            (triangles.map(|t| {
+                let [p, q, r] = mesh.corners(t);
+                let perimeter = dist(p, q) + dist(q, r) + dist(r, p);
+                // P_K/(2|K|) first: P_K² may overflow where the ratio does not.
+                (perimeter / (2.0 * mesh.area(t))).powi(2) * mesh.area(t)
+            }))
+            .sum()
+        });
+        let (u1, u2, w) = (&solution.u1, &solution.u2, &solution.obstacle.gap);
+        let computed = (0..u1.len()).fold(0.0_f64, |m, b| {
+            m.max(u1[b].abs() + u2[b].abs() + 2.0 * w[b].abs())
+        });
+        let delta = VALUE_ROUND_OFF * computed;
+        let mu = problem.data.mu1 + problem.data.mu2().filter(|_| !solution.rigid).unwrap_or(0.0);
+        let h1 = delta * shape.sqrt();
+        RoundOff {
+            h1,
+            l2: delta * mesh.measure().sqrt(),
+            energy: mu.sqrt() * h1,
+        }
     }
-    (total * shape).sqrt()
 }
 
 /// Where the exact solution differs from the boundary data on ∂ω_h by more than round-off of the
@@ -337,9 +357,13 @@ impl Unsolved {
             (Missed::Equation(1), false) => "does not solve −μ1Δu1 − λ = f1".to_string(),
             (Missed::Equation(_), false) => "does not solve −μ2Δu2 + λ = f2".to_string(),
             (Missed::Gradient(i), _) => format!("grad_{0} is not the gradient of {0}", u(i)),
+            (Missed::Complementarity, true) => "does not satisfy λ ≥ 0, u − ψ ≥ 0, λ (u − ψ) = 0".to_string(),
+            (Missed::Complementarity, false) => {
+                "does not satisfy λ ≥ 0, u1 − u2 ≥ 0, λ (u1 − u2) = 0".to_string()
+            }
         };
         let consequence = match self.missed {
-            Missed::Equation(_) => {
+            Missed::Equation(_) | Missed::Complementarity => {
                 "[exact] is not a solution of this case, and the errors are not its errors"
             }
             Missed::Gradient(_) => "the H1 errors are against the gradient given, not against ∇u",
@@ -360,6 +384,8 @@ pub enum Missed {
     Equation(usize),
     /// ∇u_i given beside u_i (i = 1, 2) is not its gradient.
     Gradient(usize),
+    /// λ ≥ 0, u1 − u2 ≥ 0 (u − ψ ≥ 0) or λ (u1 − u2) = 0.
+    Complementarity,
 }
 
 /// A residual above this part of the size of its terms misses the equation.
@@ -371,10 +397,22 @@ const UNSOLVED_SHARE: f64 = 0.1;
 /// Triangles whose centroids are sampled, at most.
 const SAMPLES: usize = 4096;
 
+/// How far λ ≥ 0, u1 − u2 ≥ 0 (u − ψ ≥ 0: `exact.u2` is ψ) and λ (u1 − u2) = 0 are missed at
+/// `x`: λ's part relative to |λ| + |f1|, the gap's to |u1| + |u2|, the product's by the smaller of
+/// the two (both far from 0).
+fn complementarity_miss(exact: &Exact, lambda: f64, f1: f64, x: [f64; 2]) -> f64 {
+    let [u1, u2] = [&exact.u1, &exact.u2].map(|u| u.eval(x[0], x[1]));
+    let (gap, sizes) = (u1 - u2, (u1.abs() + u2.abs()).max(f64::MIN_POSITIVE));
+    let action = (lambda.abs() + f1.abs()).max(f64::MIN_POSITIVE);
+    let (l, g) = (lambda / action, gap / sizes);
+    (-l).max(-g).max(l.abs().min(g.abs())).max(0.0)
+}
+
 /// The residuals of −μ1Δu1 − λ = f1 and −μ2Δu2 + λ = f2 (−μΔu − λ = f above a rigid obstacle) at
 /// the centroids of up to [`SAMPLES`] triangles, Δu_i by differentiating u_i's expression
-/// ([`Expr::with_derivatives`]), and the given ∇u_i against the derivatives of u_i there:
-/// [`Unsolved`] when more than [`UNSOLVED_SHARE`] of the points miss one.
+/// ([`Expr::with_derivatives`]), the given ∇u_i against the derivatives of u_i there, and the
+/// complementarity of λ and u1 − u2 (u − ψ): [`Unsolved`] when more than [`UNSOLVED_SHARE`] of
+/// the points miss one.
 fn unsolved(problem: &DiscreteProblem, exact: &Exact) -> Option<Unsolved> {
     let (mesh, data) = (&problem.mesh, &problem.data);
     let fit = "the data fit the mesh's groups (checked by DiscreteProblem::new)";
@@ -414,7 +452,11 @@ fn unsolved(problem: &DiscreteProblem, exact: &Exact) -> Option<Unsolved> {
             equations.push((2, mu2, &u2, &exact.grad_u2, lambda, f2.on_triangle(t)));
         }
         samples += 1;
-        let mut miss = false;
+        let complementarity = complementarity_miss(exact, lambda, f1.on_triangle(t).eval(x[0], x[1]), x);
+        let mut miss = complementarity > UNSOLVED;
+        if complementarity > worst.0 {
+            worst = (complementarity, x, Missed::Complementarity);
+        }
         for (i, mu, u, grad, lambda, f) in equations {
             let (((a, size, noise), differences), f) = (operator(mu, u, x), f.eval(x[0], x[1]));
             let terms = (size + lambda.abs() + f.abs()).max(f64::MIN_POSITIVE);
@@ -691,6 +733,23 @@ mod tests {
         let u = of("-4", r#"["x", "0"]"#).expect("missed");
         assert_eq!((u.share, u.missed), (1.0, Missed::Gradient(2)));
         assert!(u.describe(false).starts_with("grad_u2 is not the gradient of u2"));
+        // λ = 3 where u1 > u2 solves both equations (f1 = −7, f2 = −1) but not complementarity
+        // (it printed an effectivity of 0.3 without a word); so does u2 above u1 with λ = 0.
+        let contact = |lambda: &str, u2: &str, f2: &str| {
+            let text = format!(
+                "mu1 = 1.0\nmu2 = 1.0\nf1 = \"-4 - ({lambda})\"\nf2 = \"{f2} + ({lambda})\"\ng = \"x*x + y*y\"\n\
+                 [exact]\nu1 = \"x*x + y*y\"\nu2 = \"{u2}\"\nlambda = \"{lambda}\"\n[mesh]\nkind = \"rectangle\"\nn = 8\n"
+            );
+            unsolved(&Case::parse(&text, "t", ".".into()).unwrap())
+        };
+        let u = contact("3", "x*x - 1", "-2").expect("missed");
+        assert_eq!((u.share, u.missed), (1.0, Missed::Complementarity));
+        assert!(u
+            .describe(false)
+            .starts_with("does not satisfy λ ≥ 0, u1 − u2 ≥ 0, λ (u1 − u2) = 0"));
+        let u = contact("0", "x*x + y*y + 1", "-4").expect("missed");
+        assert_eq!(u.missed, Missed::Complementarity);
+        assert!(contact("0", "x*x - 1", "-2").is_none());
     }
 
     /// An H¹ error that is not finite is named by the key it comes from: a gradient the case

@@ -336,12 +336,17 @@ pub(crate) fn quantities(level: &Level) -> Vec<(&'static str, &'static str, Opti
     ]
 }
 
-/// Whether the quantity `short` of [`quantities`] is more than round-off on `level`: not where
-/// u_h is the exact solution to round-off ([`Level::round_off`]: then neither are the errors of u
-/// nor η), nor ‖λ − λ_h‖ where it is within λ_h's round-off. Its EOCs and plots leave it out.
-pub(crate) fn resolved(level: &Level, short: &str) -> bool {
+/// Whether `value`, the quantity `short` of [`quantities`], is more than round-off on `level`:
+/// an error of u_i above what the round-off of u_h's values makes of it
+/// ([`crate::norms::RoundOff`]: u2h = 0 computed from membranes of 10⁶ is not), the energy error
+/// and η where u_h is not the exact solution to round-off ([`Level::round_off`]), ‖λ − λ_h‖ above
+/// λ_h's round-off. EOCs and plots leave the others out.
+pub(crate) fn resolved(level: &Level, short: &str, value: f64) -> bool {
+    let e = level.errors.as_ref();
     match short {
-        "l2_lambda" | "hminus1_lambda" => !level.errors.as_ref().is_some_and(Errors::lambda_at_round_off),
+        "l2_lambda" | "hminus1_lambda" => !e.is_some_and(Errors::lambda_at_round_off),
+        "h1_u1" | "h1_u2" | "h1_u" => e.is_none_or(|e| value > e.round_off.h1),
+        "l2_u1" | "l2_u2" | "l2_u" => e.is_none_or(|e| value > e.round_off.l2),
         _ => !level.round_off,
     }
 }
@@ -351,10 +356,11 @@ pub(crate) fn resolved(level: &Level, short: &str) -> bool {
 fn eoc_from_previous(levels: &[Level], i: usize, k: usize) -> Option<(f64, f64)> {
     let (a, b) = (levels.get(i.checked_sub(1)?)?, &levels[i]);
     let (qa, qb) = (quantities(a).swap_remove(k), quantities(b).swap_remove(k));
-    if !(resolved(a, qa.1) && resolved(b, qb.1)) {
+    let (ea, eb) = (qa.2?, qb.2?);
+    if !(resolved(a, qa.1, ea) && resolved(b, qb.1, eb)) {
         return None;
     }
-    eoc(a, b, qa.2?, qb.2?)
+    eoc(a, b, ea, eb)
 }
 
 /// EOC between two levels against h and against N^(−1/2) of errors `ea`, `eb`; None unless

@@ -271,8 +271,9 @@ pub fn errors(path: &Path, title: &str, studies: &[(String, &[Level])]) -> Resul
         for (k, (name, short, _)) in quantities(first).into_iter().enumerate() {
             let points: Vec<(f64, f64)> = levels
                 .iter()
-                .filter(|l| super::resolved(l, short))
-                .filter_map(|l| Some(((l.vertices as f64).powf(-0.5), quantities(l)[k].2?)))
+                .filter_map(|l| Some((l, quantities(l)[k].2?)))
+                .filter(|&(l, value)| super::resolved(l, short, value))
+                .map(|(l, value)| ((l.vertices as f64).powf(-0.5), value))
                 .collect();
             if points.is_empty() {
                 continue;
