@@ -532,7 +532,9 @@ impl Run<'_> {
             &self.estimate,
         ) {
             (Some(e), _) => e.at_round_off(),
-            (None, Some(e)) => e.total <= crate::norms::RoundOff::of(&self.problem, &self.solution).energy,
+            (None, Some(e)) => {
+                e.total <= crate::norms::RoundOff::of(&self.problem, &self.solution, &self.action).energy
+            }
             (None, None) => false,
         }
     }

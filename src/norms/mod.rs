@@ -93,12 +93,9 @@ pub struct Errors {
     pub boundary: Option<Mismatch>,
     /// Where the exact solution does not solve the equations (`unsolved`).
     pub unsolved: Option<Unsolved>,
-    /// What the round-off of u_h's values makes of each membrane's errors ([`RoundOff`]): an
-    /// error below it says nothing of the discretisation.
+    /// What the round-off of u_h's and λ_h's values makes of the errors ([`RoundOff`]): an error
+    /// below it says nothing of the discretisation.
     pub round_off: RoundOff,
-    /// The round-off λ_h can carry in L²(ω): [`crate::action::Checks::noise`] (its largest at a
-    /// vertex) times |ω|^½.
-    pub lambda_round_off: f64,
 }
 
 /// The norms by name (a study's JSON): u1's and u2's, or above a rigid obstacle u's alone
@@ -195,7 +192,7 @@ impl Errors {
 
     /// Whether ‖λ − λ_h‖_L² is within the round-off λ_h can carry (λ = 0 where λ_h is round-off).
     pub fn lambda_at_round_off(&self) -> bool {
-        self.l2_lambda <= self.lambda_round_off
+        self.l2_lambda <= self.round_off.lambda
     }
 
     /// The errors of `solution` and `action` against `exact`; with `hminus1`, the H⁻¹ norm too.
@@ -241,8 +238,7 @@ impl Errors {
             gradients_given: exact.gradients_given,
             boundary: boundary_mismatch(problem, exact, [&solution.u1, &solution.u2]),
             unsolved: unsolved(problem, exact),
-            round_off: RoundOff::of(problem, solution),
-            lambda_round_off: action.checks.noise * mesh.measure().sqrt(),
+            round_off: RoundOff::of(problem, solution, action),
         }
     }
 }
@@ -250,7 +246,7 @@ impl Errors {
 /// What values of u_ih off by 10⁻¹³ of what they are computed from make of the errors' norms:
 /// u_ih = v ± w, so of max_b (|u1h| + |u2h| + 2|w_h|)(b) ≥ |v| + |w| (as the action's checks
 /// count it: u2h near 0 may be computed from v and w of 10⁶), δ. On a triangle K,
-/// Σ_j |∇φ_j| = P_K / (2|K|) (P_K its perimeter).
+/// Σ_j |∇φ_j| = P_K / (2|K|) (P_K its perimeter). And the round-off λ_h carries.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct RoundOff {
     /// Of |u_i − u_ih|_H¹: δ (Σ_K P_K² / (4|K|))^½.
@@ -259,21 +255,24 @@ pub struct RoundOff {
     pub l2: f64,
     /// Of the energy error: (Σ_i μ_i)^½ times `h1` (μ1^½ above a rigid obstacle).
     pub energy: f64,
+    /// Of ‖λ − λ_h‖_L²: [`crate::action::Checks::noise`] (its largest at a vertex) times |ω|^½.
+    pub lambda: f64,
 }
 
 impl RoundOff {
-    /// The round-off of `solution`'s errors on `problem`'s mesh.
-    pub fn of(problem: &DiscreteProblem, solution: &Solution) -> RoundOff {
+    /// The round-off of the errors of `solution` and `action` on `problem`'s mesh.
+    pub fn of(problem: &DiscreteProblem, solution: &Solution, action: &Action) -> RoundOff {
         let mesh = &problem.mesh;
-        let shape = parallel::sum(mesh.n_triangles(), PIECE, |triangles| {
-            (triangles.map(|t| {
+        // Σ_K P_K²/(4|K|) and |ω| in one pass.
+        let sums = parallel::map(mesh.n_triangles(), PIECE, |triangles| {
+            triangles.fold([0.0; 2], |[shape, measure], t| {
                 let [p, q, r] = mesh.corners(t);
-                let perimeter = dist(p, q) + dist(q, r) + dist(r, p);
+                let (perimeter, area) = (dist(p, q) + dist(q, r) + dist(r, p), mesh.area(t));
                 // P_K/(2|K|) first: P_K² may overflow where the ratio does not.
-                (perimeter / (2.0 * mesh.area(t))).powi(2) * mesh.area(t)
-            }))
-            .sum()
+                [shape + (perimeter / (2.0 * area)).powi(2) * area, measure + area]
+            })
         });
+        let [shape, measure] = sums.iter().fold([0.0; 2], |a, s| [a[0] + s[0], a[1] + s[1]]);
         let (u1, u2, w) = (&solution.u1, &solution.u2, &solution.obstacle.gap);
         let computed = (0..u1.len()).fold(0.0_f64, |m, b| {
             m.max(u1[b].abs() + u2[b].abs() + 2.0 * w[b].abs())
@@ -283,8 +282,9 @@ impl RoundOff {
         let h1 = delta * shape.sqrt();
         RoundOff {
             h1,
-            l2: delta * mesh.measure().sqrt(),
+            l2: delta * measure.sqrt(),
             energy: mu.sqrt() * h1,
+            lambda: action.checks.noise * measure.sqrt(),
         }
     }
 }
