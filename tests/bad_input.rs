@@ -518,13 +518,14 @@ fn non_triangle_cells() {
     contains(&e, "cell type 'Quadrilateral' is not supported");
 }
 
-/// An XDMF mesh of `topology` on `mesh.h5`, whose datasets are `points` and the 1D `/mesh/cells`;
-/// the mesh read, or the error.
+/// An XDMF mesh of `topology` on `mesh.h5`, whose datasets are `points` and `/mesh/cells` (1D for
+/// a `Mixed` topology, else rows of 3); the mesh read, or the error.
 fn read_xdmf(
     topology: &str,
     cells: &[i64],
     points: &[[f64; 3]],
 ) -> Result<membrane_contact::mesh::Mesh, String> {
+    let mixed = topology == "Mixed";
     let dir = tempfile::tempdir().unwrap();
     {
         let _guard = FILES.lock().unwrap_or_else(|e| e.into_inner());
@@ -535,14 +536,20 @@ fn read_xdmf(
             .create("/mesh/geometry")
             .unwrap();
         let c = ndarray::Array1::from_vec(cells.to_vec());
-        f.new_dataset_builder()
-            .with_data(&c)
-            .create("/mesh/cells")
-            .unwrap();
+        let builder = f.new_dataset_builder();
+        match mixed {
+            true => builder.with_data(&c).create("/mesh/cells"),
+            false => (builder.with_data(&c.into_shape_with_order((cells.len() / 3, 3)).unwrap()))
+                .create("/mesh/cells"),
+        }
+        .unwrap();
     }
+    let dimensions = match mixed {
+        true => cells.len().to_string(),
+        false => format!("{} 3", cells.len() / 3),
+    };
     let xdmf = format!(
-        "<Xdmf><Domain><Grid><Topology TopologyType=\"{topology}\"><DataItem Dimensions=\"{}\" Format=\"HDF\">mesh.h5:/mesh/cells</DataItem></Topology><Geometry GeometryType=\"XYZ\"><DataItem Dimensions=\"{} 3\" Format=\"HDF\">mesh.h5:/mesh/geometry</DataItem></Geometry></Grid></Domain></Xdmf>",
-        cells.len(),
+        "<Xdmf><Domain><Grid><Topology TopologyType=\"{topology}\"><DataItem Dimensions=\"{dimensions}\" Format=\"HDF\">mesh.h5:/mesh/cells</DataItem></Topology><Geometry GeometryType=\"XYZ\"><DataItem Dimensions=\"{} 3\" Format=\"HDF\">mesh.h5:/mesh/geometry</DataItem></Geometry></Grid></Domain></Xdmf>",
         points.len()
     );
     std::fs::write(dir.path().join("mesh.xdmf"), xdmf).unwrap();
@@ -551,7 +558,8 @@ fn read_xdmf(
 
 /// meshio writes a mesh of several cell blocks (a Gmsh file's surfaces, its lines) as an XDMF
 /// `Mixed` topology: its triangles are the mesh, and points and lines are left aside, as the .msh
-/// reader leaves them (it was refused: "cell type 'Mixed' is not supported"); a quadrilateral in
+/// reader leaves them (it was refused: "cell type 'Mixed' is not supported"), and so are points
+/// that no triangle of a `Triangle` topology uses; a quadrilateral in
 /// it is named. A mesh in a plane z = 5, or at z = 0 up to round-off, is the plane's (it was
 /// refused: "the mesh must lie in the plane z = 0"); a tilted one is not.
 #[test]
@@ -572,6 +580,19 @@ fn meshio_s_mixed_topologies_and_planes_off_z_0_are_read() {
     let beyond = [flat.clone(), vec![[3.0, 3.0, 0.0]]].concat();
     let fewer = read_xdmf("Mixed", &[&mixed[..], &[1, 1, 5]].concat(), &beyond).unwrap();
     assert_eq!(fewer.points, points);
+    // So is a point no triangle of a Triangle topology uses (the centre of a circle arc, which
+    // meshio keeps): it was refused as "belongs to no triangle". The others keep their order.
+    let centre = [&flat[..2], &[[9.0, 9.0, 0.0]], &flat[2..]].concat();
+    let shifted: Vec<i64> = (triangles.iter().flatten())
+        .map(|&v| if v >= 2 { v + 1 } else { v })
+        .collect();
+    let mesh = read_xdmf("Triangle", &shifted, &centre).unwrap();
+    assert_eq!(
+        (&mesh.points, mesh.triangles().count()),
+        (&points, triangles.len())
+    );
+    let read: Vec<[i64; 3]> = mesh.triangles().map(|t| t.map(|v| v as i64)).collect();
+    assert_eq!(read, triangles);
     let e = read_xdmf("Mixed", &[4, 0, 1, 4, 2, 9, 0], flat).unwrap_err();
     assert!(e.contains("the mixed topology ends within a cell"), "{e}");
     let e = read_xdmf("Mixed", &[4, 0, 1, 4, 5, 0, 1, 2, 3], flat).unwrap_err();

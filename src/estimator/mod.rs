@@ -12,7 +12,8 @@
 //! κ the cells of S_h, τ_i the patch-equilibrated fluxes ([`equilibration`]) with the quadrature
 //! defect c_i of the loads lifted into them ([`means`], §4(c')), ρ_i what the lift's solve leaves
 //! (round-off), λ_h^c the part of λ_h on the contact set (off it λ_h is the solve's round-off, §3),
-//! C_F the Friedrichs constant of the bounding box, ψ the lifting of g − g_h ([`boundary`]). The action gets the bound of §8 from the same fluxes.
+//! C_F the Friedrichs constant of the bounding box, ψ the lifting of g − g_h ([`boundary`]). The
+//! action gets the bound of §8 from the same fluxes.
 //! Per triangle K the indicator η_K² = Σ_i Σ_{κ⊂K} [η_F,κ + η_osc,κ]² + η_D,K² + 2 η_C,K says
 //! where to refine. Above a rigid obstacle (§14, Theorem (O)) the sum is over the one membrane,
 //! and the lifting is z = max(ψ, ψ_obstacle − u_h) ([`obstacle`]), which keeps u_h + z above the

@@ -250,7 +250,13 @@ fn read_xdmf(path: &Path) -> Result<(RawMesh, Vec<MeshTags>), FileError> {
     let tags = others
         .filter_map(|g| meshtags(path, g).transpose())
         .collect::<Result<Vec<_>, _>>()?;
-    Ok((xdmf_grid(path, grid)?, tags))
+    let (points, triangles) = xdmf_grid(path, grid)?;
+    // Meshtags number the points as the file does: with them every point must be used.
+    let raw = match tags.is_empty() {
+        true => used_points(points, triangles),
+        false => (points, triangles),
+    };
+    Ok((raw, tags))
 }
 
 /// The points and triangles of the XDMF grid `grid`, checked against the sizes it declares.
@@ -275,10 +281,7 @@ fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<RawMesh, FileError> {
     geometry.holds(points.len(), 2).map_err(err)?;
     if mixed {
         // A mixed stream's Dimensions count its entries, not its cells.
-        return Ok(used_points(
-            points,
-            read_mixed(&topology.file, &topology.dataset)?,
-        ));
+        return Ok((points, read_mixed(&topology.file, &topology.dataset)?));
     }
     let cells = read_cells(&topology.file, &topology.dataset)?;
     topology.holds(cells.len(), 3).map_err(err)?;
@@ -300,9 +303,9 @@ impl Heavy {
     }
 }
 
-/// The points the triangles use, renumbered in their order, and the triangles on them: a mixed
-/// topology's other cells (points, lines) may hold points no triangle uses, which are left aside
-/// as the .msh reader leaves unused nodes.
+/// The points the triangles use, renumbered in their order, and the triangles on them: points
+/// no triangle uses (a mixed topology's points and lines, the centre of a circle that meshio
+/// keeps) are left aside, as the .msh reader leaves unused nodes.
 fn used_points(points: Vec<[f64; 2]>, triangles: Vec<[usize; 3]>) -> RawMesh {
     let mut index = vec![usize::MAX; points.len()];
     for &v in triangles.iter().flatten() {
