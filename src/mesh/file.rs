@@ -70,6 +70,97 @@ fn read_xdmf_text(path: &Path) -> Result<String, String> {
     String::from_utf8(bytes).map_err(|_| "not valid XDMF (XML): the file is not UTF-8 text".into())
 }
 
+/// The XML document of an XDMF file's `text`, its DTD allowed (dolfinx and ParaView write one).
+/// The parser descends the call stack once per level of nesting, so that a few hundred kilobytes
+/// of nested elements overflowed it (an abort): deeper than [`MAX_XML_DEPTH`] is refused first.
+fn parse_xml(text: &str) -> Result<roxmltree::Document<'_>, String> {
+    let depth = xml_depth(text)?;
+    if depth > MAX_XML_DEPTH {
+        return Err(format!(
+            "not valid XDMF: its elements nest {depth} deep, an XDMF file about 8 (at most \
+             {MAX_XML_DEPTH} are read)"
+        ));
+    }
+    let options = roxmltree::ParsingOptions {
+        allow_dtd: true,
+        ..Default::default()
+    };
+    roxmltree::Document::parse_with_options(text, options).map_err(|e| format!("not valid XDMF (XML): {e}"))
+}
+
+/// The deepest nesting of elements read by [`parse_xml`].
+const MAX_XML_DEPTH: usize = 256;
+
+/// How deep the elements of the XML `text` nest: a scan of its tags (quoted attribute values,
+/// comments, CDATA, processing instructions and the DTD skipped). An entity whose value holds
+/// markup is refused, as its elements nest where it is used.
+fn xml_depth(text: &str) -> Result<usize, String> {
+    let b = text.as_bytes();
+    // The index after the first `end` at or after i (the end of the text if none).
+    let past = |i: usize, end: &str| (text[i..].find(end)).map_or(b.len(), |k| i + k + end.len());
+    let (mut depth, mut deepest, mut i) = (0usize, 0usize, 0usize);
+    while let Some(k) = text[i..].find('<') {
+        i += k;
+        let rest = &text[i..];
+        i = if rest.starts_with("<!--") {
+            past(i, "-->")
+        } else if rest.starts_with("<![CDATA[") {
+            past(i, "]]>")
+        } else if rest.starts_with("<?") {
+            past(i, "?>")
+        } else if rest.starts_with("<!") {
+            dtd_end(b, i)?
+        } else {
+            let end = tag_end(b, i);
+            if rest.starts_with("</") {
+                depth = depth.saturating_sub(1);
+            } else if b.get(end.wrapping_sub(2)) != Some(&b'/') {
+                depth += 1;
+                deepest = deepest.max(depth);
+            }
+            end
+        };
+    }
+    Ok(deepest)
+}
+
+/// The index after the `>` that ends the tag at `i`, past quoted attribute values.
+fn tag_end(b: &[u8], mut i: usize) -> usize {
+    let mut quote = None;
+    while i < b.len() {
+        match (quote, b[i]) {
+            (None, q @ (b'"' | b'\'')) => quote = Some(q),
+            (Some(q), c) if c == q => quote = None,
+            (None, b'>') => return i + 1,
+            _ => {}
+        }
+        i += 1;
+    }
+    b.len()
+}
+
+/// The index after the declaration `<!…>` at `i` (a DOCTYPE with its internal subset in
+/// brackets), or an error if a quoted value in it holds markup.
+fn dtd_end(b: &[u8], mut i: usize) -> Result<usize, String> {
+    let (mut quote, mut brackets) = (None, 0usize);
+    i += 2;
+    while i < b.len() {
+        match (quote, b[i]) {
+            (None, q @ (b'"' | b'\'')) => quote = Some(q),
+            (Some(q), c) if c == q => quote = None,
+            (Some(_), b'<') => {
+                return Err("not valid XDMF: an entity of its DTD holds markup (elements)".into())
+            }
+            (None, b'[') => brackets += 1,
+            (None, b']') => brackets = brackets.saturating_sub(1),
+            (None, b'>') if brackets == 0 => return Ok(i + 1),
+            _ => {}
+        }
+        i += 1;
+    }
+    Ok(b.len())
+}
+
 /// Reads and checks the mesh in `path`, by its extension.
 ///
 /// ```
@@ -179,11 +270,7 @@ pub fn inputs(path: &Path) -> Vec<PathBuf> {
     let mut files = vec![path.to_path_buf()];
     if path.extension().is_some_and(|e| e == "xdmf") {
         let text = read_xdmf_text(path).unwrap_or_default();
-        let options = roxmltree::ParsingOptions {
-            allow_dtd: true,
-            ..Default::default()
-        };
-        if let Ok(doc) = roxmltree::Document::parse_with_options(&text, options) {
+        if let Ok(doc) = parse_xml(&text) {
             let items = doc.descendants().filter(|n| n.has_tag_name("DataItem"));
             files.extend(items.filter_map(|n| Some(heavy(path, n.parent()?).ok()?.file)));
         }
@@ -220,12 +307,7 @@ struct MeshTags {
 fn read_xdmf(path: &Path) -> Result<(RawMesh, Vec<MeshTags>), FileError> {
     let err = |m: String| FileError(format!("{}: {m}", path.display()));
     let text = read_xdmf_text(path).map_err(err)?;
-    let options = roxmltree::ParsingOptions {
-        allow_dtd: true,
-        ..Default::default()
-    };
-    let doc = roxmltree::Document::parse_with_options(&text, options)
-        .map_err(|e| err(format!("not valid XDMF (XML): {e}")))?;
+    let doc = parse_xml(&text).map_err(err)?;
     let has = |n: &roxmltree::Node, tag: &str| n.children().any(|c| c.tag_name().name() == tag);
     let with_topology = |n: &roxmltree::Node| n.has_tag_name("Grid") && has(n, "Topology");
     let grids: Vec<roxmltree::Node> = (doc.descendants())
@@ -787,6 +869,25 @@ fn read_column(path: &Path, dataset: &str) -> Result<Vec<f64>, FileError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The nesting is counted past what is not an element; 30 000 nested elements (an abort
+    /// of the parser's stack) are refused, and entities of markup too.
+    #[test]
+    fn xml_nested_too_deep_is_refused_before_parsing() {
+        let dtd = "<!DOCTYPE Xdmf SYSTEM \"Xdmf.dtd\" [<!ENTITY h \"m.h5\">]>";
+        let text = format!(
+            "<?xml version=\"1.0\"?>{dtd}<Xdmf><!-- <a><b> --><D x='>' y=\"/>\"><G/><![CDATA[<c>]]>\
+             <G><T>&h;</T></G></D></Xdmf>"
+        );
+        assert_eq!(xml_depth(&text), Ok(4));
+        assert!(parse_xml(&text).is_ok());
+        let deep = format!("<Xdmf>{}{}</Xdmf>", "<a>".repeat(30_000), "</a>".repeat(30_000));
+        let e = parse_xml(&deep).unwrap_err();
+        assert!(e.contains("its elements nest 30001 deep"), "{e}");
+        let markup = "<!DOCTYPE X [<!ENTITY e \"<a><a></a></a>\">]><X>&e;</X>";
+        let e = parse_xml(markup).unwrap_err();
+        assert!(e.contains("an entity of its DTD holds markup"), "{e}");
+    }
 
     #[test]
     fn reads_stop_at_the_cap() {

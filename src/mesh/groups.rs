@@ -181,7 +181,8 @@ pub(super) fn physical_names(bytes: &[u8]) -> Result<Vec<PhysicalName>, String> 
     let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
     let count: usize = (lines.next().and_then(|l| l.parse().ok()))
         .ok_or("the $PhysicalNames section does not start with its number of names")?;
-    let mut names = Vec::with_capacity(count);
+    // No room for `count` names before they are read: a count that lies asks for terabytes.
+    let mut names = Vec::new();
     for line in lines.by_ref().take(count) {
         let bad = || format!("the $PhysicalNames line «{line}» is not: dimension tag \"name\"");
         let mut words = line.splitn(3, char::is_whitespace);
@@ -219,5 +220,11 @@ mod tests {
         assert!(physical_names(b"$PhysicalNames\n2\n1 1 \"a\"\n$EndPhysicalNames\n").is_err());
         assert!(physical_names(b"$PhysicalNames\n1\n1 1 a\n$EndPhysicalNames\n").is_err());
         assert_eq!(physical_names(b"$MeshFormat\n").unwrap(), vec![]);
+        // A count of 10¹² names was room asked for before reading them: an abort.
+        let lie = physical_names(b"$PhysicalNames\n1000000000000\n1 1 \"a\"\n$EndPhysicalNames\n");
+        assert_eq!(
+            lie.unwrap_err(),
+            "the $PhysicalNames section announces 1000000000000 names but has 1"
+        );
     }
 }
