@@ -65,13 +65,16 @@ fn run_error(e: RunError) -> PyErr {
 }
 
 /// The thread pool of a run on `threads` threads, else on the `RAYON_NUM_THREADS` of the process
-/// (checked as the command line checks it), else rayon's global pool (one thread per core).
-fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
+/// (checked as the command line checks it), else one thread per core. A pool of its own for
+/// each run, never rayon's global pool: a process forked from one that used it (a
+/// `multiprocessing` worker) has the pool but not its threads, and its runs waited forever.
+fn pool(threads: Option<usize>) -> PyResult<rayon::ThreadPool> {
     let (t, from) = match threads {
         Some(t) => (t, format!("threads = {t}")),
         None => match membrane_contact::parallel::env_threads().map_err(InputError::new_err)? {
             Some(t) => (t, format!("RAYON_NUM_THREADS={t}")),
-            None => return Ok(None),
+            // rayon's default: one thread per core.
+            None => (0, "one thread per core".into()),
         },
     };
     if t > membrane_contact::parallel::MAX_THREADS {
@@ -80,19 +83,17 @@ fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
             membrane_contact::parallel::MAX_THREADS
         )));
     }
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(t).build();
-    pool.map(Some)
+    (rayon::ThreadPoolBuilder::new().num_threads(t).build())
         .map_err(|e| SolverError::new_err(format!("{from}: {e}")))
 }
 
-/// Runs `work` on a thread of its own (its parallel parts in `pool`, else in rayon's global
-/// pool), the GIL released, checking for Ctrl-C meanwhile when called from the main thread (only
+/// Runs `work` on a thread of its own (its parallel parts in `pool`), the GIL released, checking for Ctrl-C meanwhile when called from the main thread (only
 /// it receives signals). Another thread waits without the GIL until the run ends: one that took
 /// it back every few milliseconds while the interpreter exits is ended by the interpreter
 /// (`pthread_exit`), and unwinding through the extension aborts the process.
 fn wait<T: Send + 'static>(
     py: Python<'_>,
-    pool: Option<rayon::ThreadPool>,
+    pool: rayon::ThreadPool,
     work: impl FnOnce() -> Result<T, RunError> + Send + 'static,
 ) -> PyResult<T> {
     progress::resume();
@@ -100,10 +101,7 @@ fn wait<T: Send + 'static>(
     let handle = std::thread::Builder::new()
         .name("membrane-contact".into())
         .spawn(move || {
-            let result = match pool {
-                Some(pool) => pool.install(work),
-                None => work(),
-            };
+            let result = pool.install(work);
             let _ = send.send(result);
         })
         .map_err(|e| SolverError::new_err(format!("cannot start the run's thread: {e}")))?;
@@ -434,7 +432,7 @@ impl PyParts {
     /// Writes the whole result directory `directory`, as the command line does (an earlier result
     /// there is replaced only once this one is complete).
     fn write(slf: Py<Self>, py: Python<'_>, directory: PathBuf) -> PyResult<()> {
-        wait(py, None, move || slf.get().parts.write(&directory))
+        wait(py, pool(None)?, move || slf.get().parts.write(&directory))
     }
 }
 
@@ -718,8 +716,9 @@ fn read(py: Python<'_>, directory: PathBuf) -> PyResult<PyParts> {
     if let Some(why) = not_a_result(&directory) {
         return Err(InputError::new_err(why));
     }
+    let pool = pool(None)?;
     let parts = py
-        .allow_threads(|| read_parts(&directory))
+        .allow_threads(|| pool.install(|| read_parts(&directory)))
         .map_err(|e| OutputError::new_err(format!("cannot read the result: {e}")))?;
     Ok(PyParts { parts })
 }

@@ -226,6 +226,26 @@ def test_threads_are_a_value_of_the_call_and_change_no_bit():
     assert [row["vertices"] for row in table] == [81, 289]
 
 
+def test_a_forked_process_solves_as_its_parent():
+    # multiprocessing's fork (Linux's default before Python 3.14): in a child of a process that
+    # had solved on its default threads, solve, write and read waited forever.
+    code = (
+        "import membrane_contact as mc, multiprocessing as mp, tempfile\n"
+        "def work(n):\n"
+        "    r = mc.solve(n=n)\n"
+        "    with tempfile.TemporaryDirectory() as d:\n"
+        "        r.write(d + '/out')\n"
+        "        return float(mc.read(d + '/out').u1.sum())\n"
+        "if __name__ == '__main__':\n"
+        "    mine = work(16)\n"
+        "    with mp.get_context('fork').Pool(2) as pool:\n"
+        "        theirs = pool.map(work, [16, 16])\n"
+        "    print(mine == theirs[0] == theirs[1])\n"
+    )
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert run.stdout.strip() == "True", run.stderr
+
+
 def test_what_is_not_a_result_directory_is_named(tmp_path):
     r = mc.solve(n=4)
     r.write(tmp_path / "out")
