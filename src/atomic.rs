@@ -224,7 +224,7 @@ extern "C" fn on_signal(signal: libc::c_int) {
 
 /// On SIGINT, SIGTERM or SIGHUP, removes the temporaries of [`PENDING`] and exits with 128 + the
 /// signal's number. A signal ignored when the process started (`nohup`) stays ignored; without a
-/// pipe, signals keep their default effect.
+/// pipe, signals keep their default effect. SIGXFSZ is ignored.
 fn install_handler() {
     let mut fds = [0; 2];
     // SAFETY: an array of two descriptors to fill.
@@ -270,9 +270,28 @@ fn install_handler() {
             }
         }
     }
+    // Past a file size limit (`ulimit -f`) SIGXFSZ ended the process with the temporary left
+    // behind; ignored (as Python ignores it), the write fails with EFBIG and the run says so.
+    // SAFETY: sets the disposition of one signal.
+    unsafe { libc::signal(libc::SIGXFSZ, libc::SIG_IGN) };
 }
 
-/// `target` may be replaced: absent, or a result directory of this program holding no input.
+/// The directory of the result `target` (itself or one of its steps) whose files this process
+/// may not delete (no write and search permission on it), if any: replaced, it would have been
+/// moved aside and left there.
+fn locked_directory(target: &Path) -> Option<PathBuf> {
+    let steps = std::fs::read_dir(target).into_iter().flatten().flatten();
+    let dirs = std::iter::once(target.to_path_buf()).chain(steps.map(|e| e.path()).filter(|p| p.is_dir()));
+    dirs.into_iter().find(|dir| {
+        use std::os::unix::ffi::OsStrExt;
+        let c = std::ffi::CString::new(dir.as_os_str().as_bytes());
+        // SAFETY: access(2) reads a NUL-terminated path and changes nothing.
+        c.is_ok_and(|c| unsafe { libc::access(c.as_ptr(), libc::W_OK | libc::X_OK) } != 0)
+    })
+}
+
+/// `target` may be replaced: absent, or a result directory of this program holding no input,
+/// whose files this process may delete.
 fn check_replaceable(target: &Path, inputs: &[PathBuf]) -> Result<(), OutputError> {
     let err = |m: String| OutputError(format!("{}: {m}", target.display()));
     let Ok(meta) = target.symlink_metadata() else {
@@ -304,6 +323,13 @@ fn check_replaceable(target: &Path, inputs: &[PathBuf]) -> Result<(), OutputErro
                  it: move it away or choose another name"
             )));
         }
+    }
+    if let Some(dir) = locked_directory(target) {
+        return Err(err(format!(
+            "the earlier result cannot be replaced: this user may not delete the files of {} \
+             (its permissions or owner); it is left alone: choose another name",
+            dir.display()
+        )));
     }
     let real = target
         .canonicalize()

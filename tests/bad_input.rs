@@ -1562,9 +1562,11 @@ fn the_memory_guard_knows_the_process_limit() {
     contains(&e, "GB are available (ulimit -v): use a coarser mesh");
 }
 
-/// Runs the good case with every file it writes limited to `bytes` (RLIMIT_FSIZE, with SIGXFSZ
-/// ignored): a write beyond the limit fails with EFBIG, as one on a full disk fails with ENOSPC.
-/// Checks the failure as [`fails`] does (one line, nothing left, the earlier result untouched).
+/// Runs the good case with every file it writes limited to `bytes` (RLIMIT_FSIZE; SIGXFSZ as a
+/// shell leaves it, which ended the process with its temporary left behind until the program
+/// ignored it): a write beyond the limit fails with EFBIG, as one on a full disk fails with
+/// ENOSPC. Checks the failure as [`fails`] does (one line, nothing left, the earlier result
+/// untouched).
 fn fails_writing_beyond(bytes: u64) -> String {
     use std::os::unix::process::CommandExt;
     let limit = move |cmd: &mut Command| {
@@ -1575,7 +1577,7 @@ fn fails_writing_beyond(bytes: u64) -> String {
                     rlim_cur: bytes,
                     rlim_max: bytes,
                 };
-                libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+                libc::signal(libc::SIGXFSZ, libc::SIG_DFL);
                 match libc::setrlimit(libc::RLIMIT_FSIZE, &limit) {
                     0 => Ok(()),
                     _ => Err(std::io::Error::last_os_error()),

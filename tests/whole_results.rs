@@ -89,6 +89,36 @@ fn a_result_replaces_an_earlier_one_whole() {
     assert_eq!((read_whole(&out), read_whole(&dual)), (289, 81));
 }
 
+/// An earlier result whose files this user may not delete (a directory of another owner, or
+/// made read-only) is refused and left as it was: it was moved aside into a hidden directory and
+/// left there, with success and no word. Run as root, the run is another user's.
+#[test]
+fn an_earlier_result_this_user_may_not_delete_is_left_alone() {
+    use std::fs::Permissions;
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::set_permissions(dir.path(), Permissions::from_mode(0o777)).unwrap();
+    let out = dir.path().join("out");
+    assert!(solve(&out, 8).status.success());
+    std::fs::set_permissions(&out, Permissions::from_mode(0o555)).unwrap();
+    let mut command = Command::new(BIN);
+    command.args(["solve", "--n", "16", "-o"]).arg(&out);
+    // SAFETY: geteuid reads the process's user.
+    if unsafe { libc::geteuid() } == 0 {
+        command.uid(65534).gid(65534);
+    }
+    let run = command.output().unwrap();
+    std::fs::set_permissions(&out, Permissions::from_mode(0o755)).unwrap();
+    let e = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success(), "{e}");
+    assert!(
+        e.contains("out: the earlier result cannot be replaced: this user may not delete the files of"),
+        "{e}"
+    );
+    assert_eq!(listing(dir.path()), ["out"], "no temporary is left");
+    assert_eq!(read_whole(&out), 81);
+}
+
 /// A step of an `adapt` result is part of that result: a solve into it is refused as such,
 /// and the step is left as it was.
 #[test]
