@@ -657,7 +657,9 @@ impl Case {
             MeshSpec::Rectangle { corners, n, .. } => {
                 format!("[mesh] corners = {corners:?}, n = {n:?}{refine}")
             }
-            MeshSpec::Lshape { n, grading, .. } => format!("[mesh] n = {n}, grading = {grading}{refine}"),
+            MeshSpec::Lshape { n, grading, .. } => {
+                format!("[mesh] n = {n}, grading = {}{refine}", mesh::Number(*grading))
+            }
             MeshSpec::Domain { h, .. } => {
                 format!(
                     "[mesh] kind = \"{}\", h = {}{refine}",
@@ -680,18 +682,16 @@ impl Case {
                 return Ok(Mesh::clone(mesh));
             }
         };
-        match &self.mesh {
-            MeshSpec::Domain { domain, h } => {
-                domain.check_size(*h).map_err(|e| err(format!("[mesh] h: {e}")))?;
-            }
-            MeshSpec::Rectangle { corners, n, diagonal } => {
-                rectangle_in_range(*corners, *n, *diagonal, self.refine)
-                    .map_err(|e| err(format!("{keys}: {e}")))?;
-            }
-            _ => {}
+        if let MeshSpec::Domain { domain, h } = &self.mesh {
+            domain.check_size(*h).map_err(|e| err(format!("[mesh] h: {e}")))?;
         }
         mesh::check_memory(self.estimated_vertices(), self.bytes_per_vertex(after))
             .map_err(|e| err(format!("{keys}: {e}")))?;
+        // After the memory: 2³² refinements are too many vertices before they are too small.
+        if let MeshSpec::Rectangle { corners, n, diagonal } = &self.mesh {
+            rectangle_in_range(*corners, *n, *diagonal, self.refine)
+                .map_err(|e| err(format!("{keys}: {e}")))?;
+        }
         let built = match &self.mesh {
             MeshSpec::Rectangle { corners, n, diagonal } => {
                 Mesh::rectangle(corners[0], corners[1], n[0], n[1], *diagonal)

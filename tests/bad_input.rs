@@ -951,31 +951,34 @@ fn g_is_checked_where_it_enters_the_problem() {
 
 #[test]
 fn fractional_vertex_indices_are_refused() {
-    let dir = tempfile::tempdir().unwrap();
-    let (p, c) = fan();
-    let _guard = FILES.lock().unwrap_or_else(|e| e.into_inner());
-    let f = hdf5::File::create(dir.path().join("mesh.h5")).unwrap();
-    let pa = ndarray::Array2::from_shape_fn((p.len(), 2), |(i, k)| p[i][k]);
-    let mut ca = ndarray::Array2::from_shape_fn((c.len(), 3), |(i, k)| c[i][k] as f64);
-    ca[[0, 2]] = 4.7;
-    f.new_dataset_builder()
-        .with_data(&pa)
-        .create("/mesh/geometry")
-        .unwrap();
-    f.new_dataset_builder()
-        .with_data(&ca)
-        .create("/mesh/topology")
-        .unwrap();
-    drop(f);
-    drop(_guard);
-    let bytes = std::fs::read(dir.path().join("mesh.h5")).unwrap();
-    let e = fails(
-        &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"mesh.h5\"\n"),
-        move |d| std::fs::write(d.join("mesh.h5"), &bytes).unwrap(),
-        &[],
-        None,
-    );
-    contains(&e, "cell 0 has the vertex index 4.7");
+    // 1e300 is shown as such, not in 301 digits.
+    for (bad, shown) in [(4.7, "4.7"), (1e300, "1e300")] {
+        let dir = tempfile::tempdir().unwrap();
+        let (p, c) = fan();
+        let _guard = FILES.lock().unwrap_or_else(|e| e.into_inner());
+        let f = hdf5::File::create(dir.path().join("mesh.h5")).unwrap();
+        let pa = ndarray::Array2::from_shape_fn((p.len(), 2), |(i, k)| p[i][k]);
+        let mut ca = ndarray::Array2::from_shape_fn((c.len(), 3), |(i, k)| c[i][k] as f64);
+        ca[[0, 2]] = bad;
+        f.new_dataset_builder()
+            .with_data(&pa)
+            .create("/mesh/geometry")
+            .unwrap();
+        f.new_dataset_builder()
+            .with_data(&ca)
+            .create("/mesh/topology")
+            .unwrap();
+        drop(f);
+        drop(_guard);
+        let bytes = std::fs::read(dir.path().join("mesh.h5")).unwrap();
+        let e = fails(
+            &format!("{GOOD}[mesh]\nkind = \"file\"\npath = \"mesh.h5\"\n"),
+            move |d| std::fs::write(d.join("mesh.h5"), &bytes).unwrap(),
+            &[],
+            None,
+        );
+        contains(&e, &format!("cell 0 has the vertex index {shown}:"));
+    }
 }
 
 #[test]
@@ -1282,8 +1285,15 @@ fn a_refined_file_mesh_too_large_for_memory() {
     contains(&e, "square.msh, refine = 14: 26306674688 vertices need about");
     contains(&e, "use a coarser mesh");
     // 30 refinements: a count past any integer is said so, not printed as a wrapped number.
-    let e = case_fails(&format!("{GOOD}{SQUARE}").replace("[mesh]", "[mesh]\nrefine = 30"));
-    contains(&e, "the mesh would have more than 1.8e19 vertices");
+    // 2³² refinements: too many vertices, before their areas are out of range.
+    for refine in [30u64, 1 << 32] {
+        let e =
+            case_fails(&format!("{GOOD}{SQUARE}").replace("[mesh]", &format!("[mesh]\nrefine = {refine}")));
+        contains(
+            &e,
+            "the mesh would have more than 1.8e19 vertices: use a coarser mesh",
+        );
+    }
 }
 
 #[test]

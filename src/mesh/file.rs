@@ -460,7 +460,12 @@ impl MeshTags {
         }
         let entities = (entities.iter().map(|&x| vertex_index(x).ok_or(x)))
             .collect::<Result<Vec<usize>, f64>>()
-            .map_err(|x| err(format!("the vertex index {x} is not a whole number from 0")))?;
+            .map_err(|x| {
+                err(format!(
+                    "the vertex index {} is not a whole number from 0",
+                    super::Number(x)
+                ))
+            })?;
         let values = (values.iter())
             .map(|&x| {
                 (x.fract() == 0.0 && x.abs() <= i32::MAX as f64)
@@ -468,7 +473,12 @@ impl MeshTags {
                     .ok_or(x)
             })
             .collect::<Result<Vec<i32>, f64>>()
-            .map_err(|x| err(format!("the tag {x} is not a whole number of 32 bits")))?;
+            .map_err(|x| {
+                err(format!(
+                    "the tag {} is not a whole number of 32 bits",
+                    super::Number(x)
+                ))
+            })?;
         Ok(MeshTags {
             name,
             nodes,
@@ -796,7 +806,8 @@ fn read_cells(path: &Path, dataset: &str) -> Result<Vec<[usize; 3]>, FileError> 
             let v = [r[0], r[1], r[2]];
             match v.iter().find(|x| vertex_index(**x).is_none()) {
                 Some(x) => Err(err(format!(
-                    "cell {i} has the vertex index {x}: indices are whole numbers from 0"
+                    "cell {i} has the vertex index {}: indices are whole numbers from 0",
+                    super::Number(*x)
                 ))),
                 None => Ok(v.map(|x| x as usize)),
             }

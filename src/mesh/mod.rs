@@ -244,8 +244,8 @@ impl MeshError {
             MeshError::TooLarge {
                 vertices: usize::MAX, ..
             } => format!(
-                "the mesh would have more than {:.1e} vertices (each refinement multiplies them by 4): \
-                 use a coarser mesh",
+                "the mesh would have more than {:.1e} vertices: use a coarser mesh or fewer \
+                 refinements",
                 usize::MAX as f64
             ),
             MeshError::TooLarge {
