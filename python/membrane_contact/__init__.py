@@ -17,6 +17,8 @@ line's one-line messages. Ctrl-C stops a run.
 import json
 import numbers
 import os
+import tempfile
+import types
 
 import numpy as np
 
@@ -204,8 +206,10 @@ def _counts(name, values):
 
 
 def _read_only(array):
+    """A read-only view of `array`, itself made read-only: the view's WRITEABLE flag cannot be set
+    again (an array that owns its data could be made writable)."""
     array.flags.writeable = False
-    return array
+    return array.view()
 
 
 class Result:
@@ -220,8 +224,9 @@ class Result:
     or `flux`, the dual submesh S_h as dual.xdmf holds it: `dual_points` (P, 2),
     `dual_triangles` (6M, 3) and `dual_fields`, name → one value per cell (`lambda`, λ_h constant
     on each D_a; `vertex`, the a of D_a; with `flux` the fluxes t_ih of (4.13): `t1_x`, `t1_y`,
-    `div_t1`, …); without them None, None and {}. The arrays are read-only: they are what `write`
-    writes (copy one to change it).
+    `div_t1`, …); without them None, None and {}. The arrays and the mappings are read-only: they
+    are what `write` writes (copy one to change it). A result pickles (and deep-copies) whole, as
+    the files `write` writes.
 
     Figures: every attribute of `solution.h5` (`iterations`, `check_*`, `error_*`, `effectivity`,
     …) is in `attributes`, and an attribute of the result where no field has its name: `estimator`,
@@ -248,7 +253,10 @@ class Result:
             points, triangles, fields = dual
             self.dual_points, self.dual_triangles = _read_only(points), _read_only(triangles)
             self.dual_fields = {name: _read_only(values) for name, values in fields}
-        self.attributes = parts.attributes()
+        self.attributes = types.MappingProxyType(parts.attributes())
+        self.fields = types.MappingProxyType(self.fields)
+        self.places = types.MappingProxyType(self.places)
+        self.dual_fields = types.MappingProxyType(self.dual_fields)
 
     @property
     def lambda_(self):
@@ -283,7 +291,18 @@ class Result:
     def summary(self):
         """The summary the command line prints (its write time 0); of a result read back (`read`),
         the one its run stored (but for the times, in `attributes`), and a line saying so."""
-        return self._parts.summary()
+        return self.__dict__.get("_summary") or self._parts.summary()
+
+    def __reduce__(self):
+        # Pickled (and deep-copied) as the files of its result directory, read back whole.
+        with tempfile.TemporaryDirectory() as d:
+            out = os.path.join(d, "result")
+            self.write(out)
+            files = {}
+            for name in sorted(os.listdir(out)):
+                with open(os.path.join(out, name), "rb") as f:
+                    files[name] = f.read()
+        return _unpickled, (files, self.summary())
 
     def write(self, directory):
         """Writes the whole result directory `directory` as the command line does: solution.h5,
@@ -322,12 +341,14 @@ def solve(
     (N, 3) in a plane z = constant; triangles (M, 3) of any integer type) or a dolfinx mesh; it replaces the
     mesh the case's [mesh] names (the table may then be left out, or hold `refine` alone), is
     refined as the table's `refine` says (refine= overrides it), keeps its vertex numbering (but
-    for the points of a meshio.Mesh that no triangle uses, dropped) and is checked as a mesh file
-    is. estimate, flux, dual, hminus1: as the command line's --estimate, --flux, --dual,
+    for the points of a meshio.Mesh that no triangle uses, dropped) and the order of its triangles
+    (each turned counter-clockwise: a clockwise [0, 4, 1] comes back as [0, 1, 4]), and is checked
+    as a mesh file is. estimate, flux, dual, hminus1: as the command line's --estimate, --flux, --dual,
     --hminus1. linear: "multigrid" or "direct". refine: uniform refinements (K). n: cells per side
     of a built-in mesh. start: "nested" (the default) or "cold". verbose: the solver's details in
     `summary()`. threads: the threads to compute on (default: RAYON_NUM_THREADS, else one per
-    core); the results are the same bit for bit on any number.
+    core); the results are the same bit for bit on any number. The summary's peak memory is the
+    process's (the whole Python session's) so far.
     """
     (source, origin), (points, triangles, groups) = _case(case), _mesh(mesh)
     parts = _core.solve(
@@ -460,3 +481,16 @@ def adapt(
 def read(directory):
     """The `Result` of a result directory written by `Result.write` or the command line."""
     return Result(_core.read(os.fspath(directory)))
+
+
+def _unpickled(files, summary):
+    """The `Result` pickled as the `files` of its result directory, with its `summary`."""
+    with tempfile.TemporaryDirectory() as d:
+        out = os.path.join(d, "result")
+        os.mkdir(out)
+        for name, data in files.items():
+            with open(os.path.join(out, name), "wb") as f:
+                f.write(data)
+        result = read(out)
+    result._summary = summary
+    return result

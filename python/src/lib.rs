@@ -642,17 +642,9 @@ fn not_a_result(dir: &Path) -> Option<String> {
 fn read_parts(dir: &Path) -> Result<Parts, String> {
     let h5 = dir.join(SOLUTION_H5);
     let named = |e: hdf5::Error| format!("{}: {}", h5.display(), hdf5_error(&e));
+    // As a mesh file: with its physical groups (the boundary edges' curves are in no field).
+    let mesh = membrane_contact::mesh::file::read(&h5).map_err(|e| format!("its mesh: {e}"))?;
     let file = hdf5::File::open(&h5).map_err(named)?;
-    let geometry = file.dataset("mesh/geometry").map_err(named)?;
-    let xy = geometry.read_raw::<f64>().map_err(named)?;
-    let points: Vec<[f64; 2]> = xy.chunks_exact(2).map(|p| [p[0], p[1]]).collect();
-    let topology = file.dataset("mesh/topology").map_err(named)?;
-    let cells = topology.read_raw::<i32>().map_err(named)?;
-    let triangles: Vec<[usize; 3]> = (cells.chunks_exact(3))
-        .map(|t| t.iter().map(|&v| usize::try_from(v).unwrap_or(usize::MAX)))
-        .map(|mut t| [(); 3].map(|_| t.next().expect("three")))
-        .collect();
-    let mesh = Mesh::new(points, triangles).map_err(|e| format!("{}: its mesh: {e}", h5.display()))?;
     let mut fields = Vec::new();
     let dual_xdmf = dir.join("dual.xdmf");
     let writes_dual = dual_xdmf.exists();
@@ -733,7 +725,17 @@ fn toml_value(v: &Bound<'_, PyAny>, key: &str) -> PyResult<Option<toml::Value>> 
         return Ok(Some(Value::Boolean(v.extract()?)));
     }
     if v.is_instance_of::<PyLong>() {
-        return Ok(Some(Value::Integer(v.extract()?)));
+        // Beyond 64 bits TOML has no integer: the number as a float, which a key that needs an
+        // integer names.
+        if let Ok(i) = v.extract::<i64>() {
+            return Ok(Some(Value::Integer(i)));
+        }
+        return match v.extract::<f64>() {
+            Ok(x) => Ok(Some(Value::Float(x))),
+            Err(_) => Err(InputError::new_err(format!(
+                "case key '{key}': the integer {v} is beyond any number a case takes"
+            ))),
+        };
     }
     if v.is_instance_of::<PyFloat>() {
         return Ok(Some(Value::Float(v.extract()?)));

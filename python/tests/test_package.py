@@ -82,6 +82,9 @@ def test_meshio_pair_and_dolfinx_meshes_agree(small):
     [
         (lambda c: c.update(bogus=1), "unknown field `bogus`"),
         (lambda c: c.update(f1="1 +"), "key 'f1'"),
+        # Beyond 64 bits: an OverflowError naming nothing.
+        (lambda c: c["mesh"].update(n=2**70), "1180591620717411300000.0».*expected the cells per side"),
+        (lambda c: c.update(mu1=10**400), f"case key 'mu1': the integer {10**400} is beyond"),
     ],
 )
 def test_bad_case_raises_input_error(small, change, message):
@@ -518,3 +521,37 @@ def test_the_summary_is_the_command_lines(tmp_path):
                          capture_output=True, text=True, check=True).stdout
     assert cli.splitlines()[:3] == summary.splitlines()[:3]
 
+
+
+def test_results_pickle_whole_and_read_back_with_their_groups(tmp_path):
+    import copy
+    import pickle
+
+    # Groups of a Gmsh file, the estimate and S_h: pickle raised TypeError on the native part,
+    # and read → write lost the boundary edges' physical curves (in no field).
+    r = mc.solve(CASES / "two_regions.toml", estimate=True, dual=True, threads=1)
+    for back in (pickle.loads(pickle.dumps(r)), copy.deepcopy(r)):
+        assert back.summary() == r.summary()
+        assert set(back.fields) == set(r.fields) and set(back.dual_fields) == set(r.dual_fields)
+        for name in r.fields:
+            assert same_bits(back.fields[name], r.fields[name]), name
+        for name in r.dual_fields:
+            assert same_bits(back.dual_fields[name], r.dual_fields[name]), name
+        assert same_bits(back.points, r.points) and np.array_equal(back.triangles, r.triangles)
+        assert repr(sorted(back.attributes.items())) == repr(sorted(r.attributes.items()))
+    r.write(tmp_path / "a")
+    mc.read(tmp_path / "a").write(tmp_path / "b")
+    with h5py.File(tmp_path / "a" / "solution.h5") as a, h5py.File(tmp_path / "b" / "solution.h5") as b:
+        assert len(a["mesh/boundary_edges"]) > 0
+        for name in ("mesh/boundary_edges", "mesh/boundary_group", "mesh/group"):
+            assert np.array_equal(a[name][...], b[name][...]), name
+
+
+def test_a_result_cannot_be_changed_in_place():
+    r = mc.solve(n=4, threads=1)
+    with pytest.raises(ValueError, match="cannot set WRITEABLE flag"):
+        r.u1.setflags(write=True)
+    with pytest.raises(TypeError):
+        r.fields["u2"] = None
+    with pytest.raises(TypeError):
+        r.attributes["iterations"] = -5
