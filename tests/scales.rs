@@ -195,3 +195,35 @@ fn the_estimate_is_the_same_in_any_units() {
         );
     }
 }
+
+/// The exact solution of a square of side 10⁻⁴ at (10⁵, 10⁵), its expressions in the local
+/// coordinates (x − 10⁵)/10⁻⁴, which lose 9 digits to the coordinates' round-off alone (u2 =
+/// X(1 − X)Y(1 − Y) is 10⁻⁷ on ∂ω): it takes the boundary data (it was said not to, and its errors
+/// not to be its errors), and one off by 10⁻⁵ does not.
+#[test]
+fn an_exact_solution_in_far_local_coordinates_takes_its_boundary_data() {
+    let text = |shift: &str| {
+        format!(
+            "mu1 = 1.0\nmu2 = 1.0\n\
+             f1 = \"(2*(X*(1 - X) + Y*(1 - Y)) + if(r2 < 1/9, -1, -(16*r2 - 8/9)))/s^2\"\n\
+             f2 = \"(2*(X*(1 - X) + Y*(1 - Y)) + if(r2 < 1/9, 1, 0))/s^2\"\n\
+             g = \"max(r2 - 1/9, 0)^2\"\n\
+             [let]\ns = \"0.0001\"\nX = \"(x - 100000)/s\"\nY = \"(y - 100000)/s\"\n\
+             r2 = \"(X - 0.5)^2 + (Y - 0.5)^2\"\nb = \"X*(1 - X)*Y*(1 - Y)\"\n\
+             [exact]\nu1 = \"b + max(r2 - 1/9, 0)^2{shift}\"\nu2 = \"b\"\n\
+             lambda = \"if(r2 < 1/9, 1, 0)/s^2\"\n\
+             [mesh]\nkind = \"rectangle\"\ncorners = [[100000.0, 100000.0], [100000.0001, 100000.0001]]\n\
+             n = 64\n"
+        )
+    };
+    let errors = |shift: &str| {
+        let c = case(&text(shift));
+        let r = run::run(&c, &options()).unwrap_or_else(|e| panic!("{e}"));
+        r.errors.expect("an exact solution")
+    };
+    let taken = errors("");
+    assert!(taken.boundary.is_none(), "{:?}", taken.boundary);
+    assert!(taken.energy.is_some_and(|e| e < 0.05), "{:?}", taken.energy);
+    let missed = errors(" + 1e-5").boundary.expect("a mismatch of 1e-5");
+    assert!(missed.at_vertex && missed.relative > 1e-5, "{missed:?}");
+}
