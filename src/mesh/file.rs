@@ -178,17 +178,18 @@ pub fn read(path: &Path) -> Result<Mesh, FileError> {
     };
     match extension {
         "xdmf" => {
-            let (raw, tags) = read_xdmf(path)?;
+            let (raw, tags, topology) = read_xdmf(path)?;
             let mesh = checked(raw)?;
             if !tags.is_empty() {
                 return with_meshtags(mesh, &tags, path);
             }
-            // The XDMF of a result of this program: its groups are in the one HDF5 file it names.
+            // The XDMF of a result of this program: its groups are in the one HDF5 file it names,
+            // and are T_h's (its dual.xdmf, S_h, has none).
             let mut heavy = inputs(path).split_off(1);
             heavy.sort();
             heavy.dedup();
             let groups = match &heavy[..] {
-                [h5] => read_h5_groups(h5, &mesh)?,
+                [h5] if topology == RESULT_TOPOLOGY => read_h5_groups(h5, &mesh)?,
                 _ => None,
             };
             Ok(with(mesh, groups))
@@ -304,7 +305,7 @@ struct MeshTags {
 /// The mesh of an XDMF file (its one grid with a topology and a geometry of its own) and the
 /// meshtags of its triangles and edges (grids on that geometry, `xi:include`d, with a cell
 /// attribute), as dolfinx writes them; grids of other entities (vertex tags) are left aside.
-fn read_xdmf(path: &Path) -> Result<(RawMesh, Vec<MeshTags>), FileError> {
+fn read_xdmf(path: &Path) -> Result<(RawMesh, Vec<MeshTags>, String), FileError> {
     let err = |m: String| FileError(format!("{}: {m}", path.display()));
     let text = read_xdmf_text(path).map_err(err)?;
     let doc = parse_xml(&text).map_err(err)?;
@@ -332,17 +333,21 @@ fn read_xdmf(path: &Path) -> Result<(RawMesh, Vec<MeshTags>), FileError> {
     let tags = others
         .filter_map(|g| meshtags(path, g).transpose())
         .collect::<Result<Vec<_>, _>>()?;
-    let (points, triangles) = xdmf_grid(path, grid)?;
+    let ((points, triangles), topology) = xdmf_grid(path, grid)?;
     // Meshtags number the points as the file does: with them every point must be used.
     let raw = match tags.is_empty() {
         true => used_points(points, triangles),
         false => (points, triangles),
     };
-    Ok((raw, tags))
+    Ok((raw, tags, topology))
 }
 
-/// The points and triangles of the XDMF grid `grid`, checked against the sizes it declares.
-fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<RawMesh, FileError> {
+/// The dataset of T_h's triangles in a result of this program.
+const RESULT_TOPOLOGY: &str = "/mesh/topology";
+
+/// The points and triangles of the XDMF grid `grid`, checked against the sizes it declares, and
+/// the dataset of its triangles.
+fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<(RawMesh, String), FileError> {
     let err = |m: String| FileError(format!("{}: {m}", path.display()));
     let child = |tag: &str| {
         grid.children()
@@ -363,11 +368,11 @@ fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<RawMesh, FileError> {
     geometry.holds(points.len(), 2).map_err(err)?;
     if mixed {
         // A mixed stream's Dimensions count its entries, not its cells.
-        return Ok((points, read_mixed(&topology.file, &topology.dataset)?));
+        return Ok(((points, read_mixed(&topology.file, &topology.dataset)?), topology.dataset));
     }
     let cells = read_cells(&topology.file, &topology.dataset)?;
     topology.holds(cells.len(), 3).map_err(err)?;
-    Ok((points, cells))
+    Ok(((points, cells), topology.dataset))
 }
 
 impl Heavy {
