@@ -166,7 +166,15 @@ impl Staging {
             exchange(&self.temporary, &self.target)
                 .map_err(|e| err(format!("cannot replace the earlier result: {}", e)))?;
             // The temporary name now holds the earlier result.
-            let _ = std::fs::remove_dir_all(&self.temporary);
+            if let Err(e) = std::fs::remove_dir_all(&self.temporary) {
+                list.retain(|(d, _)| *d != self.temporary);
+                self.committed = true;
+                return Err(err(format!(
+                    "the result is in place, but the earlier one, moved to {}, could not be deleted \
+                     ({e}): delete it by hand",
+                    self.temporary.display()
+                )));
+            }
         } else {
             std::fs::rename(&self.temporary, &self.target)
                 .map_err(|e| err(format!("cannot put the result in place: {}", e)))?;
@@ -277,16 +285,28 @@ fn install_handler() {
 }
 
 /// The directory of the result `target` (itself or one of its steps) whose files this process
-/// may not delete (no write and search permission on it), if any: replaced, it would have been
-/// moved aside and left there.
+/// may not delete, if any: no write and search permission on it, or (sticky, as /tmp is) a file
+/// in it that neither it nor the directory belongs to. Replaced, such a result was moved aside
+/// and left there.
 fn locked_directory(target: &Path) -> Option<PathBuf> {
+    use std::os::unix::fs::MetadataExt;
+    // SAFETY: geteuid reads the process's user.
+    let me = unsafe { libc::geteuid() };
     let steps = std::fs::read_dir(target).into_iter().flatten().flatten();
     let dirs = std::iter::once(target.to_path_buf()).chain(steps.map(|e| e.path()).filter(|p| p.is_dir()));
     dirs.into_iter().find(|dir| {
         use std::os::unix::ffi::OsStrExt;
         let c = std::ffi::CString::new(dir.as_os_str().as_bytes());
         // SAFETY: access(2) reads a NUL-terminated path and changes nothing.
-        c.is_ok_and(|c| unsafe { libc::access(c.as_ptr(), libc::W_OK | libc::X_OK) } != 0)
+        let writable = c.is_ok_and(|c| unsafe { libc::access(c.as_ptr(), libc::W_OK | libc::X_OK) } == 0);
+        let sticky_of_another = dir
+            .symlink_metadata()
+            .is_ok_and(|m| m.mode() & libc::S_ISVTX != 0 && me != 0 && m.uid() != me);
+        let foreign_file = || {
+            (std::fs::read_dir(dir).into_iter().flatten().flatten())
+                .any(|e| e.metadata().is_ok_and(|m| m.uid() != me))
+        };
+        !writable || (sticky_of_another && foreign_file())
     })
 }
 

@@ -260,16 +260,10 @@ fn read_case(path: &Option<PathBuf>, linear: Option<String>) -> Result<(Case, St
     Ok((case, name))
 }
 
-/// The given output directory, or `default/name` (creating `default`).
-fn output_dir(output: Option<PathBuf>, default: &str, name: &str) -> Result<PathBuf, Failure> {
-    match output {
-        Some(o) => Ok(o),
-        None => {
-            std::fs::create_dir_all(default)
-                .map_err(|e| format!("{default}: cannot create the directory: {e}"))?;
-            Ok(PathBuf::from(default).join(name))
-        }
-    }
+/// The given output directory, or `default/name` (`default` made with the result, and removed
+/// again, if still empty, when the run fails: a failed study left an empty `study/`).
+fn output_dir(output: Option<PathBuf>, default: &str, name: &str) -> PathBuf {
+    output.unwrap_or_else(|| PathBuf::from(default).join(name))
 }
 
 /// The path of `file` in the result `dir` for a user to open: absolute (ParaView's Xdmf3 reader
@@ -300,7 +294,7 @@ fn solve(
     if let Some(k) = refine {
         case.refine = k;
     }
-    let output = output_dir(output, "results", &name)?;
+    let output = output_dir(output, "results", &name);
     let start = if cold { Start::Cold } else { Start::Nested };
     let options = run::Options {
         start,
@@ -336,7 +330,7 @@ fn study(
 ) -> Result<(), Failure> {
     let (case, name) = read_case(&case_path, linear)?;
     let levels = levels.unwrap_or_else(|| study::default_levels(&case));
-    let dir = output_dir(output, "study", &name)?;
+    let dir = output_dir(output, "study", &name);
     let options = StudyOptions {
         levels,
         cold,
@@ -380,7 +374,7 @@ fn adapt(
     settings
         .check(|k| format!("--{}", k.replace('_', "-")))
         .map_err(CaseError)?;
-    let dir = output_dir(output, "adapt", &name)?;
+    let dir = output_dir(output, "adapt", &name);
     let adapted = membrane_contact::adapt::adapt(&case, &settings, dual, &dir)?;
     membrane_contact::progress::finish();
     say(&format!("stopped     by {}\n", adapted.stopped));

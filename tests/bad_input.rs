@@ -593,6 +593,13 @@ fn meshio_s_mixed_topologies_and_planes_off_z_0_are_read() {
     );
     let read: Vec<[i64; 3]> = mesh.triangles().map(|t| t.map(|v| v as i64)).collect();
     assert_eq!(read, triangles);
+    // And in an .h5 mesh given alone.
+    let dir = tempfile::tempdir().unwrap();
+    let plane: Vec<[f64; 2]> = centre.iter().map(|p| [p[0], p[1]]).collect();
+    let cells: Vec<[i64; 3]> = shifted.chunks(3).map(|t| [t[0], t[1], t[2]]).collect();
+    write_mesh(&dir.path().join("mesh.h5"), &plane, &cells);
+    let mesh = membrane_contact::mesh::file::read(&dir.path().join("mesh.h5")).unwrap();
+    assert_eq!(mesh.points, points);
     let e = read_xdmf("Mixed", &[4, 0, 1, 4, 2, 9, 0], flat).unwrap_err();
     assert!(e.contains("the mixed topology ends within a cell"), "{e}");
     let e = read_xdmf("Mixed", &[4, 0, 1, 4, 5, 0, 1, 2, 3], flat).unwrap_err();

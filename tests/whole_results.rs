@@ -100,23 +100,29 @@ fn an_earlier_result_this_user_may_not_delete_is_left_alone() {
     std::fs::set_permissions(dir.path(), Permissions::from_mode(0o777)).unwrap();
     let out = dir.path().join("out");
     assert!(solve(&out, 8).status.success());
-    std::fs::set_permissions(&out, Permissions::from_mode(0o555)).unwrap();
-    let mut command = Command::new(BIN);
-    command.args(["solve", "--n", "16", "-o"]).arg(&out);
     // SAFETY: geteuid reads the process's user.
-    if unsafe { libc::geteuid() } == 0 {
-        command.uid(65534).gid(65534);
+    let root = unsafe { libc::geteuid() } == 0;
+    // Read-only; and (as root, the run another user's) sticky with files of another owner, whose
+    // files only their owner may delete, as in /tmp.
+    let modes: &[u32] = if root { &[0o555, 0o1777] } else { &[0o555] };
+    for &mode in modes {
+        std::fs::set_permissions(&out, Permissions::from_mode(mode)).unwrap();
+        let mut command = Command::new(BIN);
+        command.args(["solve", "--n", "16", "-o"]).arg(&out);
+        if root {
+            command.uid(65534).gid(65534);
+        }
+        let run = command.output().unwrap();
+        std::fs::set_permissions(&out, Permissions::from_mode(0o755)).unwrap();
+        let e = String::from_utf8_lossy(&run.stderr);
+        assert!(!run.status.success(), "{mode:o}: {e}");
+        assert!(
+            e.contains("out: the earlier result cannot be replaced: this user may not delete the files of"),
+            "{mode:o}: {e}"
+        );
+        assert_eq!(listing(dir.path()), ["out"], "{mode:o}: no temporary is left");
+        assert_eq!(read_whole(&out), 81);
     }
-    let run = command.output().unwrap();
-    std::fs::set_permissions(&out, Permissions::from_mode(0o755)).unwrap();
-    let e = String::from_utf8_lossy(&run.stderr);
-    assert!(!run.status.success(), "{e}");
-    assert!(
-        e.contains("out: the earlier result cannot be replaced: this user may not delete the files of"),
-        "{e}"
-    );
-    assert_eq!(listing(dir.path()), ["out"], "no temporary is left");
-    assert_eq!(read_whole(&out), 81);
 }
 
 /// A step of an `adapt` result is part of that result: a solve into it is refused as such,
@@ -254,6 +260,14 @@ fn studies_are_whole_or_absent() {
         ["case.toml", "one"],
         "a failed study leaves nothing"
     );
+    // Nor does one into the default `study/<case>` (it left an empty `study/`).
+    let run = Command::new(BIN)
+        .args(["study", "case.toml", "--levels", "8,12"])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(run.status.code(), Some(1));
+    assert_eq!(listing(dir.path()), ["case.toml", "one"]);
 }
 
 /// The fault test: a run writing a large result is killed at several instants spread over its

@@ -18,7 +18,6 @@ import json
 import numbers
 import os
 import tempfile
-import types
 
 import numpy as np
 
@@ -96,6 +95,11 @@ def _mesh(mesh):
         # dolfinx 0.5–0.6: an adjacency list; later versions: an array.
         cells = dofmap.array if hasattr(dofmap, "array") else dofmap
         triangles = np.asarray(cells).reshape(-1, 3)
+    elif isinstance(mesh, (tuple, list)) and any(hasattr(m, "geometry") for m in mesh):
+        raise InputError(
+            "mesh: a dolfinx mesh is given alone (it carries no groups); for data per group write it "
+            "with its meshtags by dolfinx.io.XDMFFile (write_mesh, write_meshtags) and give the file"
+        )
     elif isinstance(mesh, (tuple, list)) and len(mesh) == 2:
         points, triangles = mesh
     else:
@@ -206,10 +210,22 @@ def _counts(name, values):
 
 
 def _read_only(array):
-    """A read-only view of `array`, itself made read-only: the view's WRITEABLE flag cannot be set
-    again (an array that owns its data could be made writable)."""
-    array.flags.writeable = False
-    return array.view()
+    """`array` on an immutable buffer: read-only for good (an array that owns its data, or a view
+    of one, could be made writable again)."""
+    return np.frombuffer(array.tobytes(), dtype=array.dtype).reshape(array.shape)
+
+
+class _ReadOnlyDict(dict):
+    """A dict that cannot be changed; it copies, pickles and serializes as a plain dict."""
+
+    def _refuse(self, *args, **kwargs):
+        raise TypeError("a Result's mappings are read-only (copy one with dict() to change it)")
+
+    __setitem__ = __delitem__ = __ior__ = _refuse
+    clear = pop = popitem = setdefault = update = _refuse
+
+    def __reduce__(self):
+        return dict, (dict(self),)
 
 
 class Result:
@@ -253,10 +269,10 @@ class Result:
             points, triangles, fields = dual
             self.dual_points, self.dual_triangles = _read_only(points), _read_only(triangles)
             self.dual_fields = {name: _read_only(values) for name, values in fields}
-        self.attributes = types.MappingProxyType(parts.attributes())
-        self.fields = types.MappingProxyType(self.fields)
-        self.places = types.MappingProxyType(self.places)
-        self.dual_fields = types.MappingProxyType(self.dual_fields)
+        self.attributes = _ReadOnlyDict(parts.attributes())
+        self.fields = _ReadOnlyDict(self.fields)
+        self.places = _ReadOnlyDict(self.places)
+        self.dual_fields = _ReadOnlyDict(self.dual_fields)
 
     @property
     def lambda_(self):
@@ -479,7 +495,8 @@ def adapt(
 
 
 def read(directory):
-    """The `Result` of a result directory written by `Result.write` or the command line."""
+    """The `Result` of a result directory written by `Result.write` or the command line; an
+    InputError for a path that is not one, an OutputError for files that cannot be read."""
     return Result(_core.read(os.fspath(directory)))
 
 

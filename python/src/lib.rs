@@ -48,7 +48,7 @@ create_exception!(
     _core,
     OutputError,
     PyOSError,
-    "A result directory could not be written, or a result's files read back."
+    "A result directory could not be written, or a result's files read back (a path that is no result directory is an InputError)."
 );
 
 /// How often the waiting thread checks for Ctrl-C.
@@ -85,6 +85,14 @@ fn pool(threads: Option<usize>) -> PyResult<rayon::ThreadPool> {
     }
     (rayon::ThreadPoolBuilder::new().num_threads(t).build())
         .map_err(|e| SolverError::new_err(format!("{from}: {e}")))
+}
+
+/// A pool of one thread per core for writing and reading results, whatever `RAYON_NUM_THREADS`
+/// says (which the runs check), so that a result is written and read in any environment.
+fn io_pool() -> PyResult<rayon::ThreadPool> {
+    let cores = std::thread::available_parallelism().map_or(1, usize::from);
+    (rayon::ThreadPoolBuilder::new().num_threads(cores).build())
+        .map_err(|e| SolverError::new_err(format!("cannot start threads: {e}")))
 }
 
 /// Runs `work` on a thread of its own (its parallel parts in `pool`), the GIL released, checking for Ctrl-C meanwhile when called from the main thread (only
@@ -432,7 +440,7 @@ impl PyParts {
     /// Writes the whole result directory `directory`, as the command line does (an earlier result
     /// there is replaced only once this one is complete).
     fn write(slf: Py<Self>, py: Python<'_>, directory: PathBuf) -> PyResult<()> {
-        wait(py, pool(None)?, move || slf.get().parts.write(&directory))
+        wait(py, io_pool()?, move || slf.get().parts.write(&directory))
     }
 }
 
@@ -600,7 +608,8 @@ fn intern(name: &str) -> &'static str {
 /// The (name, center) of each attribute of the grids of an XDMF file, in order.
 fn xdmf_attributes(path: &Path) -> Result<Vec<(String, String)>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let doc = roxmltree::Document::parse(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+    let doc =
+        membrane_contact::mesh::file::parse_xml(&text).map_err(|e| format!("{}: {e}", path.display()))?;
     Ok(doc
         .descendants()
         .filter(|n| n.has_tag_name("Attribute"))
@@ -708,7 +717,7 @@ fn read(py: Python<'_>, directory: PathBuf) -> PyResult<PyParts> {
     if let Some(why) = not_a_result(&directory) {
         return Err(InputError::new_err(why));
     }
-    let pool = pool(None)?;
+    let pool = io_pool()?;
     let parts = py
         .allow_threads(|| pool.install(|| read_parts(&directory)))
         .map_err(|e| OutputError::new_err(format!("cannot read the result: {e}")))?;
@@ -733,7 +742,8 @@ fn toml_value(v: &Bound<'_, PyAny>, key: &str) -> PyResult<Option<toml::Value>> 
         return match v.extract::<f64>() {
             Ok(x) => Ok(Some(Value::Float(x))),
             Err(_) => Err(InputError::new_err(format!(
-                "case key '{key}': the integer {v} is beyond any number a case takes"
+                "case key '{key}': an integer of {} bits is beyond any number a case takes",
+                v.call_method0("bit_length")?
             ))),
         };
     }

@@ -72,8 +72,8 @@ fn read_xdmf_text(path: &Path) -> Result<String, String> {
 
 /// The XML document of an XDMF file's `text`, its DTD allowed (dolfinx and ParaView write one).
 /// The parser descends the call stack once per level of nesting, so that a few hundred kilobytes
-/// of nested elements overflowed it (an abort): deeper than [`MAX_XML_DEPTH`] is refused first.
-fn parse_xml(text: &str) -> Result<roxmltree::Document<'_>, String> {
+/// of nested elements overflowed it (an abort): deeper than 256 is refused first.
+pub fn parse_xml(text: &str) -> Result<roxmltree::Document<'_>, String> {
     let depth = xml_depth(text)?;
     if depth > MAX_XML_DEPTH {
         return Err(format!(
@@ -93,28 +93,23 @@ const MAX_XML_DEPTH: usize = 256;
 
 /// How deep the elements of the XML `text` nest: a scan of its tags (quoted attribute values,
 /// comments, CDATA, processing instructions and the DTD skipped). An entity whose value holds
-/// markup is refused, as its elements nest where it is used.
+/// markup is refused, as its elements nest where it is used; so is a construct left open, whose
+/// rest the scan would not see.
 fn xml_depth(text: &str) -> Result<usize, String> {
     let b = text.as_bytes();
-    // The index after the first `end` at or after i (the end of the text if none).
-    let past = |i: usize, end: &str| (text[i..].find(end)).map_or(b.len(), |k| i + k + end.len());
     let (mut depth, mut deepest, mut i) = (0usize, 0usize, 0usize);
     while let Some(k) = text[i..].find('<') {
         i += k;
         let rest = &text[i..];
-        i = if rest.starts_with("<!--") {
-            past(i, "-->")
-        } else if rest.starts_with("<![CDATA[") {
-            past(i, "]]>")
-        } else if rest.starts_with("<?") {
-            past(i, "?>")
+        i = if let Some(end) = skipped(text, i)? {
+            end
         } else if rest.starts_with("<!") {
-            dtd_end(b, i)?
+            dtd_end(text, i)?
         } else {
-            let end = tag_end(b, i);
+            let end = tag_end(b, i)?;
             if rest.starts_with("</") {
                 depth = depth.saturating_sub(1);
-            } else if b.get(end.wrapping_sub(2)) != Some(&b'/') {
+            } else if b[end - 2] != b'/' {
                 depth += 1;
                 deepest = deepest.max(depth);
             }
@@ -124,27 +119,51 @@ fn xml_depth(text: &str) -> Result<usize, String> {
     Ok(deepest)
 }
 
+/// At a comment, CDATA section or processing instruction at `i`: the index after it.
+fn skipped(text: &str, i: usize) -> Result<Option<usize>, String> {
+    const KINDS: [(&str, &str, &str); 3] = [
+        ("<!--", "-->", "a comment"),
+        ("<![CDATA[", "]]>", "CDATA"),
+        ("<?", "?>", "a processing instruction"),
+    ];
+    let rest = &text[i..];
+    let Some(&(start, end, what)) = KINDS.iter().find(|(start, ..)| rest.starts_with(start)) else {
+        return Ok(None);
+    };
+    (rest[start.len()..].find(end))
+        .map(|k| Some(i + start.len() + k + end.len()))
+        .ok_or_else(|| format!("not valid XDMF (XML): the file ends inside {what}"))
+}
+
 /// The index after the `>` that ends the tag at `i`, past quoted attribute values.
-fn tag_end(b: &[u8], mut i: usize) -> usize {
+fn tag_end(b: &[u8], mut i: usize) -> Result<usize, String> {
     let mut quote = None;
     while i < b.len() {
         match (quote, b[i]) {
             (None, q @ (b'"' | b'\'')) => quote = Some(q),
             (Some(q), c) if c == q => quote = None,
-            (None, b'>') => return i + 1,
+            (None, b'>') => return Ok(i + 1),
             _ => {}
         }
         i += 1;
     }
-    b.len()
+    Err("not valid XDMF (XML): the file ends inside a tag".into())
 }
 
 /// The index after the declaration `<!…>` at `i` (a DOCTYPE with its internal subset in
-/// brackets), or an error if a quoted value in it holds markup.
-fn dtd_end(b: &[u8], mut i: usize) -> Result<usize, String> {
+/// brackets, comments and processing instructions in it skipped), or an error if a quoted value
+/// in it holds markup.
+fn dtd_end(text: &str, mut i: usize) -> Result<usize, String> {
+    let b = text.as_bytes();
     let (mut quote, mut brackets) = (None, 0usize);
     i += 2;
     while i < b.len() {
+        if quote.is_none() {
+            if let Some(end) = skipped(text, i)? {
+                i = end;
+                continue;
+            }
+        }
         match (quote, b[i]) {
             (None, q @ (b'"' | b'\'')) => quote = Some(q),
             (Some(q), c) if c == q => quote = None,
@@ -158,7 +177,7 @@ fn dtd_end(b: &[u8], mut i: usize) -> Result<usize, String> {
         }
         i += 1;
     }
-    Ok(b.len())
+    Err("not valid XDMF (XML): the file ends inside its DTD".into())
 }
 
 /// Reads and checks the mesh in `path`, by its extension.
@@ -195,8 +214,13 @@ pub fn read(path: &Path) -> Result<Mesh, FileError> {
             Ok(with(mesh, groups))
         }
         "h5" | "hdf5" => {
-            let mesh = checked(read_h5_mesh(path)?)?;
             let tags = read_h5_meshtags(path)?;
+            // As in an XDMF file: points no triangle uses are left aside, but for meshtags.
+            let (points, triangles) = read_h5_mesh(path)?;
+            let mesh = checked(match tags.is_empty() {
+                true => used_points(points, triangles),
+                false => (points, triangles),
+            })?;
             if !tags.is_empty() {
                 return with_meshtags(mesh, &tags, path);
             }
@@ -368,7 +392,10 @@ fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<(RawMesh, String), Fi
     geometry.holds(points.len(), 2).map_err(err)?;
     if mixed {
         // A mixed stream's Dimensions count its entries, not its cells.
-        return Ok(((points, read_mixed(&topology.file, &topology.dataset)?), topology.dataset));
+        return Ok((
+            (points, read_mixed(&topology.file, &topology.dataset)?),
+            topology.dataset,
+        ));
     }
     let cells = read_cells(&topology.file, &topology.dataset)?;
     topology.holds(cells.len(), 3).map_err(err)?;
@@ -903,6 +930,20 @@ mod tests {
         let markup = "<!DOCTYPE X [<!ENTITY e \"<a><a></a></a>\">]><X>&e;</X>";
         let e = parse_xml(markup).unwrap_err();
         assert!(e.contains("an entity of its DTD holds markup"), "{e}");
+        // Comments and instructions in the DTD are skipped (an apostrophe in one was taken for
+        // a quoted value, a bracket in one hid the nesting that follows), and what is left open
+        // is refused.
+        let dtd = "<!DOCTYPE X [<!-- don't [ --><?note it's [?><!ENTITY h \"m.h5\">]>";
+        assert_eq!(xml_depth(&format!("{dtd}<X><D/></X>")), Ok(1));
+        let e = parse_xml(&format!("{dtd}{deep}")).unwrap_err();
+        assert!(e.contains("its elements nest 30001 deep"), "{e}");
+        for open in ["<X><!-- ", "<X a='>", "<!DOCTYPE X [", "<X><![CDATA[", "<X><?p"] {
+            let e = xml_depth(open).unwrap_err();
+            assert!(
+                e.starts_with("not valid XDMF (XML): the file ends inside"),
+                "{open}: {e}"
+            );
+        }
     }
 
     #[test]

@@ -177,7 +177,9 @@ const MISMATCH: f64 = 1e-9;
 /// is round-off too: an expression of (x − 10⁵)/10⁻³ loses 8 digits to the coordinates alone.
 const NOISE_TIMES: f64 = 8.0;
 
-/// f at `p`, and how much it changes when the coordinates move by a few units of round-off.
+/// f at `p`, and how much it changes when the coordinates move by a few units of round-off: the
+/// lesser change of two opposite moves (round-off changes it either way; a jump of f across ∂ω,
+/// which one of them crosses, is not round-off).
 fn with_noise(f: impl Fn(f64, f64) -> f64, p: [f64; 2]) -> (f64, f64) {
     let value = f(p[0], p[1]);
     let moved = |s: f64| {
@@ -186,7 +188,7 @@ fn with_noise(f: impl Fn(f64, f64) -> f64, p: [f64; 2]) -> (f64, f64) {
             p[1] * (1.0 - s * 4.0 * f64::EPSILON),
         )
     };
-    let noise = (moved(1.0) - value).abs().max((moved(-1.0) - value).abs());
+    let noise = (moved(1.0) - value).abs().min((moved(-1.0) - value).abs());
     (value, noise)
 }
 
