@@ -112,19 +112,27 @@ pub fn adapt(case: &Case, settings: &Adaptivity, dual: bool, target: &Path) -> R
     check_memory(case, settings)?;
     let inputs = case.inputs();
     let staging = Staging::new(target, &inputs, "adapt")?;
+    let adapted = (write_adapted(case, settings, dual, staging.path())).map_err(|e| e.in_target(&staging))?;
+    staging.commit(&inputs)?;
+    Ok(adapted)
+}
+
+/// Runs the adaptive loop and the uniform refinement beside it, and writes their steps, tables
+/// and plot into `root`.
+fn write_adapted(case: &Case, settings: &Adaptivity, dual: bool, root: &Path) -> Result<Adapted, RunError> {
     let mut grids = Vec::new();
     let adaptive = steps(case, settings, |step, r, steps| {
         progress(steps);
         let dir = format!("step-{step:03}");
         crate::progress::phase(|| format!("writing {dir}"));
-        write_step(&staging, &dir, r, dual)?;
+        write_step(root, &dir, r, dual)?;
         grids.push(result::step_grid(&dir, step as f64, &r.problem.mesh, &r.fields()));
         Ok(())
     })?;
     let last = adaptive.last().map_or(0, |s| s.vertices);
     crate::progress::phase(|| "uniform refinement, for comparison".into());
     let uniform = uniform(case, (2 * last).min(settings.max_vertices))?;
-    let dir = staging.path();
+    let dir = root;
     crate::progress::phase(|| "writing adapt.xdmf, the tables and the plot".into());
     result::time_series(&dir.join("adapt.xdmf"), &grids).map_err(OutputError)?;
     let stopped = stopped(settings, &adaptive);
@@ -143,7 +151,6 @@ pub fn adapt(case: &Case, settings: &Adaptivity, dual: bool, target: &Path) -> R
         &dir.join("adapt.md"),
         &markdown(case, settings, &adapted, plotted),
     )?;
-    staging.commit(&inputs)?;
     Ok(adapted)
 }
 
@@ -300,9 +307,9 @@ fn mesh_error(case: &Case, e: &dyn std::fmt::Display) -> RunError {
     crate::case::CaseError(format!("{}: cannot refine the mesh: {e}", case.origin)).into()
 }
 
-/// Writes one step's result directory inside the staging directory, with S_h if `dual`.
-fn write_step(staging: &Staging, dir: &str, r: &Run, dual: bool) -> Result<(), RunError> {
-    let path = staging.path().join(dir);
+/// Writes one step's result directory `dir` inside `root`, with S_h if `dual`.
+fn write_step(root: &Path, dir: &str, r: &Run, dual: bool) -> Result<(), RunError> {
+    let path = root.join(dir);
     std::fs::create_dir(&path).map_err(|e| OutputError(format!("{}: {e}", path.display())))?;
     let fields = r.fields_with_dual(dual);
     let dual = dual.then(|| r.dual());

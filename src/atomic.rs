@@ -150,6 +150,12 @@ impl Staging {
         &self.temporary
     }
 
+    /// `e` as the user sees it: the files named in the result's place, not the temporary's.
+    pub fn named(&self, e: OutputError) -> OutputError {
+        let temporary = self.temporary.display().to_string();
+        OutputError(e.0.replace(&temporary, &self.target.display().to_string()))
+    }
+
     /// The final place of the result.
     pub fn target(&self) -> &Path {
         &self.target

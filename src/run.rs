@@ -688,6 +688,16 @@ pub enum RunError {
     Output(OutputError),
 }
 
+impl RunError {
+    /// The error of writing into `staging`, its files named in the result's place.
+    pub fn in_target(self, staging: &crate::atomic::Staging) -> Self {
+        match self {
+            RunError::Output(e) => RunError::Output(staging.named(e)),
+            e => e,
+        }
+    }
+}
+
 impl fmt::Display for RunError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

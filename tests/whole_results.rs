@@ -387,3 +387,45 @@ fn signals_exit_with_128_plus_their_number() {
         );
     }
 }
+
+/// A study or an adapt run that cannot write its files (past a file size limit, as on a full
+/// disk) names them in the result's place, not in its hidden temporary (it said
+/// "./.08d9….mc-partial/iterations.png"), and leaves nothing behind.
+#[test]
+fn write_errors_of_study_and_adapt_name_the_result() {
+    let runs: [(&str, &[&str]); 2] = [
+        ("study", &["--levels", "8"]),
+        ("adapt", &["--n", "8", "--steps", "1"]),
+    ];
+    for (command, args) in runs {
+        let dir = tempfile::tempdir().unwrap();
+        let mut cmd = Command::new(BIN);
+        cmd.args([command, "--quiet"])
+            .args(args)
+            .arg("-o")
+            .arg(dir.path().join("out"));
+        // SAFETY: setrlimit and signal are async-signal-safe.
+        unsafe {
+            cmd.pre_exec(|| {
+                let limit = libc::rlimit {
+                    rlim_cur: 20_000,
+                    rlim_max: 20_000,
+                };
+                libc::signal(libc::SIGXFSZ, libc::SIG_DFL);
+                match libc::setrlimit(libc::RLIMIT_FSIZE, &limit) {
+                    0 => Ok(()),
+                    _ => Err(std::io::Error::last_os_error()),
+                }
+            });
+        }
+        let run = cmd.output().unwrap();
+        let e = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{command}: {e}");
+        assert!(e.contains("/out/") && !e.contains("mc-partial"), "{command}: {e}");
+        assert!(
+            listing(dir.path()).is_empty(),
+            "{command}: {:?}",
+            listing(dir.path())
+        );
+    }
+}

@@ -111,9 +111,23 @@ pub fn study(
     let variants = variants(case, options)?;
     let inputs = case.inputs();
     let staging = Staging::new(target, &inputs, "study")?;
+    let series =
+        (write_series(case, name, options, &variants, staging.path())).map_err(|e| e.in_target(&staging))?;
+    staging.commit(&inputs)?;
+    Ok(series)
+}
+
+/// Solves the levels of each of the `variants` and writes their tables and plots into `dir`.
+fn write_series(
+    case: &Case,
+    name: &str,
+    options: &StudyOptions,
+    variants: &[(String, Vec<Case>)],
+    dir: &Path,
+) -> Result<Vec<Series>, RunError> {
     let mut markdown = format!("# Convergence study: {} ({})\n\n", case.title, case.origin);
     let mut series = Vec::new();
-    for (label, levels) in &variants {
+    for (label, levels) in variants {
         let suffix = label
             .strip_prefix("grading ")
             .map_or(String::new(), |g| format!("-g{g}"));
@@ -137,7 +151,6 @@ pub fn study(
         crate::progress::suspend(|| crate::progress::print(&format!("{table}\n")));
         markdown += &table;
         markdown += "\n";
-        let dir = staging.path();
         write_text(&dir.join(format!("study{suffix}.csv")), &csv(&result))?;
         let json = serde_json::to_string_pretty(&result).expect("levels serialise");
         write_text(&dir.join(format!("study{suffix}.json")), &json)?;
@@ -157,20 +170,15 @@ pub fn study(
         ));
     }
     let drawn: Vec<(String, &[Level])> = series.iter().map(|(l, r)| (l.clone(), r.as_slice())).collect();
-    let plotted = plot::errors(
-        &staging.path().join("errors.png"),
-        &format!("{name}: errors"),
-        &drawn,
-    )
-    .map_err(OutputError)?;
+    let plotted =
+        plot::errors(&dir.join("errors.png"), &format!("{name}: errors"), &drawn).map_err(OutputError)?;
     markdown += "EOCs against h, and in parentheses against N^(−1/2) (N vertices). ‖λ−λh‖_H⁻¹ is the dual \
                  norm over P1 functions on the dual submesh S_h (a lower bound converging to the true norm).\n\n";
     markdown += match plotted {
         true => "![errors](errors.png)\n",
         false => "No plot: no error or η above round-off (nothing to show on a log axis).\n",
     };
-    write_text(&staging.path().join("study.md"), &markdown)?;
-    staging.commit(&inputs)?;
+    write_text(&dir.join("study.md"), &markdown)?;
     Ok(series)
 }
 
