@@ -768,9 +768,15 @@ impl Case {
     }
 
     /// Checks the data on `mesh`: g_h ≥ 0 and finite at its boundary vertices (only they enter
-    /// (3.4)), and finite exact u1, u2, λ at every vertex.
+    /// (3.4)), and finite exact u1, u2, λ at every vertex. On a refined mesh the message says so:
+    /// a vertex it names may be one the refinement added.
     pub fn check_on(&self, mesh: &Mesh) -> Result<(), CaseError> {
-        let err = |m: String| CaseError(format!("{}: {m}", self.origin));
+        let refined = match self.refine {
+            0 => String::new(),
+            1 => " (on the mesh refined once)".into(),
+            k => format!(" (on the mesh refined {k} times)"),
+        };
+        let err = |m: String| CaseError(format!("{}{refined}: {m}", self.origin));
         problem::boundary_values(mesh, &self.data).map_err(|e| err(e.to_string()))?;
         let Some(exact) = &self.exact else {
             return Ok(());

@@ -954,6 +954,11 @@ fn g_is_checked_where_it_enters_the_problem() {
     let e = fails(&case, |_| {}, &["--n", "12"], None);
     contains(&e, "at the boundary vertex");
     contains(&e, "g_h, the interpolant of g");
+    // On the mesh refined once, whose vertices the case's mesh does not have, the message says
+    // so (it named a vertex the user's mesh has not).
+    let e = fails(&case, |_| {}, &["--refine", "1"], None);
+    contains(&e, "case.toml (on the mesh refined once): ");
+    contains(&e, "at the boundary vertex (0.08333333333333333, 0)");
 }
 
 #[test]
