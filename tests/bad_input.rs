@@ -1698,6 +1698,44 @@ fn two_regions_fails(f1: &str, g: &str) -> String {
     )
 }
 
+/// A Gmsh file partitioned into 3 (`gmsh.model.mesh.partition(3)`, Gmsh 4.15; a square whose
+/// surface and boundary are the groups "steel"): its groups are on the partitions' entities,
+/// which are not read. A table says so (it was told that no element carries "steel"); plain data
+/// solve on it.
+#[test]
+fn a_partitioned_gmsh_file_says_why_its_groups_take_no_data() {
+    let mesh = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/partitioned.msh");
+    let case = |f1: &str| {
+        format!("mu1 = 1.0\nmu2 = 1.0\nf1 = {f1}\nf2 = 5\ng = 0\n[mesh]\nkind = \"file\"\npath = \"p.msh\"\n")
+    };
+    let e = fails(
+        &case("{ steel = -10 }"),
+        move |dir| {
+            std::fs::copy(mesh, dir.join("p.msh")).unwrap();
+        },
+        &[],
+        None,
+    );
+    contains(&e, "key 'f1': ");
+    contains(
+        &e,
+        "p.msh: the file is partitioned (gmsh.model.mesh.partition): its physical groups",
+    );
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(mesh, dir.path().join("p.msh")).unwrap();
+    std::fs::write(dir.path().join("case.toml"), case("-10")).unwrap();
+    let solved = run(Command::new(env!("CARGO_BIN_EXE_membrane-contact"))
+        .args(["solve", "--quiet"])
+        .arg(dir.path().join("case.toml"))
+        .arg("-o")
+        .arg(dir.path().join("out")));
+    assert!(
+        solved.status.success(),
+        "{}",
+        String::from_utf8_lossy(&solved.stderr)
+    );
+}
+
 #[test]
 fn tables_per_group_name_the_group_that_does_not_fit() {
     let good_g = "{ clamped = 0.05, rim = \"0.05 + y*(1 - y)\" }";

@@ -110,6 +110,14 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>, Tags), Fi
     // Names alone (meshio writes $PhysicalNames without the elements' tags) are groups no
     // element carries, which a table naming one is told.
     let has_groups = triangle_tag.iter().any(Option::is_some) || !lines.is_empty() || !names.is_empty();
+    // A partitioned file's elements lie on the partitions' entities, whose physical tags are in
+    // $PartitionedEntities, which is not read: tables are refused saying so (they were told that
+    // no element carries the group).
+    let partitioned = bytes.windows(20).any(|w| w == b"$PartitionedEntities");
+    let ambiguous = match partitioned {
+        false => ambiguous,
+        true => [(); 2].map(|_| Some(PARTITIONED.to_string())),
+    };
     let groups = has_groups.then(|| RawGroups {
         ambiguous,
         ..raw_groups(&names, &triangle_tag, &lines, |tag| index.get(&tag).copied())
@@ -121,6 +129,11 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>, Tags), Fi
     };
     Ok(((points, triangles), groups, tags))
 }
+
+/// Why a partitioned file's groups take no data.
+const PARTITIONED: &str = "the file is partitioned (gmsh.model.mesh.partition): its physical \
+    groups are on the partitions' entities ($PartitionedEntities), which are not read; for data per \
+    group save the mesh unpartitioned";
 
 /// The elements of a file that make the mesh and its groups.
 struct Elements {
