@@ -153,7 +153,9 @@ impl Staging {
     /// `e` as the user sees it: the files named in the result's place, not the temporary's.
     pub fn named(&self, e: OutputError) -> OutputError {
         let temporary = self.temporary.display().to_string();
-        OutputError(e.0.replace(&temporary, &self.target.display().to_string()))
+        // The target as its components give it: `out/` names its files `out/a`, not `out//a`.
+        let target: PathBuf = self.target.components().collect();
+        OutputError(e.0.replace(&temporary, &target.display().to_string()))
     }
 
     /// The final place of the result.

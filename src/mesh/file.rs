@@ -158,7 +158,8 @@ fn dtd_end(text: &str, mut i: usize) -> Result<usize, String> {
     let (mut quote, mut brackets) = (None, 0usize);
     i += 2;
     while i < b.len() {
-        if quote.is_none() {
+        // At a '<' (a character boundary: the text is UTF-8 and the DTD may name elements é).
+        if quote.is_none() && b[i] == b'<' {
             if let Some(end) = skipped(text, i)? {
                 i = end;
                 continue;
@@ -935,6 +936,10 @@ mod tests {
         // is refused.
         let dtd = "<!DOCTYPE X [<!-- don't [ --><?note it's [?><!ENTITY h \"m.h5\">]>";
         assert_eq!(xml_depth(&format!("{dtd}<X><D/></X>")), Ok(1));
+        // Letters beyond ASCII in the DTD (it sliced the text inside one: a panic).
+        for dtd in ["<!DOCTYPE Xé>", "<!DOCTYPE X [<!ELEMENT é ANY>]>"] {
+            assert_eq!(xml_depth(&format!("{dtd}<X><D/></X>")), Ok(1), "{dtd}");
+        }
         let e = parse_xml(&format!("{dtd}{deep}")).unwrap_err();
         assert!(e.contains("its elements nest 30001 deep"), "{e}");
         for open in ["<X><!-- ", "<X a='>", "<!DOCTYPE X [", "<X><![CDATA[", "<X><?p"] {
