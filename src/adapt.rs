@@ -132,9 +132,8 @@ fn write_adapted(case: &Case, settings: &Adaptivity, dual: bool, root: &Path) ->
     let last = adaptive.last().map_or(0, |s| s.vertices);
     crate::progress::phase(|| "uniform refinement, for comparison".into());
     let uniform = uniform(case, (2 * last).min(settings.max_vertices))?;
-    let dir = root;
     crate::progress::phase(|| "writing adapt.xdmf, the tables and the plot".into());
-    result::time_series(&dir.join("adapt.xdmf"), &grids).map_err(OutputError)?;
+    result::time_series(&root.join("adapt.xdmf"), &grids).map_err(OutputError)?;
     let stopped = stopped(settings, &adaptive);
     let adapted = Adapted {
         case: case.origin.clone(),
@@ -143,12 +142,12 @@ fn write_adapted(case: &Case, settings: &Adaptivity, dual: bool, root: &Path) ->
         uniform,
         stopped,
     };
-    write_text(&dir.join("adapt.csv"), &csv(&adapted))?;
+    write_text(&root.join("adapt.csv"), &csv(&adapted))?;
     let json = serde_json::to_string_pretty(&adapted).expect("steps serialise");
-    write_text(&dir.join("adapt.json"), &json)?;
-    let plotted = plot(&dir.join("adapt.png"), settings, &adapted)?;
+    write_text(&root.join("adapt.json"), &json)?;
+    let plotted = plot(&root.join("adapt.png"), settings, &adapted)?;
     write_text(
-        &dir.join("adapt.md"),
+        &root.join("adapt.md"),
         &markdown(case, settings, &adapted, plotted),
     )?;
     Ok(adapted)

@@ -83,7 +83,12 @@ fn pool(threads: Option<usize>) -> PyResult<rayon::ThreadPool> {
             membrane_contact::parallel::MAX_THREADS
         )));
     }
-    (rayon::ThreadPoolBuilder::new().num_threads(t).build())
+    built(t, &from)
+}
+
+/// A pool of `threads` threads (0: rayon's default), `from` naming them in an error.
+fn built(threads: usize, from: &str) -> PyResult<rayon::ThreadPool> {
+    (rayon::ThreadPoolBuilder::new().num_threads(threads).build())
         .map_err(|e| SolverError::new_err(format!("{from}: {e}")))
 }
 
@@ -91,12 +96,11 @@ fn pool(threads: Option<usize>) -> PyResult<rayon::ThreadPool> {
 /// says (which the runs check), so that a result is written and read in any environment.
 fn io_pool() -> PyResult<rayon::ThreadPool> {
     let cores = std::thread::available_parallelism().map_or(1, usize::from);
-    (rayon::ThreadPoolBuilder::new().num_threads(cores).build())
-        .map_err(|e| SolverError::new_err(format!("cannot start threads: {e}")))
+    built(cores, "one thread per core")
 }
 
-/// Runs `work` on a thread of its own (its parallel parts in `pool`), the GIL released, checking for Ctrl-C meanwhile when called from the main thread (only
-/// it receives signals). Another thread waits without the GIL until the run ends: one that took
+/// Runs `work` on a thread of its own (its parallel parts in `pool`), the GIL released, checking
+/// for Ctrl-C meanwhile when called from the main thread (only it receives signals). Another thread waits without the GIL until the run ends: one that took
 /// it back every few milliseconds while the interpreter exits is ended by the interpreter
 /// (`pthread_exit`), and unwinding through the extension aborts the process.
 fn wait<T: Send + 'static>(

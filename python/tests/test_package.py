@@ -525,7 +525,6 @@ def test_the_summary_is_the_command_lines(tmp_path):
     assert cli.splitlines()[:3] == summary.splitlines()[:3]
 
 
-
 def test_results_pickle_whole_and_read_back_with_their_groups(tmp_path):
     import copy
     import pickle

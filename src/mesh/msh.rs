@@ -113,7 +113,8 @@ pub(super) fn read(path: &Path) -> Result<(RawMesh, Option<RawGroups>, Tags), Fi
     // A partitioned file's elements lie on the partitions' entities, whose physical tags are in
     // $PartitionedEntities, which is not read: tables are refused saying so (they were told that
     // no element carries the group).
-    let partitioned = bytes.windows(20).any(|w| w == b"$PartitionedEntities");
+    let marker = b"$PartitionedEntities";
+    let partitioned = has_groups && bytes.windows(marker.len()).any(|w| w == marker);
     let ambiguous = match partitioned {
         false => ambiguous,
         true => [(); 2].map(|_| Some(PARTITIONED.to_string())),
