@@ -110,10 +110,14 @@ impl Staging {
         if parent.exists() && !parent.is_dir() {
             return Err(err(format!("{} is not a directory", parent.display())));
         }
-        let made: Vec<PathBuf> = (parent.ancestors())
+        let mut made: Vec<PathBuf> = (parent.ancestors())
             .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
+            // `a/..` is no directory made here (and cannot be removed, which would keep `a`);
+            // `a/.` is `a` once.
+            .filter(|a| a.file_name().is_some())
             .map(Path::to_path_buf)
             .collect();
+        made.dedup_by(|a, b| a.components().eq(b.components()));
         std::fs::create_dir_all(&parent).map_err(|e| {
             err(format!(
                 "cannot make the directory {} that should hold the result: {e}",
@@ -636,6 +640,10 @@ mod tests {
         // A result not committed leaves no directory made for it.
         drop(Staging::new(&dir.path().join("a").join("b").join("out"), &[], "solution").unwrap());
         assert!(!dir.path().join("a").exists());
+        // Nor through `..` and `.` (`c` was left behind: `c/..` cannot be removed).
+        let odd = dir.path().join("c/../d/./e/out");
+        drop(Staging::new(&odd, &[], "solution").unwrap());
+        assert!(!dir.path().join("c").exists() && !dir.path().join("d").exists());
         let file = dir.path().join("afile");
         std::fs::write(&file, "a file").unwrap();
         let e = Staging::new(&file.join("sub").join("out"), &[], "solution").unwrap_err();
