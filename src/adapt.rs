@@ -199,7 +199,7 @@ fn check_memory(case: &Case, settings: &Adaptivity) -> Result<(), RunError> {
 }
 
 /// Why the adaptive loop that made `steps` with `settings` stopped.
-fn stopped(settings: &Adaptivity, steps: &[Step]) -> String {
+pub fn stopped(settings: &Adaptivity, steps: &[Step]) -> String {
     let (first, last) = (&steps[0], &steps[steps.len() - 1]);
     match settings.target {
         Some(t) if last.estimator <= t => {

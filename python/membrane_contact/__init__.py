@@ -472,11 +472,12 @@ def adapt(
     effectivity), mismatch, iterations, seconds; bound: whether η is a guaranteed bound at
     that step — False where the case's rule does not resolve the loads or the boundary data admit
     no solution, as the step's summary() says; mismatch: where the case's exact solution misses
-    its boundary data on ∂ω_h most, a dict {relative, at, at_vertex}, else None) and the
-    `Result` of each step.
+    its boundary data on ∂ω_h most, a dict {relative, at, at_vertex}, else None; stopped: on the
+    last step, why the loop stopped — the target, the step count or the vertex budget, as
+    `adapt.md` says —, None on the others) and the `Result` of each step.
     """
     (source, origin), (points, triangles, groups) = _case(case), _mesh(mesh)
-    steps_json, parts = _core.adapt(
+    steps_json, parts, stopped = _core.adapt(
         source,
         origin,
         points,
@@ -491,7 +492,11 @@ def adapt(
         dual=dual,
         threads=_count("threads", threads, least=1),
     )
-    return json.loads(steps_json), [Result(p) for p in parts]
+    table = json.loads(steps_json)
+    for row in table:
+        row["stopped"] = None
+    table[-1]["stopped"] = stopped
+    return table, [Result(p) for p in parts]
 
 
 def read(directory):

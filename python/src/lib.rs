@@ -550,7 +550,7 @@ fn run_study(
     Ok(series)
 }
 
-/// The adaptive loop: its steps as JSON and the `Parts` of each step.
+/// The adaptive loop: its steps as JSON, the `Parts` of each step and why it stopped.
 #[pyfunction]
 #[pyo3(signature = (case, origin, points=None, triangles=None, groups=None, *, n=None, refine=None, theta=None,
     target=None, max_vertices=None, steps=None, dual=false, threads=None))]
@@ -571,7 +571,7 @@ fn run_adapt(
     steps: Option<usize>,
     dual: bool,
     threads: Option<usize>,
-) -> PyResult<(String, Vec<PyParts>)> {
+) -> PyResult<(String, Vec<PyParts>, String)> {
     let (source, mesh) = inputs(case, origin, points, triangles, groups)?;
     wait(py, pool(threads)?, move || {
         let mut case = source.case(mesh)?;
@@ -590,7 +590,7 @@ fn run_adapt(
             Ok(())
         })?;
         let json = serde_json::to_string(&steps).expect("steps serialise");
-        Ok((json, parts))
+        Ok((json, parts, adapt::stopped(&settings, &steps)))
     })
 }
 

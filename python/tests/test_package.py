@@ -340,6 +340,10 @@ def test_adapt_returns_its_steps():
     assert len(table) == len(results) == 3
     assert [len(r.points) for r in results] == [row["vertices"] for row in table]
     assert table[-1]["vertices"] > table[0]["vertices"]
+    # Why it stopped, as adapt.md says it (the loop ran to its step count here).
+    assert [row["stopped"] for row in table] == [None, None, "the step count, 2"]
+    table, _ = mc.adapt(CASES / "default.toml", n=8, target=1.0)
+    assert len(table) == 1 and table[0]["stopped"].startswith("η = ") and "≤ the target 1e0" in table[0]["stopped"]
 
 
 def test_adapt_with_dual_holds_s_h_as_the_command_line_writes_it(tmp_path):
