@@ -98,7 +98,7 @@ impl Datum {
         let group_error = |why: String| DataError::Group { name, why };
         let groups = mesh.groups().ok_or_else(|| {
             group_error(
-                "a table per physical group needs a mesh with physical groups (a Gmsh .msh file, an .xdmf file with dolfinx meshtags, or a result of this program read back; an .xdmf file's cell data, as meshio writes them, are not read as groups); this mesh has none"
+                "a table per physical group needs a mesh with physical groups (a Gmsh .msh file, an .xdmf file with dolfinx meshtags or with meshio's cell data gmsh:physical (or one cell attribute of whole numbers), or a result of this program read back); this mesh has none"
                     .into(),
             )
         })?;

@@ -623,3 +623,139 @@ fn dolfinx_meshtags_are_groups_named_by_their_tags() {
         assert!(e.to_string().contains(message), "{e}");
     }
 }
+
+/// Writes `mesh` as meshio writes a mesh of several cell blocks read from a Gmsh file (`meshio
+/// convert two_regions.msh mesh.xdmf`): one `Mixed` topology of its boundary lines, a vertex and
+/// its triangles, on points with an unused one first (the centre of a circle arc, which meshio
+/// keeps), and the cell attributes `attributes` (name, values over all cells: lines, vertex,
+/// triangles); with `mixed` false a `Triangle` topology of the triangles alone.
+fn write_meshio_xdmf(
+    dir: &Path,
+    mesh: &Mesh,
+    mixed: bool,
+    attributes: &[(&str, Vec<f64>)],
+) -> std::path::PathBuf {
+    let f = hdf5::File::create(dir.join("mesh.h5")).unwrap();
+    let mut points = vec![[9.0, 9.0]];
+    points.extend(&mesh.points);
+    let geometry = ndarray::Array2::from_shape_fn((points.len(), 2), |(i, k)| points[i][k]);
+    f.new_dataset_builder()
+        .with_data(&geometry)
+        .create("data0")
+        .unwrap();
+    let cells: Vec<[i64; 3]> = mesh.triangles().map(|t| t.map(|v| v as i64 + 1)).collect();
+    let stream: Vec<i64> = (mesh.boundary_edges().into_iter())
+        .flat_map(|(a, b)| [2, 2, a as i64 + 1, b as i64 + 1])
+        .chain([1, 1, 1])
+        .chain(cells.iter().flat_map(|t| [4, t[0], t[1], t[2]]))
+        .collect();
+    let (topology, dimensions) = match mixed {
+        true => {
+            f.new_dataset_builder()
+                .with_data(&ndarray::Array1::from(stream.clone()))
+                .create("data1")
+                .unwrap();
+            ("TopologyType=\"Mixed\"".to_string(), stream.len().to_string())
+        }
+        false => {
+            let a = ndarray::Array2::from_shape_fn((cells.len(), 3), |(i, k)| cells[i][k]);
+            f.new_dataset_builder().with_data(&a).create("data1").unwrap();
+            (
+                "TopologyType=\"Triangle\" NodesPerElement=\"3\"".to_string(),
+                format!("{} 3", cells.len()),
+            )
+        }
+    };
+    let mut xml = String::new();
+    for (k, (name, values)) in attributes.iter().enumerate() {
+        let data = format!("data{}", k + 2);
+        f.new_dataset_builder()
+            .with_data(&ndarray::Array1::from(values.clone()))
+            .create(data.as_str())
+            .unwrap();
+        xml += &format!(
+            r#"<Attribute Name="{name}" AttributeType="Scalar" Center="Cell"><DataItem DataType="Int" Dimensions="{}" Format="HDF" Precision="8">mesh.h5:/{data}</DataItem></Attribute>"#,
+            values.len()
+        );
+    }
+    let xdmf = format!(
+        r#"<Xdmf Version="3.0"><Domain><Grid Name="Grid"><Geometry GeometryType="XY"><DataItem DataType="Float" Dimensions="{} 2" Format="HDF" Precision="8">mesh.h5:/data0</DataItem></Geometry><Topology {topology}><DataItem DataType="Int" Dimensions="{dimensions}" Format="HDF" Precision="8">mesh.h5:/data1</DataItem></Topology>{xml}</Grid></Domain></Xdmf>"#,
+        points.len()
+    );
+    let path = dir.join("mesh.xdmf");
+    std::fs::write(&path, xdmf).unwrap();
+    path
+}
+
+/// meshio writes a Gmsh file's physical groups into an XDMF file as the cell data `gmsh:physical`
+/// (beside `gmsh:geometrical`), and a mesh made by hand with one cell attribute of whole numbers
+/// (`cell_data={"name_to_read": ...}`): they are groups named by their tags, as dolfinx's
+/// meshtags are (a table on such a file was refused: "this mesh has none"). A cell attribute of
+/// other numbers is a field, not groups; one of the wrong length is named.
+#[test]
+fn meshio_s_cell_data_are_groups_named_by_their_tags() {
+    let msh = two_regions();
+    let groups = msh.groups().unwrap();
+    let edges = msh.boundary_edges();
+    let physical: Vec<f64> = (edges.iter())
+        .map(|&(a, b)| [5.0, 7.0][groups.curve(a, b).unwrap()])
+        .chain([3.0])
+        .chain((0..msh.n_triangles()).map(|t| [1.0, 2.0][groups.surface(t).unwrap()]))
+        .collect();
+    let geometrical: Vec<f64> = (0..physical.len()).map(|k| k as f64).collect();
+    let read = |mixed: bool, attributes: &[(&str, Vec<f64>)]| {
+        let dir = tempfile::tempdir().unwrap();
+        file::read(&write_meshio_xdmf(dir.path(), &msh, mixed, attributes))
+    };
+    let both = [
+        ("gmsh:geometrical", geometrical.clone()),
+        ("gmsh:physical", physical.clone()),
+    ];
+    let mesh = read(true, &both).unwrap();
+    assert_eq!(mesh.points, msh.points);
+    let g = mesh.groups().expect("groups from gmsh:physical");
+    assert_eq!(
+        (g.surfaces.clone(), g.curves.clone()),
+        (
+            vec!["1".to_string(), "2".into()],
+            vec!["5".to_string(), "7".into()]
+        )
+    );
+    for t in 0..mesh.n_triangles() {
+        assert_eq!(g.surface(t) == Some(0), centroid(&mesh, t)[0] < 1.0);
+    }
+    for (a, b) in mesh.boundary_edges() {
+        let rim = mesh.points[a][0] == 2.0 && mesh.points[b][0] == 2.0;
+        assert_eq!(g.curves[g.curve(a, b).unwrap()] == "7", rim);
+    }
+    let by_tag = loads(&mesh, table(&[("1", "-20"), ("2", "3*x")]), 4);
+    assert_eq!(
+        by_tag,
+        loads(&msh, table(&[("loaded", "-20"), ("free", "3*x")]), 4)
+    );
+    // The only cell attribute of a Triangle topology, whatever its name: surfaces alone.
+    let surfaces = physical[edges.len() + 1..].to_vec();
+    let mesh = read(false, &[("name_to_read", surfaces.clone())]).unwrap();
+    let g = mesh.groups().expect("groups from the only cell attribute");
+    assert_eq!(
+        (g.surfaces.clone(), g.curves.len()),
+        (vec!["1".to_string(), "2".into()], 0)
+    );
+    assert_eq!(loads(&mesh, table(&[("1", "-20"), ("2", "3*x")]), 4), by_tag);
+    // A field of the cells, or two attributes neither of which is gmsh:physical: no groups.
+    let field: Vec<f64> = surfaces.iter().map(|v| v + 0.5).collect();
+    assert!(read(false, &[("pressure", field)]).unwrap().groups().is_none());
+    let two = [("a", surfaces.clone()), ("b", surfaces.clone())];
+    assert!(read(false, &two).unwrap().groups().is_none());
+    let e = read(true, &[("gmsh:physical", surfaces)])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains(&format!(
+            "cell attribute 'gmsh:physical' (/data2) has {} values for {} cells",
+            msh.n_triangles(),
+            physical.len()
+        )),
+        "{e}"
+    );
+}

@@ -358,21 +358,114 @@ fn read_xdmf(path: &Path) -> Result<(RawMesh, Vec<MeshTags>, String), FileError>
     let tags = others
         .filter_map(|g| meshtags(path, g).transpose())
         .collect::<Result<Vec<_>, _>>()?;
-    let ((points, triangles), topology) = xdmf_grid(path, grid)?;
+    let (points, cells, topology) = xdmf_grid(path, grid)?;
     // Meshtags number the points as the file does: with them every point must be used.
-    let raw = match tags.is_empty() {
-        true => used_points(points, triangles),
-        false => (points, triangles),
+    if !tags.is_empty() {
+        return Ok(((points, cells.triangles), tags, topology));
+    }
+    let kept = kept_points(points.len(), &cells.triangles);
+    let tags = match topology == RESULT_TOPOLOGY {
+        // A result's groups are in its HDF5 file (`read_h5_groups`).
+        true => Vec::new(),
+        false => cell_data_tags(path, grid, &cells, &kept)?,
     };
-    Ok((raw, tags, topology))
+    Ok((renumbered(points, cells.triangles, &kept), tags, topology))
+}
+
+/// The cells of an XDMF topology that groups are made of: its triangles and its lines of two
+/// vertices, each with its place among all the topology's cells, which a cell attribute follows
+/// (a `Mixed` topology's points and longer lines have values too).
+struct Cells {
+    triangles: Vec<[usize; 3]>,
+    /// The place of each triangle among the cells.
+    triangle_at: Vec<usize>,
+    lines: Vec<[usize; 2]>,
+    line_at: Vec<usize>,
+    /// The cells of every kind.
+    count: usize,
+}
+
+impl Cells {
+    /// The cells of a `Triangle` topology.
+    fn triangles(triangles: Vec<[usize; 3]>) -> Cells {
+        Cells {
+            triangle_at: (0..triangles.len()).collect(),
+            count: triangles.len(),
+            triangles,
+            lines: Vec::new(),
+            line_at: Vec::new(),
+        }
+    }
+}
+
+/// The groups that meshio writes as cell data (`meshio convert mesh.msh mesh.xdmf`, or a mesh
+/// made by hand with `cell_data={"name_to_read": [...]}`): the grid's cell attribute
+/// `gmsh:physical`, or its only cell attribute, where its values are whole numbers, as meshtags of
+/// the triangles and of the lines of `cells` on the points `kept` (none otherwise: a field of the
+/// cells is no group). Named by their tags, as dolfinx's meshtags are.
+fn cell_data_tags(
+    path: &Path,
+    grid: roxmltree::Node,
+    cells: &Cells,
+    kept: &[usize],
+) -> Result<Vec<MeshTags>, FileError> {
+    let attributes: Vec<roxmltree::Node> = (grid.children())
+        .filter(|c| c.has_tag_name("Attribute") && c.attribute("Center") == Some("Cell"))
+        .collect();
+    let physical = attributes
+        .iter()
+        .find(|a| a.attribute("Name") == Some("gmsh:physical"));
+    let Some(&attribute) = physical.or(match &attributes[..] {
+        [one] => Some(one),
+        _ => None,
+    }) else {
+        return Ok(Vec::new());
+    };
+    let name = attribute.attribute("Name").unwrap_or("?").to_string();
+    let item = heavy(path, attribute)?;
+    let values = read_column(&item.file, &item.dataset)?;
+    if values.len() != cells.count {
+        return Err(FileError(format!(
+            "{}: cell attribute '{name}' ({}) has {} values for {} cells",
+            path.display(),
+            item.dataset,
+            values.len(),
+            cells.count
+        )));
+    }
+    let whole = |x: f64| (x.fract() == 0.0 && x.abs() <= f64::from(i32::MAX)).then_some(x as i32);
+    let Some(values) = values.into_iter().map(whole).collect::<Option<Vec<i32>>>() else {
+        return Ok(Vec::new());
+    };
+    // A line on points no triangle uses is no edge of the mesh: left aside with the points.
+    let on_kept = |v: &[usize]| v.iter().all(|&v| kept.get(v).is_some_and(|&k| k != usize::MAX));
+    let tags = |nodes: usize, entities: Vec<&[usize]>, at: &[usize]| {
+        let (entities, values): (Vec<&[usize]>, Vec<i32>) = (entities.into_iter().zip(at))
+            .filter(|(v, _)| on_kept(v))
+            .map(|(v, &k)| (v, values[k]))
+            .unzip();
+        MeshTags {
+            name: name.clone(),
+            nodes,
+            entities: entities.into_iter().flatten().map(|&v| kept[v]).collect(),
+            values,
+        }
+    };
+    let triangles = (cells.triangles.iter()).map(|t| &t[..]).collect();
+    let lines: Vec<&[usize]> = cells.lines.iter().map(|l| &l[..]).collect();
+    let mut all = vec![tags(3, triangles, &cells.triangle_at)];
+    if !lines.is_empty() {
+        all.push(tags(2, lines, &cells.line_at));
+    }
+    Ok(all)
 }
 
 /// The dataset of T_h's triangles in a result of this program.
 const RESULT_TOPOLOGY: &str = "/mesh/topology";
 
-/// The points and triangles of the XDMF grid `grid`, checked against the sizes it declares, and
-/// the dataset of its triangles.
-fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<(RawMesh, String), FileError> {
+/// The points and cells of the XDMF grid `grid`, checked against the sizes it declares, and the
+/// dataset of its triangles.
+fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<(Vec<[f64; 2]>, Cells, String), FileError> {
     let err = |m: String| FileError(format!("{}: {m}", path.display()));
     let child = |tag: &str| {
         grid.children()
@@ -393,14 +486,12 @@ fn xdmf_grid(path: &Path, grid: roxmltree::Node) -> Result<(RawMesh, String), Fi
     geometry.holds(points.len(), 2).map_err(err)?;
     if mixed {
         // A mixed stream's Dimensions count its entries, not its cells.
-        return Ok((
-            (points, read_mixed(&topology.file, &topology.dataset)?),
-            topology.dataset,
-        ));
+        let cells = read_mixed(&topology.file, &topology.dataset)?;
+        return Ok((points, cells, topology.dataset));
     }
     let cells = read_cells(&topology.file, &topology.dataset)?;
     topology.holds(cells.len(), 3).map_err(err)?;
-    Ok(((points, cells), topology.dataset))
+    Ok((points, Cells::triangles(cells), topology.dataset))
 }
 
 impl Heavy {
@@ -422,22 +513,36 @@ impl Heavy {
 /// no triangle uses (a mixed topology's points and lines, the centre of a circle that meshio
 /// keeps) are left aside, as the .msh reader leaves unused nodes.
 fn used_points(points: Vec<[f64; 2]>, triangles: Vec<[usize; 3]>) -> RawMesh {
-    let mut index = vec![usize::MAX; points.len()];
+    let kept = kept_points(points.len(), &triangles);
+    renumbered(points, triangles, &kept)
+}
+
+/// The new number of each of `n` points once those no triangle uses are left aside (`usize::MAX`
+/// for those).
+fn kept_points(n: usize, triangles: &[[usize; 3]]) -> Vec<usize> {
+    let mut index = vec![usize::MAX; n];
     for &v in triangles.iter().flatten() {
         if let Some(i) = index.get_mut(v) {
             *i = 0;
         }
     }
-    let mut kept = Vec::new();
-    for (v, i) in index.iter_mut().enumerate().filter(|(_, i)| **i == 0) {
-        *i = kept.len();
-        kept.push(points[v]);
+    for (next, i) in index.iter_mut().filter(|i| **i == 0).enumerate() {
+        *i = next;
     }
-    // An index beyond the points stays as it is (beyond them still), for the mesh's check to name.
-    let renumbered = (triangles.into_iter())
-        .map(|t| t.map(|v| index.get(v).copied().unwrap_or(v)))
+    index
+}
+
+/// The points `kept` (their new numbers) and the triangles on them.
+fn renumbered(points: Vec<[f64; 2]>, triangles: Vec<[usize; 3]>, kept: &[usize]) -> RawMesh {
+    let points = (points.into_iter().zip(kept))
+        .filter(|(_, &k)| k != usize::MAX)
+        .map(|(p, _)| p)
         .collect();
-    (kept, renumbered)
+    // An index beyond the points stays as it is (beyond them still), for the mesh's check to name.
+    let triangles = (triangles.into_iter())
+        .map(|t| t.map(|v| kept.get(v).copied().unwrap_or(v)))
+        .collect();
+    (points, triangles)
 }
 
 /// The meshtags of the XDMF grid `grid` (a topology on another grid's geometry), if it tags
@@ -848,11 +953,11 @@ fn read_cells(path: &Path, dataset: &str) -> Result<Vec<[usize; 3]>, FileError> 
         .collect()
 }
 
-/// The triangles of a `Mixed` topology (meshio writes one wherever a mesh has several cell blocks,
+/// The cells of a `Mixed` topology (meshio writes one wherever a mesh has several cell blocks,
 /// as a Gmsh file of several surfaces has): each cell its XDMF type code, then its vertices —
-/// triangles (4) kept, polyvertices (1) and polylines (2), each with its count of vertices first,
-/// left aside as the .msh reader leaves points and lines; any other type refused.
-fn read_mixed(path: &Path, dataset: &str) -> Result<Vec<[usize; 3]>, FileError> {
+/// triangles (4) and polylines of two vertices (2, their count first) kept, polyvertices (1) and
+/// longer polylines counted; any other type refused.
+fn read_mixed(path: &Path, dataset: &str) -> Result<Cells, FileError> {
     let err = |m: String| FileError(format!("{}:{dataset}: {m}", path.display()));
     let stream = read_column(path, dataset)?;
     let index = |k: usize| {
@@ -861,11 +966,22 @@ fn read_mixed(path: &Path, dataset: &str) -> Result<Vec<[usize; 3]>, FileError> 
             .ok_or_else(|| err("the mixed topology ends within a cell".into()))?;
         vertex_index(x).ok_or_else(|| err(format!("entry {k} is {x}: need a whole number from 0")))
     };
-    let (mut triangles, mut k) = (Vec::new(), 0);
+    let mut cells = Cells::triangles(Vec::new());
+    let mut k = 0;
     while k < stream.len() {
+        let at = cells.count;
+        cells.count += 1;
         match index(k)? {
             4 => {
-                triangles.push([index(k + 1)?, index(k + 2)?, index(k + 3)?]);
+                cells
+                    .triangles
+                    .push([index(k + 1)?, index(k + 2)?, index(k + 3)?]);
+                cells.triangle_at.push(at);
+                k += 4;
+            }
+            2 if index(k + 1)? == 2 => {
+                cells.lines.push([index(k + 2)?, index(k + 3)?]);
+                cells.line_at.push(at);
                 k += 4;
             }
             1 | 2 => {
@@ -882,7 +998,7 @@ fn read_mixed(path: &Path, dataset: &str) -> Result<Vec<[usize; 3]>, FileError> 
             }
         }
     }
-    Ok(triangles)
+    Ok(cells)
 }
 
 /// A vertex index read as a number: a whole number from 0 (below 9e15, exact in f64).
