@@ -15,7 +15,7 @@
 use crate::assembly::{self, Quadrature, Stiffness};
 use crate::datum::{self, Datum, On};
 use crate::expr::Expr;
-use crate::mesh::{Mesh, Point};
+use crate::mesh::{Mesh, Number, Point};
 use std::fmt;
 
 /// The data of problem (1.1), or of the obstacle problem: membrane 1's tension, load and boundary
@@ -244,9 +244,11 @@ impl fmt::Display for DataError {
                 value,
             } => write!(
                 f,
-                "g = {g} < {lower} = {value} at the boundary vertex {}: (3.4) takes g_h, the \
+                "g = {} < {lower} = {} at the boundary vertex {}: (3.4) takes g_h, the \
                  interpolant of g, which must be ≥ {lower} at every boundary vertex of the mesh \
                  ({})",
+                Number(*g),
+                Number(*value),
                 Point(*point),
                 match *lower {
                     "psi" => "the membrane may not lie below the obstacle",
