@@ -376,7 +376,7 @@ impl Run<'_> {
             }
         }
         if let Some(e) = &self.estimate {
-            out += &e.summary(self.effectivity());
+            out += &e.summary(self.errors.as_ref().and_then(|e| e.resolved_energy()));
         }
         if let Some(f) = &self.flux {
             out += &f.summary();
