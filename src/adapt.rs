@@ -48,6 +48,9 @@ pub struct Step {
     pub round_off: bool,
     /// Where the exact solution misses the boundary data on ∂ω_h (a curved ω) most, relative.
     pub mismatch: Option<crate::norms::Mismatch>,
+    /// What the exact solution misses of its equations, in words, where it misses them at too
+    /// many points: its errors are then not this problem's ([`crate::norms::Unsolved`]).
+    pub unsolved: Option<String>,
     /// Active-set iterations.
     pub iterations: usize,
     /// Seconds of refinement, assembly, solve and estimate.
@@ -67,6 +70,7 @@ impl Step {
             effectivity: r.effectivity(),
             round_off: r.at_round_off(),
             mismatch: r.errors.as_ref().and_then(|e| e.boundary),
+            unsolved: (r.errors.as_ref()).and_then(|e| Some(e.unsolved?.describe(e.rigid))),
             iterations: r.solution.obstacle.stats.iterations,
             seconds,
         }
@@ -352,13 +356,17 @@ fn progress(steps: &[Step]) {
     let s = steps.last().expect("a step");
     crate::progress::suspend(|| {
         crate::progress::print(&format!(
-            "step {:3}  N = {:8}  η = {:.4e}{}{}  iterations {}  marked {}  {:.2} s\n",
+            "step {:3}  N = {:8}  η = {:.4e}{}{}{}  iterations {}  marked {}  {:.2} s\n",
             steps.len() - 1,
             s.vertices,
             s.estimator,
             if s.bound { "" } else { " (NOT a bound)" },
             (s.error.zip(s.effectivity))
                 .map_or(String::new(), |(e, x)| format!("  error {e:.4e}  η/error {x:.3}")),
+            match s.unsolved {
+                Some(_) => " ([exact] is no solution of this case: adapt.md)",
+                None => "",
+            },
             s.iterations,
             s.marked.map_or("—".into(), |m| m.to_string()),
             s.seconds
@@ -456,6 +464,17 @@ fn markdown(case: &Case, settings: &Adaptivity, a: &Adapted, plotted: bool) -> S
     {
         s += &note;
     }
+    let unsolved: Vec<(usize, &str)> = (a.adaptive.iter().enumerate())
+        .filter_map(|(k, st)| Some((k, st.unsolved.as_deref()?)))
+        .collect();
+    if let Some((k, why)) = unsolved.first() {
+        let _ = writeln!(
+            s,
+            "**At {} of the {} adaptive steps (first at step {k}), [exact] {why}.**\n",
+            unsolved.len(),
+            a.adaptive.len()
+        );
+    }
     s += match plotted {
         true => "![η and error against N](adapt.png)\n\n",
         false => "No plot: no η or error above round-off (nothing to show on a log axis).\n\n",
@@ -544,6 +563,7 @@ mod tests {
                     effectivity: Some(3.0 * (vertices as f64).powf(0.1)),
                     round_off: false,
                     mismatch: None,
+                    unsolved: None,
                     iterations: 1,
                     seconds: 0.0,
                 }

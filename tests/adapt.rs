@@ -308,6 +308,36 @@ fn adapt_says_at_which_steps_eta_is_not_a_bound() {
     assert!(read("adapt.json").contains("\"bound\": false"));
 }
 
+/// An [exact] that does not solve its case (Δu off by a factor of 2): adapt says so at each step,
+/// in adapt.md and adapt.json, as solve and study do (its η/error of 0.1 looked like the
+/// estimator failing).
+#[test]
+fn adapt_says_when_exact_is_no_solution_of_the_case() {
+    let text = "problem = \"obstacle\"\nmu = 1.0\nf = \"pi^2*sin(pi*x)*sin(pi*y)\"\npsi = \"-1\"\ng = 0\n\
+                [exact]\nu = \"sin(pi*x)*sin(pi*y)\"\nlambda = \"0\"\n\
+                grad_u = [\"pi*cos(pi*x)*sin(pi*y)\", \"pi*sin(pi*x)*cos(pi*y)\"]\n\
+                [mesh]\nkind = \"rectangle\"\nn = 8\n";
+    let dir = tempfile::tempdir().unwrap();
+    let adapted = |text: &str| {
+        let case = Case::parse(text, "wrong.toml", std::env::temp_dir()).unwrap();
+        adapt(&case, &halving(None, 2000, 1), false, &dir.path().join("adapt")).unwrap()
+    };
+    // −Δu = 2π² sin πx sin πy: f = π² sin… misses it everywhere.
+    let a = adapted(text);
+    let unsolved = a.adaptive.iter().map(|s| s.unsolved.as_deref());
+    assert!(unsolved
+        .clone()
+        .all(|u| u.is_some_and(|u| u.starts_with("does not solve −μΔu − λ = f"))));
+    let read = |name: &str| std::fs::read_to_string(dir.path().join("adapt").join(name)).unwrap();
+    assert!(
+        read("adapt.md").contains("**At 2 of the 2 adaptive steps (first at step 0), [exact] does not solve")
+    );
+    assert!(read("adapt.json").contains("\"unsolved\": \"does not solve"));
+    let right = adapted(&text.replace("f = \"pi^2", "f = \"2*pi^2"));
+    assert!(right.adaptive.iter().all(|s| s.unsolved.is_none()));
+    assert!(!read("adapt.md").contains("[exact] does not solve"));
+}
+
 /// A datum that fails only on a refined mesh (g dips below g2 = 0 around x = 0.55 on the bottom
 /// side, between the first mesh's boundary vertices) is named with the mesh it failed on, and
 /// nothing is written.

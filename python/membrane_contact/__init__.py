@@ -472,7 +472,9 @@ def adapt(
     effectivity), mismatch, iterations, seconds; bound: whether η is a guaranteed bound at
     that step — False where the case's rule does not resolve the loads or the boundary data admit
     no solution, as the step's summary() says; mismatch: where the case's exact solution misses
-    its boundary data on ∂ω_h most, a dict {relative, at, at_vertex}, else None; stopped: on the
+    its boundary data on ∂ω_h most, a dict {relative, at, at_vertex}, else None; unsolved: what
+    the exact solution misses of its equations, in words, where its errors are not this case's,
+    else None; stopped: on the
     last step, why the loop stopped — the target, the step count or the vertex budget, as
     `adapt.md` says —, None on the others) and the `Result` of each step.
     """
