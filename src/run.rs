@@ -419,11 +419,18 @@ impl Run<'_> {
             (None, LinearSolver::Direct, LinearSolver::Multigrid) => {
                 Some("not multigrid: this mesh has no coarser levels".into())
             }
-            (None, LinearSolver::Direct, _) if self.case.solver.linear == LinearSolver::Multigrid => Some(
-                "not multigrid: the coarser levels of a mesh read from a file or given, meshed from \
-                 its boundary, give the guess only"
-                    .into(),
-            ),
+            (None, LinearSolver::Direct, _) if self.case.solver.linear == LinearSolver::Multigrid => {
+                Some(match s.coarse_iterations.is_empty() {
+                    // Tables per group do not carry over to a mesh of the boundary alone.
+                    true => "not multigrid, and from a cold start: no coarser mesh of this mesh's \
+                             boundary takes these data (tables per group) or is small enough to \
+                             help; with refine = k this mesh is the coarser level"
+                        .into(),
+                    false => "not multigrid: the coarser levels of a mesh read from a file or \
+                              given, meshed from its boundary, give the guess only"
+                        .into(),
+                })
+            }
             _ => None,
         };
         if !verbose {

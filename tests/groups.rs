@@ -759,3 +759,37 @@ fn meshio_s_cell_data_are_groups_named_by_their_tags() {
         "{e}"
     );
 }
+
+/// Tables per group on a file's mesh solved as it is: no coarser mesh of its boundary takes the
+/// tables, so the solve starts cold, and the summary says that, not that the coarser levels
+/// "give the guess only" (there were none); the same load as one expression has them.
+#[test]
+fn a_cold_start_for_tables_is_said_as_such() {
+    let summary = |f1: &str| {
+        let text = format!(
+            "mu1 = 1.0\nmu2 = 1.0\nf1 = {f1}\nf2 = \"0\"\ng = \"0.05\"\n[mesh]\nkind = \"file\"\n\
+             path = \"../meshes/two_regions.msh\"\n"
+        );
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases");
+        let case = Case::parse(&text, "test case", dir).unwrap();
+        let options = membrane_contact::run::Options {
+            start: membrane_contact::contact::Start::Nested,
+            hminus1: false,
+            flux: false,
+            estimate: false,
+            dual: false,
+        };
+        let r = membrane_contact::run::run(&case, &options).unwrap();
+        (
+            r.solution.obstacle.stats.coarse_iterations.len(),
+            r.summary(false),
+        )
+    };
+    let (levels, tables) = summary("{ loaded = \"-20\", free = \"0\" }");
+    assert!(
+        levels == 0 && tables.contains("and from a cold start: no coarser mesh"),
+        "{tables}"
+    );
+    let (levels, one) = summary("\"if(x < 1, -20, 0)\"");
+    assert!(levels > 0 && one.contains("give the guess only"), "{one}");
+}
