@@ -456,8 +456,9 @@ impl Estimate {
         let at = (r.worst).map_or(String::new(), |[x, y]| format!(", most near ({x:.4}, {y:.4})"));
         format!(
             "loads       NOT resolved by the case's rule, so η is not a guaranteed bound: {change} \
-             ({share:.2} × η){at}; refine there (a load that jumps inside a triangle is resolved only by \
-             refinement along the jump), or raise [quadrature] degree for a smooth load\n"
+             ({share:.2e} of η, above the {:e} of η the check allows){at}; refine there (a load that jumps inside a triangle is resolved only by \
+             refinement along the jump), or raise [quadrature] degree for a smooth load\n",
+            resolution::RESOLVED
         )
     }
 }
