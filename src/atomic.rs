@@ -263,9 +263,17 @@ fn install_handler() {
                 _ => return,
             }
         }
+        let pending = pending();
+        if !pending.is_empty() {
+            // The run's own lines said what was done so far: what happens to it is said too.
+            eprintln!(
+                "interrupted (signal {signal}): the result being written is discarded, nothing of it \
+                 is left; an earlier result in its place is kept"
+            );
+        }
         // The writer goes on while this runs and may add a file after remove_dir_all has listed
         // the directory (its last rmdir then fails): again until it is gone.
-        for (dir, made) in pending().iter() {
+        for (dir, made) in pending.iter() {
             for _ in 0..100 {
                 if std::fs::remove_dir_all(dir).is_ok() || !dir.exists() {
                     break;

@@ -331,8 +331,8 @@ fn killed_runs_leave_the_earlier_result_or_the_new_one() {
 }
 
 /// SIGINT, SIGTERM and SIGHUP in the middle of a run: its temporary is removed, and the directories
-/// it made to hold the result, and it exits with 128 + the signal's number (130, 143, 129), as a
-/// shell reports a process the signal killed. The
+/// it made to hold the result, it says so, and it exits with 128 + the signal's number (130, 143,
+/// 129), as a shell reports a process the signal killed. The
 /// signal is sent once the run has made its temporary, which is while it writes (with S_h, to make
 /// that take a while); a run that still ends first (the test descheduled on a loaded machine)
 /// exits 0 with its result whole, and is tried again, up to 5 times.
@@ -358,7 +358,7 @@ fn signals_exit_with_128_plus_their_number() {
                 .args(["solve", "--n", "256", "--dual", "-o"])
                 .arg(dir.path().join("made/deeper/out"))
                 .stdout(Stdio::null())
-                .stderr(Stdio::null())
+                .stderr(Stdio::piped())
                 .spawn()
                 .unwrap();
             // The handler is in place once the run has made its temporary.
@@ -373,7 +373,15 @@ fn signals_exit_with_128_plus_their_number() {
                 std::thread::sleep(Duration::from_millis(1));
             }
             unsafe { libc::kill(child.id() as i32, signal) };
-            let status = child.wait().unwrap().code();
+            let output = child.wait_with_output().unwrap();
+            let status = output.status.code();
+            // Said, after the lines of what the run had done (it exited without a word).
+            let said = format!("interrupted (signal {signal}): the result being written is discarded");
+            let stderr = String::from_utf8_lossy(&output.stderr);
+            assert!(
+                status != Some(code) || stderr.lines().any(|l| l.starts_with(&said)),
+                "{stderr}"
+            );
             let expected = match status {
                 Some(0) => vec!["made".to_string()],
                 _ => Vec::new(),
