@@ -139,7 +139,8 @@ enum Command {
         #[arg(long)]
         steps: Option<usize>,
         /// Also write each step's dual submesh S_h with λ_h and the owner vertex of each cell
-        /// (dual.xdmf in each step's directory; about 430 bytes per vertex, four times the rest)
+        /// (dual.xdmf in each step's directory; about 430 bytes per vertex, twice the rest of a
+        /// step, which holds the estimator's fields)
         #[arg(long)]
         dual: bool,
         /// The result directory; default adapt/<case name>.

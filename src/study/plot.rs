@@ -284,7 +284,8 @@ pub fn errors(path: &Path, title: &str, studies: &[(String, &[Level])]) -> Resul
                 String::new()
             };
             let decades: Vec<(f64, f64)> = points.iter().map(|p| (p.0.log10(), p.1.log10())).collect();
-            let eoc = last_slope(&decades).map_or(String::new(), |s| format!("  (EOC {s:.2})"));
+            let eoc =
+                last_slope(&decades).map_or(String::new(), |s| format!("  (EOC of the finest two {s:.2})"));
             estimator |= short == "estimator";
             if guides.len() < 2 && series.len() < 8 {
                 let theory = match short {
