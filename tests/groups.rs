@@ -196,7 +196,8 @@ fn on_two_regions(body: &str) -> Case {
     Case::parse(&text, "test case", dir).unwrap()
 }
 
-fn solved(case: &Case) -> membrane_contact::contact::Solution {
+/// The run of `case` as `solve` runs it (nested iteration, nothing but the solve and λ_h).
+fn nested(case: &Case) -> membrane_contact::run::Run<'_> {
     let options = membrane_contact::run::Options {
         start: membrane_contact::contact::Start::Nested,
         hminus1: false,
@@ -204,7 +205,11 @@ fn solved(case: &Case) -> membrane_contact::contact::Solution {
         estimate: false,
         dual: false,
     };
-    membrane_contact::run::run(case, &options).unwrap().solution
+    membrane_contact::run::run(case, &options).unwrap()
+}
+
+fn solved(case: &Case) -> membrane_contact::contact::Solution {
+    nested(case).solution
 }
 
 /// An obstacle ψ per surface (two planes meeting along x = 1) and u2's boundary height g2 per
@@ -553,6 +558,19 @@ fn write_dolfinx_xdmf(dir: &Path, mesh: &Mesh, variant: Variant) -> std::path::P
     path
 }
 
+/// The groups of two_regions.msh by their tags: surface 1 left of x = 1, curve 7 the rim x = 2.
+fn assert_tagged_as_two_regions(mesh: &Mesh) {
+    let groups = mesh.groups().expect("groups");
+    for t in 0..mesh.n_triangles() {
+        let named = groups.surfaces[groups.surface(t).unwrap()] == "1";
+        assert_eq!(named, centroid(mesh, t)[0] < 1.0, "triangle {t}");
+    }
+    for (a, b) in mesh.boundary_edges() {
+        let rim = mesh.points[a][0] == 2.0 && mesh.points[b][0] == 2.0;
+        assert_eq!(groups.curves[groups.curve(a, b).unwrap()] == "7", rim);
+    }
+}
+
 /// A dolfinx XDMF file with meshtags (cells, facets, vertices) is one mesh, not a collection of
 /// three: its cell and facet tags are its groups, named by their tags, as on the .msh file; tags
 /// that are not the mesh's, or ambiguous, are refused.
@@ -580,12 +598,7 @@ fn dolfinx_meshtags_are_groups_named_by_their_tags() {
         assert_eq!(groups.surfaces, ["1", "2"]);
         // The interior edge's tag is a curve as an interior physical curve of a .msh file is.
         assert_eq!(groups.curves, ["5", "7", "9"]);
-        let named = |t: usize| groups.surfaces[groups.surface(t).unwrap()] == "1";
-        assert!((0..mesh.n_triangles()).all(|t| named(t) == (centroid(&mesh, t)[0] < 1.0)));
-        for (a, b) in mesh.boundary_edges() {
-            let rim = mesh.points[a][0] == 2.0 && mesh.points[b][0] == 2.0;
-            assert_eq!(groups.curves[groups.curve(a, b).unwrap()] == "7", rim);
-        }
+        assert_tagged_as_two_regions(&mesh);
         // The tables keyed by tags give the .msh file's loads by name.
         let by_tag = loads(&mesh, table(&[("1", "-20"), ("2", "3*x")]), 4);
         let by_name = loads(&msh, table(&[("loaded", "-20"), ("free", "3*x")]), 4);
@@ -721,13 +734,7 @@ fn meshio_s_cell_data_are_groups_named_by_their_tags() {
             vec!["5".to_string(), "7".into()]
         )
     );
-    for t in 0..mesh.n_triangles() {
-        assert_eq!(g.surface(t) == Some(0), centroid(&mesh, t)[0] < 1.0);
-    }
-    for (a, b) in mesh.boundary_edges() {
-        let rim = mesh.points[a][0] == 2.0 && mesh.points[b][0] == 2.0;
-        assert_eq!(g.curves[g.curve(a, b).unwrap()] == "7", rim);
-    }
+    assert_tagged_as_two_regions(&mesh);
     let by_tag = loads(&mesh, table(&[("1", "-20"), ("2", "3*x")]), 4);
     assert_eq!(
         by_tag,
@@ -772,14 +779,7 @@ fn a_cold_start_for_tables_is_said_as_such() {
         );
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases");
         let case = Case::parse(&text, "test case", dir).unwrap();
-        let options = membrane_contact::run::Options {
-            start: membrane_contact::contact::Start::Nested,
-            hminus1: false,
-            flux: false,
-            estimate: false,
-            dual: false,
-        };
-        let r = membrane_contact::run::run(&case, &options).unwrap();
+        let r = nested(&case);
         (
             r.solution.obstacle.stats.coarse_iterations.len(),
             r.summary(false),
