@@ -40,6 +40,31 @@ fn pending() -> MutexGuard<'static, Vec<Pending>> {
     PENDING.lock().unwrap_or_else(|e| e.into_inner())
 }
 
+/// The directories `create_dir_all(parent)` will make, innermost first. Through `..` after one of
+/// them the path is followed by its components (a directory made here is no link): `new/../keep`
+/// makes `new` alone, whether `keep` exists or not (`keep` was taken for made, and removed if
+/// empty, where `new` did not exist).
+fn to_be_made(parent: &Path) -> Vec<PathBuf> {
+    use std::path::Component;
+    let (mut path, mut made) = (PathBuf::new(), Vec::<PathBuf>::new());
+    for component in parent.components() {
+        match component {
+            Component::CurDir => {}
+            Component::ParentDir if made.last() == Some(&path) => {
+                path.pop();
+            }
+            other => {
+                path.push(other);
+                if !matches!(other, Component::ParentDir) && !path.exists() && !made.contains(&path) {
+                    made.push(path.clone());
+                }
+            }
+        }
+    }
+    made.reverse();
+    made
+}
+
 /// Removes the directories `made` for a result, innermost first, each only while empty: one that
 /// something else has written into since stays, with those above it.
 fn remove_made(made: &[PathBuf]) {
@@ -110,14 +135,7 @@ impl Staging {
         if parent.exists() && !parent.is_dir() {
             return Err(err(format!("{} is not a directory", parent.display())));
         }
-        let mut made: Vec<PathBuf> = (parent.ancestors())
-            .take_while(|a| !a.as_os_str().is_empty() && !a.exists())
-            // `a/..` is no directory made here (and cannot be removed, which would keep `a`);
-            // `a/.` is `a` once.
-            .filter(|a| a.file_name().is_some())
-            .map(Path::to_path_buf)
-            .collect();
-        made.dedup_by(|a, b| a.components().eq(b.components()));
+        let made = to_be_made(&parent);
         std::fs::create_dir_all(&parent).map_err(|e| {
             err(format!(
                 "cannot make the directory {} that should hold the result: {e}",
@@ -245,6 +263,19 @@ extern "C" fn on_signal(signal: libc::c_int) {
 /// On SIGINT, SIGTERM or SIGHUP, removes the temporaries of [`PENDING`] and exits with 128 + the
 /// signal's number. A signal ignored when the process started (`nohup`) stays ignored; without a
 /// pipe, signals keep their default effect. SIGXFSZ is ignored.
+/// Writes `text` to stderr, waiting for it at most a fifth of a second: a closed pipe is no
+/// panic, and a full one whose reader has stopped does not hold the exit.
+fn say_briefly(text: &str) {
+    use std::io::Write;
+    let (done, wait) = std::sync::mpsc::channel();
+    let text = text.to_owned();
+    std::thread::spawn(move || {
+        let _ = std::io::stderr().write_all(text.as_bytes());
+        let _ = done.send(());
+    });
+    let _ = wait.recv_timeout(std::time::Duration::from_millis(200));
+}
+
 fn install_handler() {
     let mut fds = [0; 2];
     // SAFETY: an array of two descriptors to fill.
@@ -264,13 +295,6 @@ fn install_handler() {
             }
         }
         let pending = pending();
-        if !pending.is_empty() {
-            // The run's own lines said what was done so far: what happens to it is said too.
-            eprintln!(
-                "interrupted (signal {signal}): the result being written is discarded, nothing of it \
-                 is left; an earlier result in its place is kept"
-            );
-        }
         // The writer goes on while this runs and may add a file after remove_dir_all has listed
         // the directory (its last rmdir then fails): again until it is gone.
         for (dir, made) in pending.iter() {
@@ -280,6 +304,13 @@ fn install_handler() {
                 }
             }
             remove_made(made);
+        }
+        if !pending.is_empty() {
+            // The run's own lines said what was done so far: what became of it is said too.
+            say_briefly(&format!(
+                "\ninterrupted (signal {signal}): the result being written is discarded, nothing of \
+                 it is left (an earlier result in its place is kept)\n"
+            ));
         }
         // No exit handlers: another thread may be inside the HDF5 library.
         unsafe { libc::_exit(128 + i32::from(signal)) }
@@ -648,10 +679,14 @@ mod tests {
         // A result not committed leaves no directory made for it.
         drop(Staging::new(&dir.path().join("a").join("b").join("out"), &[], "solution").unwrap());
         assert!(!dir.path().join("a").exists());
-        // Nor through `..` and `.` (`c` was left behind: `c/..` cannot be removed).
+        // Nor through `..` and `.` (`c` was left behind: `c/..` cannot be removed), and a
+        // directory that was there stays (`keep` was taken for made, and removed).
         let odd = dir.path().join("c/../d/./e/out");
         drop(Staging::new(&odd, &[], "solution").unwrap());
         assert!(!dir.path().join("c").exists() && !dir.path().join("d").exists());
+        std::fs::create_dir(dir.path().join("keep")).unwrap();
+        drop(Staging::new(&dir.path().join("new/../keep/out"), &[], "solution").unwrap());
+        assert!(dir.path().join("keep").is_dir() && !dir.path().join("new").exists());
         let file = dir.path().join("afile");
         std::fs::write(&file, "a file").unwrap();
         let e = Staging::new(&file.join("sub").join("out"), &[], "solution").unwrap_err();
