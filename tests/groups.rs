@@ -196,20 +196,9 @@ fn on_two_regions(body: &str) -> Case {
     Case::parse(&text, "test case", dir).unwrap()
 }
 
-/// The run of `case` as `solve` runs it (nested iteration, nothing but the solve and λ_h).
-fn nested(case: &Case) -> membrane_contact::run::Run<'_> {
-    let options = membrane_contact::run::Options {
-        start: membrane_contact::contact::Start::Nested,
-        hminus1: false,
-        flux: false,
-        estimate: false,
-        dual: false,
-    };
-    membrane_contact::run::run(case, &options).unwrap()
-}
-
 fn solved(case: &Case) -> membrane_contact::contact::Solution {
-    nested(case).solution
+    let options = membrane_contact::run::Options::default();
+    membrane_contact::run::run(case, &options).unwrap().solution
 }
 
 /// An obstacle ψ per surface (two planes meeting along x = 1) and u2's boundary height g2 per
@@ -640,12 +629,13 @@ fn dolfinx_meshtags_are_groups_named_by_their_tags() {
 /// Writes `mesh` as meshio writes a mesh of several cell blocks read from a Gmsh file (`meshio
 /// convert two_regions.msh mesh.xdmf`): one `Mixed` topology of its boundary lines, a vertex and
 /// its triangles, on points with an unused one first (the centre of a circle arc, which meshio
-/// keeps), and the cell attributes `attributes` (name, values over all cells: lines, vertex,
-/// triangles); with `mixed` false a `Triangle` topology of the triangles alone.
+/// keeps), the lines `extra` after the boundary's, and the cell attributes `attributes` (name,
+/// values over all cells: lines, vertex, triangles; a name `vector:…` three columns of them);
+/// with `mixed` false a `Triangle` topology of the triangles alone.
 fn write_meshio_xdmf(
     dir: &Path,
     mesh: &Mesh,
-    mixed: bool,
+    (mixed, extra): (bool, &[(usize, usize)]),
     attributes: &[(&str, Vec<f64>)],
 ) -> std::path::PathBuf {
     let f = hdf5::File::create(dir.join("mesh.h5")).unwrap();
@@ -657,7 +647,7 @@ fn write_meshio_xdmf(
         .create("data0")
         .unwrap();
     let cells: Vec<[i64; 3]> = mesh.triangles().map(|t| t.map(|v| v as i64 + 1)).collect();
-    let stream: Vec<i64> = (mesh.boundary_edges().into_iter())
+    let stream: Vec<i64> = (mesh.boundary_edges().into_iter().chain(extra.iter().copied()))
         .flat_map(|(a, b)| [2, 2, a as i64 + 1, b as i64 + 1])
         .chain([1, 1, 1])
         .chain(cells.iter().flat_map(|t| [4, t[0], t[1], t[2]]))
@@ -682,13 +672,26 @@ fn write_meshio_xdmf(
     let mut xml = String::new();
     for (k, (name, values)) in attributes.iter().enumerate() {
         let data = format!("data{}", k + 2);
-        f.new_dataset_builder()
-            .with_data(&ndarray::Array1::from(values.clone()))
-            .create(data.as_str())
-            .unwrap();
+        let (kind, dimensions) = match name.strip_prefix("vector:") {
+            Some(_) => {
+                let a = ndarray::Array2::from_shape_fn((values.len() / 3, 3), |(i, j)| values[3 * i + j]);
+                f.new_dataset_builder()
+                    .with_data(&a)
+                    .create(data.as_str())
+                    .unwrap();
+                ("Vector", format!("{} 3", values.len() / 3))
+            }
+            None => {
+                let a = ndarray::Array1::from(values.clone());
+                f.new_dataset_builder()
+                    .with_data(&a)
+                    .create(data.as_str())
+                    .unwrap();
+                ("Scalar", values.len().to_string())
+            }
+        };
         xml += &format!(
-            r#"<Attribute Name="{name}" AttributeType="Scalar" Center="Cell"><DataItem DataType="Int" Dimensions="{}" Format="HDF" Precision="8">mesh.h5:/{data}</DataItem></Attribute>"#,
-            values.len()
+            r#"<Attribute Name="{name}" AttributeType="{kind}" Center="Cell"><DataItem DataType="Int" Dimensions="{dimensions}" Format="HDF" Precision="8">mesh.h5:/{data}</DataItem></Attribute>"#
         );
     }
     let xdmf = format!(
@@ -716,10 +719,11 @@ fn meshio_s_cell_data_are_groups_named_by_their_tags() {
         .chain((0..msh.n_triangles()).map(|t| [1.0, 2.0][groups.surface(t).unwrap()]))
         .collect();
     let geometrical: Vec<f64> = (0..physical.len()).map(|k| k as f64).collect();
-    let read = |mixed: bool, attributes: &[(&str, Vec<f64>)]| {
+    let read_with = |mixed: bool, extra: &[(usize, usize)], attributes: &[(&str, Vec<f64>)]| {
         let dir = tempfile::tempdir().unwrap();
-        file::read(&write_meshio_xdmf(dir.path(), &msh, mixed, attributes))
+        file::read(&write_meshio_xdmf(dir.path(), &msh, (mixed, extra), attributes))
     };
+    let read = |mixed: bool, attributes: &[(&str, Vec<f64>)]| read_with(mixed, &[], attributes);
     let both = [
         ("gmsh:geometrical", geometrical.clone()),
         ("gmsh:physical", physical.clone()),
@@ -754,12 +758,38 @@ fn meshio_s_cell_data_are_groups_named_by_their_tags() {
     assert!(read(false, &[("pressure", field)]).unwrap().groups().is_none());
     let two = [("a", surfaces.clone()), ("b", surfaces.clone())];
     assert!(read(false, &two).unwrap().groups().is_none());
+    // A vector of whole numbers per cell is a field too (it was refused: "need one column").
+    let vectors: Vec<f64> = surfaces.iter().flat_map(|&v| [v, v, v]).collect();
+    assert!(read(false, &[("vector:grad", vectors)])
+        .unwrap()
+        .groups()
+        .is_none());
+    // A line repeated with another tag (meshio writes a curve's lines once per group of a Gmsh 2
+    // file) keeps its first; a line that is no edge of the triangles is left aside (both were
+    // refused as meshtags are: "tagged twice", "not an edge").
+    let (a, b) = edges[0];
+    let corner = |q: [f64; 2]| msh.points.iter().position(|p| *p == q).unwrap();
+    let across = (corner([0.0, 0.0]), corner([2.0, 1.0]));
+    let n = edges.len();
+    let with_extra: Vec<f64> = [&physical[..n], &[9.0, 9.0], &physical[n..]].concat();
+    let mesh = read_with(true, &[(b, a), across], &[("gmsh:physical", with_extra)]).unwrap();
+    assert_eq!(mesh.groups().unwrap().curves, ["5", "7"]);
+    assert_tagged_as_two_regions(&mesh);
+    let mut fractional = physical.clone();
+    fractional[n + 3] = 1.5;
+    let e = read(true, &[("gmsh:physical", fractional)])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("cell attribute 'gmsh:physical': the tag 1.5 is not a whole number"),
+        "{e}"
+    );
     let e = read(true, &[("gmsh:physical", surfaces)])
         .unwrap_err()
         .to_string();
     assert!(
         e.contains(&format!(
-            "cell attribute 'gmsh:physical' (/data2) has {} values for {} cells",
+            "cell attribute 'gmsh:physical': /data2 has {} values for {} cells",
             msh.n_triangles(),
             physical.len()
         )),
@@ -769,27 +799,39 @@ fn meshio_s_cell_data_are_groups_named_by_their_tags() {
 
 /// Tables per group on a file's mesh solved as it is: no coarser mesh of its boundary takes the
 /// tables, so the solve starts cold, and the summary says that, not that the coarser levels
-/// "give the guess only" (there were none); the same load as one expression has them.
+/// "give the guess only" (there were none); the same load as one expression has them. Started
+/// otherwise (cold, or from another mesh's solution as adapt's steps are), neither is said.
 #[test]
 fn a_cold_start_for_tables_is_said_as_such() {
-    let summary = |f1: &str| {
+    let summary = |f1: &str, start: membrane_contact::contact::Start| {
         let text = format!(
             "mu1 = 1.0\nmu2 = 1.0\nf1 = {f1}\nf2 = \"0\"\ng = \"0.05\"\n[mesh]\nkind = \"file\"\n\
              path = \"../meshes/two_regions.msh\"\n"
         );
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases");
         let case = Case::parse(&text, "test case", dir).unwrap();
-        let r = nested(&case);
+        let options = membrane_contact::run::Options {
+            start,
+            ..membrane_contact::run::Options::default()
+        };
+        let r = membrane_contact::run::run(&case, &options).unwrap();
         (
             r.solution.obstacle.stats.coarse_iterations.len(),
             r.summary(false),
         )
     };
-    let (levels, tables) = summary("{ loaded = \"-20\", free = \"0\" }");
+    use membrane_contact::contact::Start;
+    let tables = "{ loaded = \"-20\", free = \"0\" }";
+    let (_, cold) = summary(tables, Start::Cold);
+    assert!(
+        cold.contains("not multigrid: a mesh read from a file or given, unrefined, has no coarser levels"),
+        "{cold}"
+    );
+    let (levels, tables) = summary(tables, Start::Nested);
     assert!(
         levels == 0 && tables.contains("and from a cold start: no coarser mesh"),
         "{tables}"
     );
-    let (levels, one) = summary("\"if(x < 1, -20, 0)\"");
+    let (levels, one) = summary("\"if(x < 1, -20, 0)\"", Start::Nested);
     assert!(levels > 0 && one.contains("give the guess only"), "{one}");
 }

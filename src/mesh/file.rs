@@ -400,9 +400,11 @@ impl Cells {
 
 /// The groups that meshio writes as cell data (`meshio convert mesh.msh mesh.xdmf`, or a mesh
 /// made by hand with `cell_data={"name_to_read": [...]}`): the grid's cell attribute
-/// `gmsh:physical`, or its only cell attribute, where its values are whole numbers, as meshtags of
-/// the triangles and of the lines of `cells` on the points `kept` (none otherwise: a field of the
-/// cells is no group). Named by their tags, as dolfinx's meshtags are.
+/// `gmsh:physical`, or else its only cell attribute if it is a scalar of whole numbers, as
+/// meshtags of the triangles and of the lines of `cells` on the points `kept`; none otherwise (a
+/// field of the cells is no group). Named by their tags, as dolfinx's meshtags are. A line that
+/// is no edge of the triangles, or one repeated (meshio writes a curve's lines once per group of
+/// a Gmsh 2 file), is left aside, as the .msh reader leaves it, the first of a repeated one kept.
 fn cell_data_tags(
     path: &Path,
     grid: roxmltree::Node,
@@ -415,29 +417,14 @@ fn cell_data_tags(
     let physical = attributes
         .iter()
         .find(|a| a.attribute("Name") == Some("gmsh:physical"));
-    let Some(&attribute) = physical.or(match &attributes[..] {
-        [one] => Some(one),
+    let values = match (physical, &attributes[..]) {
+        (Some(&a), _) => Some(physical_values(path, a, cells.count)?),
+        (None, [one]) => only_attribute_values(path, *one, cells.count),
         _ => None,
-    }) else {
+    };
+    let Some((name, values)) = values else {
         return Ok(Vec::new());
     };
-    let name = attribute.attribute("Name").unwrap_or("?").to_string();
-    let item = heavy(path, attribute)?;
-    let values = read_column(&item.file, &item.dataset)?;
-    if values.len() != cells.count {
-        return Err(FileError(format!(
-            "{}: cell attribute '{name}' ({}) has {} values for {} cells",
-            path.display(),
-            item.dataset,
-            values.len(),
-            cells.count
-        )));
-    }
-    let whole = |x: f64| (x.fract() == 0.0 && x.abs() <= f64::from(i32::MAX)).then_some(x as i32);
-    let Some(values) = values.into_iter().map(whole).collect::<Option<Vec<i32>>>() else {
-        return Ok(Vec::new());
-    };
-    // A line on points no triangle uses is no edge of the mesh: left aside with the points.
     let on_kept = |v: &[usize]| v.iter().all(|&v| kept.get(v).is_some_and(|&k| k != usize::MAX));
     let tags = |nodes: usize, entities: Vec<&[usize]>, at: &[usize]| {
         let (entities, values): (Vec<&[usize]>, Vec<i32>) = (entities.into_iter().zip(at))
@@ -452,12 +439,75 @@ fn cell_data_tags(
         }
     };
     let triangles = (cells.triangles.iter()).map(|t| &t[..]).collect();
-    let lines: Vec<&[usize]> = cells.lines.iter().map(|l| &l[..]).collect();
     let mut all = vec![tags(3, triangles, &cells.triangle_at)];
+    let (lines, line_at) = edges_once(cells);
     if !lines.is_empty() {
-        all.push(tags(2, lines, &cells.line_at));
+        all.push(tags(2, lines, &line_at));
     }
     Ok(all)
+}
+
+/// The lines of `cells` that are edges of its triangles, each once (the first), with their places.
+fn edges_once(cells: &Cells) -> (Vec<&[usize]>, Vec<usize>) {
+    let sorted = |[a, b]: [usize; 2]| [a.min(b), a.max(b)];
+    let mut edges: std::collections::HashSet<[usize; 2]> = (cells.triangles.iter())
+        .flat_map(|&[a, b, c]| [[a, b], [b, c], [c, a]].map(sorted))
+        .collect();
+    (cells.lines.iter().zip(&cells.line_at))
+        .filter(|(l, _)| edges.remove(&sorted(**l)))
+        .map(|(l, &at)| (&l[..], at))
+        .unzip()
+}
+
+/// The values of the cell attribute `gmsh:physical`, checked: one whole number of 32 bits per cell.
+fn physical_values(
+    path: &Path,
+    attribute: roxmltree::Node,
+    count: usize,
+) -> Result<(String, Vec<i32>), FileError> {
+    let err = |m: String| FileError(format!("{}: cell attribute 'gmsh:physical': {m}", path.display()));
+    let item = heavy(path, attribute)?;
+    let values = read_column(&item.file, &item.dataset)?;
+    if values.len() != count {
+        return Err(err(format!(
+            "{} has {} values for {count} cells",
+            item.dataset,
+            values.len()
+        )));
+    }
+    let tags = values
+        .iter()
+        .map(|&x| whole_tag(x).ok_or(x))
+        .collect::<Result<Vec<i32>, f64>>();
+    let tags = tags.map_err(|x| {
+        err(format!(
+            "the tag {} is not a whole number of 32 bits",
+            super::Number(x)
+        ))
+    })?;
+    Ok(("gmsh:physical".into(), tags))
+}
+
+/// The values of a grid's only cell attribute if it is a scalar with one whole number of 32 bits
+/// per cell, read from HDF5; `None` for any other (a field, not groups).
+fn only_attribute_values(
+    path: &Path,
+    attribute: roxmltree::Node,
+    count: usize,
+) -> Option<(String, Vec<i32>)> {
+    let scalar = attribute
+        .attribute("AttributeType")
+        .is_none_or(|t| t.eq_ignore_ascii_case("scalar"));
+    let item = heavy(path, attribute).ok().filter(|_| scalar)?;
+    let values = read_column(&item.file, &item.dataset).ok()?;
+    let tags = values.into_iter().map(whole_tag).collect::<Option<Vec<i32>>>()?;
+    let name = attribute.attribute("Name").unwrap_or("?").to_string();
+    (tags.len() == count).then_some((name, tags))
+}
+
+/// `x` as a tag: a whole number of 32 bits.
+fn whole_tag(x: f64) -> Option<i32> {
+    (x.fract() == 0.0 && x.abs() <= f64::from(i32::MAX)).then_some(x as i32)
 }
 
 /// The dataset of T_h's triangles in a result of this program.
@@ -605,11 +655,7 @@ impl MeshTags {
                 ))
             })?;
         let values = (values.iter())
-            .map(|&x| {
-                (x.fract() == 0.0 && x.abs() <= i32::MAX as f64)
-                    .then_some(x as i32)
-                    .ok_or(x)
-            })
+            .map(|&x| whole_tag(x).ok_or(x))
             .collect::<Result<Vec<i32>, f64>>()
             .map_err(|x| {
                 err(format!(
