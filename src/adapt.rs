@@ -363,7 +363,8 @@ fn progress(steps: &[Step]) {
             if s.bound { "" } else { " (NOT a bound)" },
             (s.error.zip(s.effectivity))
                 .map_or(String::new(), |(e, x)| format!("  error {e:.4e}  η/error {x:.3}")),
-            match s.unsolved {
+            match s.unsolved.as_deref() {
+                Some(u) if u.starts_with("grad_") => " ([exact]'s gradient is not ∇u: adapt.md)",
                 Some(_) => " ([exact] is no solution of this case: adapt.md)",
                 None => "",
             },

@@ -68,6 +68,8 @@ pub struct Run<'c> {
     pub timings: Timings,
     /// Whether the result holds S_h ([`Options::dual`], or the fluxes).
     pub writes_dual: bool,
+    /// Whether the solve started by nested iteration ([`Start::Nested`]).
+    pub nested: bool,
 }
 
 impl Options<'_> {
@@ -215,6 +217,7 @@ pub fn on_mesh<'c>(
         estimate,
         timings,
         writes_dual: options.dual || options.flux,
+        nested: matches!(options.start, Start::Nested),
     })
 }
 
@@ -420,14 +423,19 @@ impl Run<'_> {
                 Some("not multigrid: this mesh has no coarser levels".into())
             }
             (None, LinearSolver::Direct, _) if self.case.solver.linear == LinearSolver::Multigrid => {
-                Some(match s.coarse_iterations.is_empty() {
+                Some(match (self.nested, s.coarse_iterations.is_empty()) {
                     // Tables per group do not carry over to a mesh of the boundary alone.
-                    true => "not multigrid, and from a cold start: no coarser mesh of this mesh's \
-                             boundary takes these data (tables per group) or is small enough to \
-                             help; with refine = k this mesh is the coarser level"
+                    (true, true) => "not multigrid, and from a cold start: no coarser mesh of this \
+                                     mesh's boundary takes these data (tables per group) or is \
+                                     small enough to help; with refine = k this mesh is the \
+                                     coarser level"
                         .into(),
-                    false => "not multigrid: the coarser levels of a mesh read from a file or \
-                              given, meshed from its boundary, give the guess only"
+                    (true, false) => "not multigrid: the coarser levels of a mesh read from a file \
+                                      or given, meshed from its boundary, give the guess only"
+                        .into(),
+                    // From another mesh's solution (adapt's steps) or cold.
+                    (false, _) => "not multigrid: a mesh read from a file or given, unrefined, has \
+                                   no coarser levels of its own"
                         .into(),
                 })
             }

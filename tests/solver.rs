@@ -656,7 +656,7 @@ fn nested_iteration_on_stretched_cells_ends_in_a_few_steps() {
 }
 
 /// Where multigrid was asked for but Cholesky ran (a file mesh without refinement), the short
-/// summary says why, not only "(Cholesky)".
+/// summary says why, not only "(Cholesky)": with tables per group, no coarser level either.
 #[test]
 fn the_short_summary_says_why_cholesky_ran() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("data/cases/two_regions.toml");
@@ -664,7 +664,9 @@ fn the_short_summary_says_why_cholesky_ran() {
     case.refine = 0;
     let summary = solve(&case, Start::Nested).summary(false);
     assert!(
-        summary.contains("(Cholesky; not multigrid: the coarser levels of a mesh read from a file or given"),
+        summary.contains(
+            "(Cholesky; not multigrid, and from a cold start: no coarser mesh of this mesh's boundary"
+        ),
         "{summary}"
     );
 }
