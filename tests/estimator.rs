@@ -784,3 +784,21 @@ fn round_off_of_lambda_off_the_contact_set_neither_cancels_nor_swamps_eta() {
         );
     }
 }
+
+/// The estimator's line prints the energy error its effectivity divides by (with μ ≠ 1 the H¹
+/// errors beside it are not that error).
+#[test]
+fn the_estimator_line_prints_the_error_it_divides_by() {
+    let case = shipped("default", 16);
+    let r = estimated(&case);
+    let (eta, error) = (
+        r.estimate.as_ref().unwrap().total,
+        r.errors.as_ref().unwrap().energy.unwrap(),
+    );
+    let summary = r.summary(false);
+    let expected = format!(
+        "effectivity η/error {:.3} (error |||u − u_h||| = {error:.4e})",
+        eta / error
+    );
+    assert!(summary.contains(&expected), "{expected}\n{summary}");
+}
